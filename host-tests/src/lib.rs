@@ -1,0 +1,1 @@
+//! std side of ridge-pump.
