@@ -1,1 +1,4 @@
 #![no_std]
+//! ridge-core: no_std, no-alloc ARX identification.
+
+pub mod excitation;
