@@ -1,1 +1,5 @@
-#![no_std]
+#![cfg_attr(not(test), no_std)]
+//! ridge-pump firmware: SFM3300 flow-sensor driver, pump PWM control and report formatting for
+//! the on-device self-identification loop (ATmega2560 and STM32F411).
+
+pub mod sfm3300;
