@@ -1,0 +1,462 @@
+//! Exact streaming statistics of an input/output record (SPEC §2).
+//!
+//! A [`Gram`] takes one `(u_t, y_t)` sample at a time and keeps everything needed to
+//! form `XᵀX`, `Xᵀy` and `yᵀy` of the zero-padded regression matrix of eq. (6) for
+//! every structure `p ≤ P_MAX`, `q + d ≤ Q_MAX + D_MAX`, with or without an intercept.
+//! Memory is independent of the record length: 39 running correlations, two sums,
+//! the sample count and the last 12 inputs and 7 outputs.
+//!
+//! Lagged products are Toeplitz up to edge terms: with zero history before the record,
+//! `Σ_{t=1..N} a_{t-i} b_{t-j} = Σ_{s=1..N} a_s b_{s-(j-i)} − Σ_{s=N-i+1..N} a_s b_{s-(j-i)}`
+//! for `i ≤ j`, so one running correlation per lag difference plus a correction from
+//! the last few samples reproduces every entry of the 20 × 20 lag Gram exactly.
+//!
+//! Two accumulators:
+//! - [`IntGram`] (`Gram<i64>`) takes raw integer counts (`i32`: SFM3300 words minus
+//!   32768, PWM compare values, …). Sums are exact whatever `N`; overflow is detected
+//!   before it can happen and reported as [`Error::Overflow`].
+//! - [`FloatGram`] (`Gram<f64>`) takes physical values (`f64` or `f32` widened).
+//!   NaN and ±∞ are rejected with [`Error::NonFinite`].
+//!
+//! Scale factors ([`Scale`]) turn counts into physical units once, at solve time
+//! ([`Gram::normal`]), so coefficients come out in physical units whichever path
+//! fed the statistics.
+
+use crate::error::{Error, Result};
+use crate::normal::{Normal, OTHERS};
+use crate::real::Real;
+use crate::{L_MAX, P_MAX};
+
+/// Physical units per raw count for the input and the output.
+///
+/// Example: SFM3300 flow in slm from `raw − 32768` counts is `1/120` slm per count;
+/// a duty given in 1/10 000 of full scale is `1e-4` per count.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scale {
+    /// Input units per count (e.g. duty fraction per PWM count).
+    pub u: f64,
+    /// Output units per count (e.g. slm per SFM3300 count).
+    pub y: f64,
+}
+
+impl Scale {
+    /// No conversion: the samples already are physical values.
+    pub const UNIT: Scale = Scale { u: 1.0, y: 1.0 };
+
+    /// SFM3300 counts (`raw − 32768`, 1/120 slm each) and duty in 1/10 000 of full scale.
+    pub const SFM3300_DUTY_10K: Scale = Scale {
+        u: 1.0 / 10_000.0,
+        y: 1.0 / 120.0,
+    };
+}
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for i64 {}
+    impl Sealed for f64 {}
+}
+
+/// An accumulator type of a [`Gram`]: `i64` (exact, integer samples) or `f64`.
+pub trait Accumulator: Copy + Default + core::fmt::Debug + PartialEq + sealed::Sealed {
+    /// One sample as pushed: `i32` counts for `i64`, `f64` values for `f64`.
+    type Sample: Copy + Default + core::fmt::Debug + PartialEq;
+    /// Rejects samples the accumulator cannot take (NaN, ±∞).
+    fn check_sample(s: Self::Sample) -> Result<()>;
+    /// `|s|` as an accumulator value.
+    fn magnitude(s: Self::Sample) -> Self;
+    /// `true` when `n` more products of samples bounded by `max_abs` cannot overflow.
+    fn headroom(max_abs: Self, n: u32) -> bool;
+    /// `a · b` as an accumulator value.
+    fn product(a: Self::Sample, b: Self::Sample) -> Self;
+    /// `s` as an accumulator value.
+    fn widen(s: Self::Sample) -> Self;
+    /// `self + other` (cannot overflow once [`Accumulator::headroom`] held).
+    fn plus(self, other: Self) -> Self;
+    /// `self − other` (cannot overflow once [`Accumulator::headroom`] held).
+    fn minus(self, other: Self) -> Self;
+    /// `true` for zero.
+    fn is_zero(self) -> bool;
+    /// `(s11 · sab − sa1 · sb1) / s11` in `T`: the Schur complement of one entry with
+    /// respect to the first pivot, computed exactly (128-bit) for integer statistics.
+    fn schur<T: Real>(s11: Self, sab: Self, sa1: Self, sb1: Self) -> Result<T>;
+    /// `n · Σs² − (Σs)²` is zero or numerically zero: the signal is constant.
+    fn is_constant(n: u32, sum: Self, sum_sq: Self) -> bool;
+    /// Converts to `T`.
+    fn to_real<T: Real>(self) -> T;
+    /// A sample count as an accumulator value.
+    fn widen_count(n: u32) -> Self;
+    /// `true` for values above zero.
+    fn is_positive(self) -> bool;
+}
+
+impl Accumulator for i64 {
+    type Sample = i32;
+    #[inline]
+    fn check_sample(_: i32) -> Result<()> {
+        Ok(())
+    }
+    #[inline]
+    fn magnitude(s: i32) -> i64 {
+        i64::from(s).abs()
+    }
+    #[inline]
+    fn headroom(max_abs: i64, n: u32) -> bool {
+        // Every accumulator is bounded by n · max², every sum by n · max ≤ n · max².
+        let m = max_abs.unsigned_abs() as u128;
+        m * m * u128::from(n) <= i64::MAX as u128
+    }
+    #[inline]
+    fn product(a: i32, b: i32) -> i64 {
+        // Sensor and PWM counts fit in 16 bits: a 16 × 16 → 32-bit multiply is far
+        // cheaper than a 64-bit one on an 8-bit MCU.
+        match (i16::try_from(a), i16::try_from(b)) {
+            (Ok(a), Ok(b)) => i64::from(i32::from(a) * i32::from(b)),
+            _ => i64::from(a) * i64::from(b),
+        }
+    }
+    #[inline]
+    fn widen(s: i32) -> i64 {
+        i64::from(s)
+    }
+    #[inline]
+    fn plus(self, other: i64) -> i64 {
+        self.wrapping_add(other)
+    }
+    #[inline]
+    fn minus(self, other: i64) -> i64 {
+        self.wrapping_sub(other)
+    }
+    #[inline]
+    fn is_zero(self) -> bool {
+        self == 0
+    }
+    fn schur<T: Real>(s11: i64, sab: i64, sa1: i64, sb1: i64) -> Result<T> {
+        let num = i128::from(s11)
+            .checked_mul(i128::from(sab))
+            .zip(i128::from(sa1).checked_mul(i128::from(sb1)))
+            .and_then(|(x, y)| x.checked_sub(y))
+            .ok_or(Error::Overflow)?;
+        Ok(T::from_i128(num) / T::from_i128(i128::from(s11)))
+    }
+    fn is_constant(n: u32, sum: i64, sum_sq: i64) -> bool {
+        let var = i128::from(n) * i128::from(sum_sq) - i128::from(sum) * i128::from(sum);
+        var <= 0
+    }
+    #[inline]
+    fn to_real<T: Real>(self) -> T {
+        T::from_i128(i128::from(self))
+    }
+    fn widen_count(n: u32) -> Self {
+        i64::from(n)
+    }
+    fn is_positive(self) -> bool {
+        self > 0
+    }
+}
+
+impl Accumulator for f64 {
+    type Sample = f64;
+    #[inline]
+    fn check_sample(s: f64) -> Result<()> {
+        if s.is_finite() {
+            Ok(())
+        } else {
+            Err(Error::NonFinite)
+        }
+    }
+    #[inline]
+    fn magnitude(s: f64) -> f64 {
+        libm::fabs(s)
+    }
+    #[inline]
+    fn headroom(max_abs: f64, n: u32) -> bool {
+        max_abs * max_abs * f64::from(n) < 1e300
+    }
+    #[inline]
+    fn product(a: f64, b: f64) -> f64 {
+        a * b
+    }
+    #[inline]
+    fn widen(s: f64) -> f64 {
+        s
+    }
+    #[inline]
+    fn plus(self, other: f64) -> f64 {
+        self + other
+    }
+    #[inline]
+    fn minus(self, other: f64) -> f64 {
+        self - other
+    }
+    #[inline]
+    fn is_zero(self) -> bool {
+        self == 0.0
+    }
+    fn schur<T: Real>(s11: f64, sab: f64, sa1: f64, sb1: f64) -> Result<T> {
+        let v = sab - sa1 * (sb1 / s11);
+        if v.is_finite() {
+            Ok(T::from_f64(v))
+        } else {
+            Err(Error::Overflow)
+        }
+    }
+    fn is_constant(n: u32, sum: f64, sum_sq: f64) -> bool {
+        let n = f64::from(n);
+        let var = n * sum_sq - sum * sum;
+        var <= 1e-12 * n * sum_sq
+    }
+    #[inline]
+    fn to_real<T: Real>(self) -> T {
+        T::from_f64(self)
+    }
+    fn widen_count(n: u32) -> Self {
+        f64::from(n)
+    }
+    fn is_positive(self) -> bool {
+        self > 0.0
+    }
+}
+
+/// One column of the full lag Gram: an output lag, an input lag or the constant 1.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Col {
+    /// `y_{t-k}`, `k ∈ 0..=P_MAX` (`k = 0` is the regression target).
+    Y(u8),
+    /// `u_{t-k}`, `k ∈ 0..L_MAX`.
+    U(u8),
+    /// The constant 1 of the intercept.
+    One,
+}
+
+/// Exact streaming statistics of one record; see the [module docs](self).
+///
+/// # Example
+/// ```
+/// use ridge_core::{IntGram, Scale, Structure, Offset};
+/// let mut gram = IntGram::new();
+/// for t in 0..400i32 {
+///     let u = if (t / 20) % 2 == 0 { 3000 } else { 6000 }; // duty, 1/10 000
+///     let y = 0; // SFM3300 counts, raw − 32768 (a real sensor goes here)
+///     gram.push(u, y + (t % 7) * 40)?;
+/// }
+/// let normal = gram.normal::<f32>(Scale::SFM3300_DUTY_10K)?;
+/// let system = normal.system(Structure::new(2, 2, 1)?, Offset::None)?;
+/// assert_eq!(system.samples(), 400);
+/// # Ok::<(), ridge_core::Error>(())
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct Gram<A: Accumulator> {
+    n: u32,
+    /// `Σ y_s y_{s-k}`, `k = 0..=P_MAX`.
+    yy: [A; P_MAX + 1],
+    /// `Σ u_s u_{s-k}`, `k = 0..L_MAX`.
+    uu: [A; L_MAX],
+    /// `Σ y_s u_{s-k}`, `k = 0..L_MAX`.
+    yu: [A; L_MAX],
+    /// `Σ u_s y_{s-k}`, `k = 1..=P_MAX` (index `k − 1`).
+    uy: [A; P_MAX],
+    sum_y: A,
+    sum_u: A,
+    /// Largest `|sample|` seen, for the overflow check.
+    max_abs: A,
+    /// `y_hist[k] = y_{N-k}` (zero before the record).
+    y_hist: [A::Sample; P_MAX + 1],
+    /// `u_hist[k] = u_{N-k}` (zero before the record).
+    u_hist: [A::Sample; L_MAX],
+}
+
+/// Exact integer statistics: samples are `i32` counts, sums `i64`.
+pub type IntGram = Gram<i64>;
+/// Floating-point statistics: samples are `f64` physical values, sums `f64`.
+pub type FloatGram = Gram<f64>;
+
+impl<A: Accumulator> Default for Gram<A> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<A: Accumulator> Gram<A> {
+    /// Empty statistics (zero history).
+    pub fn new() -> Self {
+        Gram {
+            n: 0,
+            yy: [A::default(); P_MAX + 1],
+            uu: [A::default(); L_MAX],
+            yu: [A::default(); L_MAX],
+            uy: [A::default(); P_MAX],
+            sum_y: A::default(),
+            sum_u: A::default(),
+            max_abs: A::default(),
+            y_hist: [A::Sample::default(); P_MAX + 1],
+            u_hist: [A::Sample::default(); L_MAX],
+        }
+    }
+
+    /// Number of samples pushed.
+    pub fn len(&self) -> u32 {
+        self.n
+    }
+
+    /// `true` before the first sample.
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+
+    /// Adds the sample `(u_t, y_t)`: `u_t` is the input applied during the interval
+    /// that ends with the measurement `y_t` (so `d = 0` is a causal model).
+    ///
+    /// Errors: [`Error::NonFinite`] for NaN/±∞ (float path), [`Error::Overflow`] when
+    /// the sums could overflow. On error the statistics are unchanged.
+    pub fn push(&mut self, u: A::Sample, y: A::Sample) -> Result<()> {
+        A::check_sample(u)?;
+        A::check_sample(y)?;
+        let mu = A::magnitude(u);
+        let my = A::magnitude(y);
+        let mut max_abs = self.max_abs;
+        for m in [mu, my] {
+            if m.minus(max_abs).is_positive() {
+                max_abs = m;
+            }
+        }
+        let n = self.n.checked_add(1).ok_or(Error::Overflow)?;
+        if !A::headroom(max_abs, n) {
+            return Err(Error::Overflow);
+        }
+        self.max_abs = max_abs;
+        self.n = n;
+
+        self.y_hist.copy_within(0..P_MAX, 1);
+        self.y_hist[0] = y;
+        self.u_hist.copy_within(0..L_MAX - 1, 1);
+        self.u_hist[0] = u;
+
+        for (acc, &yk) in self.yy.iter_mut().zip(self.y_hist.iter()) {
+            *acc = acc.plus(A::product(y, yk));
+        }
+        for (k, &uk) in self.u_hist.iter().enumerate() {
+            self.uu[k] = self.uu[k].plus(A::product(u, uk));
+            self.yu[k] = self.yu[k].plus(A::product(y, uk));
+        }
+        for (acc, &yk) in self.uy.iter_mut().zip(self.y_hist[1..].iter()) {
+            *acc = acc.plus(A::product(u, yk));
+        }
+        self.sum_y = self.sum_y.plus(A::widen(y));
+        self.sum_u = self.sum_u.plus(A::widen(u));
+        Ok(())
+    }
+
+    /// `Σ_{t=1..N} a_t b_t` for two columns of the zero-padded lag matrix.
+    pub(crate) fn entry(&self, a: Col, b: Col) -> A {
+        match (a, b) {
+            (Col::One, Col::One) => A::widen_count(self.n),
+            (Col::One, c) | (c, Col::One) => self.column_sum(c),
+            (Col::Y(i), Col::Y(j)) => {
+                let (i, j) = order(i, j);
+                let k = j - i;
+                self.lagged(self.yy[k], i, k, &self.y_hist, &self.y_hist)
+            }
+            (Col::U(i), Col::U(j)) => {
+                let (i, j) = order(i, j);
+                let k = j - i;
+                self.lagged(self.uu[k], i, k, &self.u_hist, &self.u_hist)
+            }
+            (Col::Y(i), Col::U(j)) | (Col::U(j), Col::Y(i)) => {
+                let (i, j) = (usize::from(i), usize::from(j));
+                if i <= j {
+                    let k = j - i;
+                    self.lagged(self.yu[k], i, k, &self.y_hist, &self.u_hist)
+                } else {
+                    let k = i - j;
+                    self.lagged(self.uy[k - 1], j, k, &self.u_hist, &self.y_hist)
+                }
+            }
+        }
+    }
+
+    /// `corr − Σ_{m<i} a_{N-m} b_{N-m-k}`: the running correlation at lag `k`
+    /// truncated to the rows where the earlier column is still inside the record.
+    fn lagged(&self, corr: A, i: usize, k: usize, a: &[A::Sample], b: &[A::Sample]) -> A {
+        let mut tail = A::default();
+        for m in 0..i {
+            if let (Some(&am), Some(&bm)) = (a.get(m), b.get(m + k)) {
+                tail = tail.plus(A::product(am, bm));
+            }
+        }
+        corr.minus(tail)
+    }
+
+    /// `Σ_{t=1..N} c_t` for a lag column `c`.
+    fn column_sum(&self, c: Col) -> A {
+        let (sum, hist, lag): (A, &[A::Sample], u8) = match c {
+            Col::Y(k) => (self.sum_y, &self.y_hist, k),
+            Col::U(k) => (self.sum_u, &self.u_hist, k),
+            Col::One => return A::widen_count(self.n),
+        };
+        let mut tail = A::default();
+        for &s in hist.iter().take(usize::from(lag)) {
+            tail = tail.plus(A::widen(s));
+        }
+        sum.minus(tail)
+    }
+
+    /// Forms the solve-time statistics in physical units: every entry of the lag Gram
+    /// scaled by `scale`, with the always-present column `y_{t-1}` eliminated exactly
+    /// (see [`Normal`]).
+    ///
+    /// Errors: [`Error::TooShort`] below 2 samples, [`Error::NotExcited`] when the
+    /// input or output is constant, [`Error::NonFinite`] for a non-finite or zero
+    /// scale, [`Error::Overflow`] when a value leaves the range of `T`.
+    pub fn normal<T: Real>(&self, scale: Scale) -> Result<Normal<T>> {
+        if !(scale.u.is_finite() && scale.y.is_finite()) || scale.u == 0.0 || scale.y == 0.0 {
+            return Err(Error::NonFinite);
+        }
+        if self.n < 2 {
+            return Err(Error::TooShort {
+                needed: 2,
+                have: self.n,
+            });
+        }
+        if A::is_constant(self.n, self.sum_u, self.uu[0])
+            || A::is_constant(self.n, self.sum_y, self.yy[0])
+        {
+            return Err(Error::NotExcited);
+        }
+        let s11 = self.entry(Col::Y(1), Col::Y(1));
+        if s11.is_zero() {
+            return Err(Error::NotExcited);
+        }
+        let col_scale = |c: Col| -> T {
+            match c {
+                Col::Y(_) => T::from_f64(scale.y),
+                Col::U(_) => T::from_f64(scale.u),
+                Col::One => T::ONE,
+            }
+        };
+        let sy = T::from_f64(scale.y);
+        let mut normal = Normal::empty(self.n);
+        normal.s11 = s11.to_real::<T>() * sy * sy;
+        let mut s_a1 = [A::default(); OTHERS.len()];
+        for (idx, &c) in OTHERS.iter().enumerate() {
+            s_a1[idx] = self.entry(c, Col::Y(1));
+            normal.r[idx] = s_a1[idx].to_real::<T>() * col_scale(c) * sy;
+        }
+        for (a, &ca) in OTHERS.iter().enumerate() {
+            for (b, &cb) in OTHERS.iter().enumerate().take(a + 1) {
+                let schur: T = A::schur(s11, self.entry(ca, cb), s_a1[a], s_a1[b])?;
+                normal.set_schur(a, b, schur * col_scale(ca) * col_scale(cb));
+            }
+        }
+        normal.check_finite()?;
+        Ok(normal)
+    }
+}
+
+/// `(min, max)` of two lags as `usize`.
+fn order(i: u8, j: u8) -> (usize, usize) {
+    if i <= j {
+        (usize::from(i), usize::from(j))
+    } else {
+        (usize::from(j), usize::from(i))
+    }
+}

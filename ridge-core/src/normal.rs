@@ -1,0 +1,402 @@
+//! Solve-time statistics: the lag Gram in physical units, per-structure normal
+//! equations ([`System`]) and their Cholesky factors ([`Factor`]).
+//!
+//! # Numerics
+//! Flow and duty records have large means and, at 100 Hz, neighbouring lags are almost
+//! collinear, so `XᵀX` and `yᵀy` are dominated by what `y_{t-1}` already explains. Every
+//! structure contains `y_{t-1}` (`p ≥ 1`), and [`crate::Gram::normal`] eliminates it
+//! *exactly*: with integer statistics the Schur complements
+//! `S_ab − S_a1 S_1b / S_11` are formed from 128-bit products before any rounding. The
+//! floating-point Cholesky then only sees the part of the data that `y_{t-1}` does
+//! not explain, which is what lets `f32` resolve residual sums of squares of
+//! 10⁻⁵ of `yᵀy` (see the crate docs for measured precision).
+//!
+//! The residual sum of squares of any coefficient vector `w` is computed as
+//! `RSS(w) = RSS_OLS + ‖L₀ᵀ w − l‖²` from the factor `[L₀ 0; lᵀ ρ]` of the augmented
+//! matrix `[XᵀX Xᵀy; yᵀX yᵀy]` (`RSS_OLS = ρ²`): a sum of two non-negative terms, free of
+//! the cancellation of `yᵀy − 2wᵀXᵀy + wᵀXᵀXw`, and never below the least-squares bound
+//! that the pruned search relies on.
+
+use crate::cholesky::{backward, factor_in_place, forward, packed, packed_len};
+use crate::error::{Error, Result};
+use crate::gram::Col;
+use crate::real::Real;
+use crate::structure::{Offset, Structure};
+use crate::{L_MAX, PARAMS_MAX, P_MAX};
+
+/// The 19 columns of the lag Gram other than the pivot `y_{t-1}`:
+/// `y_{t-2} … y_{t-P}`, `u_t … u_{t-L+1}`, `1`, `y_t` (target, last).
+pub(crate) const OTHERS: [Col; P_MAX - 1 + L_MAX + 2] = others();
+
+const fn others() -> [Col; P_MAX - 1 + L_MAX + 2] {
+    let mut out = [Col::One; P_MAX - 1 + L_MAX + 2];
+    let mut i = 0;
+    while i < P_MAX - 1 {
+        out[i] = Col::Y(i as u8 + 2);
+        i += 1;
+    }
+    let mut j = 0;
+    while j < L_MAX {
+        out[P_MAX - 1 + j] = Col::U(j as u8);
+        j += 1;
+    }
+    out[P_MAX - 1 + L_MAX] = Col::One;
+    out[P_MAX + L_MAX] = Col::Y(0);
+    out
+}
+
+/// Position of a column in [`OTHERS`].
+fn others_index(c: Col) -> usize {
+    match c {
+        Col::Y(0) => P_MAX + L_MAX,
+        Col::Y(k) => usize::from(k) - 2,
+        Col::U(k) => P_MAX - 1 + usize::from(k),
+        Col::One => P_MAX - 1 + L_MAX,
+    }
+}
+
+const N_OTHERS: usize = OTHERS.len();
+
+/// The full lag Gram of one record in physical units, with `y_{t-1}` eliminated
+/// exactly (see the [module docs](self)). Made by [`crate::Gram::normal`]; 210 scalars
+/// (840 bytes in `f32`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Normal<T: Real> {
+    pub(crate) n: u32,
+    /// `Σ y_{t-1}²`.
+    pub(crate) s11: T,
+    /// `Σ c_t y_{t-1}` for each column of [`OTHERS`].
+    pub(crate) r: [T; N_OTHERS],
+    /// Exact Schur complements `S_ab − S_a1 S_1b / S_11`, packed.
+    pub(crate) schur: [T; packed_len(N_OTHERS)],
+}
+
+impl<T: Real> Normal<T> {
+    pub(crate) fn empty(n: u32) -> Self {
+        Normal {
+            n,
+            s11: T::ZERO,
+            r: [T::ZERO; N_OTHERS],
+            schur: [T::ZERO; packed_len(N_OTHERS)],
+        }
+    }
+
+    pub(crate) fn set_schur(&mut self, a: usize, b: usize, v: T) {
+        let (a, b) = if a >= b { (a, b) } else { (b, a) };
+        if let Some(x) = self.schur.get_mut(packed(a, b)) {
+            *x = v;
+        }
+    }
+
+    fn schur_at(&self, a: usize, b: usize) -> T {
+        let (a, b) = if a >= b { (a, b) } else { (b, a) };
+        self.schur.get(packed(a, b)).copied().unwrap_or(T::ZERO)
+    }
+
+    pub(crate) fn check_finite(&self) -> Result<()> {
+        let all = core::iter::once(&self.s11)
+            .chain(self.r.iter())
+            .chain(self.schur.iter());
+        for v in all {
+            if !v.is_finite() {
+                return Err(Error::Overflow);
+            }
+        }
+        Ok(())
+    }
+
+    /// Number of samples `N` of the record (rows of the regression matrix).
+    pub fn samples(&self) -> u32 {
+        self.n
+    }
+
+    /// The normal equations of one structure: `XᵀX`, `Xᵀy`, `yᵀy` and `N` of the
+    /// zero-padded regression matrix of eq. (6), in physical units.
+    ///
+    /// Errors: [`Error::InvalidStructure`] outside the maxima, [`Error::TooShort`] when
+    /// the record has fewer than `m + n + 1` samples (`m` seed samples, `n` parameters).
+    pub fn system(&self, structure: Structure, offset: Offset) -> Result<System<T>> {
+        structure.check()?;
+        let layout = Layout::new(structure, offset);
+        let n = layout.len;
+        let needed = (structure.seed_len() + n + 1) as u32;
+        if self.n < needed {
+            return Err(Error::TooShort {
+                needed,
+                have: self.n,
+            });
+        }
+        let mut sys = System {
+            layout,
+            samples: self.n,
+            s11: self.s11,
+            r: [T::ZERO; PARAMS_MAX],
+            schur: [T::ZERO; packed_len(PARAMS_MAX)],
+        };
+        // Rest = params 1..n, then the target: n entries.
+        let mut rest = [0usize; PARAMS_MAX];
+        for (slot, c) in rest.iter_mut().zip(layout.cols[1..n].iter()) {
+            *slot = others_index(*c);
+        }
+        rest[n - 1] = others_index(Col::Y(0));
+        for a in 0..n {
+            sys.r[a] = self.r[rest[a]];
+            for b in 0..=a {
+                sys.schur[packed(a, b)] = self.schur_at(rest[a], rest[b]);
+            }
+        }
+        Ok(sys)
+    }
+}
+
+/// Where each coefficient of a structure sits in the parameter vector.
+///
+/// Internal order: `[y_{t-1}, (1), u_{t-d} … u_{t-d-q+1}, y_{t-2} … y_{t-p}]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Layout {
+    pub(crate) structure: Structure,
+    pub(crate) offset: Offset,
+    pub(crate) len: usize,
+    pub(crate) cols: [Col; PARAMS_MAX],
+}
+
+impl Layout {
+    pub(crate) fn new(structure: Structure, offset: Offset) -> Self {
+        let mut cols = [Col::One; PARAMS_MAX];
+        let mut n = 0;
+        let mut put = |c: Col| {
+            if let Some(slot) = cols.get_mut(n) {
+                *slot = c;
+                n += 1;
+            }
+        };
+        put(Col::Y(1));
+        if offset == Offset::Intercept {
+            put(Col::One);
+        }
+        for j in 0..structure.q {
+            put(Col::U(structure.d + j));
+        }
+        for i in 2..=structure.p {
+            put(Col::Y(i));
+        }
+        Layout {
+            structure,
+            offset,
+            len: n,
+            cols,
+        }
+    }
+
+    /// Index of the intercept, if any.
+    pub(crate) fn intercept(&self) -> Option<usize> {
+        match self.offset {
+            Offset::Intercept => Some(1),
+            Offset::None => None,
+        }
+    }
+}
+
+/// What one column of the regression matrix `X` of eq. (6) holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Regressor {
+    /// The output `y_{t-k}` (`k = 0` is the regression target `y_t`).
+    Output(u8),
+    /// The input `u_{t-k}`.
+    Input(u8),
+    /// The constant 1 of the intercept.
+    Constant,
+}
+
+/// The normal equations of one structure on one record (see [`Normal::system`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct System<T: Real> {
+    pub(crate) layout: Layout,
+    samples: u32,
+    s11: T,
+    /// `Σ c_t y_{t-1}` for params `1..n` and the target (index `n − 1`).
+    r: [T; PARAMS_MAX],
+    /// Exact Schur complements of params `1..n` and the target, packed.
+    schur: [T; packed_len(PARAMS_MAX)],
+}
+
+impl<T: Real> System<T> {
+    /// Samples `N` of the record.
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// Number of coefficients `n = p + q (+ 1)`.
+    pub fn params(&self) -> usize {
+        self.layout.len
+    }
+
+    /// The structure.
+    pub fn structure(&self) -> Structure {
+        self.layout.structure
+    }
+
+    /// The offset choice.
+    pub fn offset(&self) -> Offset {
+        self.layout.offset
+    }
+
+    /// The regressor of parameter `i` in internal order (`i = n`: the target
+    /// `Output(0)`); `None` past the end. The internal order is
+    /// `[y_{t-1}, (1), u_{t-d} … u_{t-d-q+1}, y_{t-2} … y_{t-p}]`.
+    pub fn regressor(&self, i: usize) -> Option<Regressor> {
+        if i == self.layout.len {
+            return Some(Regressor::Output(0));
+        }
+        self.layout
+            .cols
+            .get(i)
+            .filter(|_| i < self.layout.len)
+            .map(|c| match *c {
+                Col::Y(k) => Regressor::Output(k),
+                Col::U(k) => Regressor::Input(k),
+                Col::One => Regressor::Constant,
+            })
+    }
+
+    /// Entry `(i, j)` of the augmented matrix `[XᵀX Xᵀy; yᵀX yᵀy]` in internal
+    /// parameter order (index `n` is the target), reconstructed from the pivot and the
+    /// Schur complement. For estimators that need the plain Gram (coordinate descent,
+    /// reference tests); the factorisations do not use it.
+    pub fn augmented(&self, i: usize, j: usize) -> T {
+        let n = self.layout.len;
+        if i > n || j > n {
+            return T::ZERO;
+        }
+        match (i, j) {
+            (0, 0) => self.s11,
+            (0, k) | (k, 0) => self.r[k - 1],
+            (a, b) => {
+                let (a, b) = (a - 1, b - 1);
+                let (hi, lo) = if a >= b { (a, b) } else { (b, a) };
+                self.schur[packed(hi, lo)] + self.r[a] * self.r[b] / self.s11
+            }
+        }
+    }
+
+    /// Factors `[XᵀX + γD, Xᵀy; yᵀX, yᵀy]`, where `D` is the identity except for a zero
+    /// at the intercept (the intercept is not regularised). `gamma = 0` gives the
+    /// least-squares factor.
+    ///
+    /// Errors: [`Error::InvalidParameter`] for `gamma < 0` or non-finite,
+    /// [`Error::NotPositiveDefinite`] when the regressors are (numerically) linearly
+    /// dependent on this record.
+    pub fn factor(&self, gamma: T) -> Result<Factor<T>> {
+        if !gamma.is_finite() || gamma < T::ZERO {
+            return Err(Error::InvalidParameter);
+        }
+        let n = self.layout.len;
+        let a11 = self.s11 + gamma;
+        if a11 <= T::ZERO || !a11.is_finite() {
+            return Err(Error::NotPositiveDefinite);
+        }
+        let l00 = a11.sqrt();
+        // Rank-one term left by eliminating the regularised pivot:
+        // r rᵀ (1/s11 − 1/(s11 + γ)) = r rᵀ γ / (s11 (s11 + γ)).
+        let c = gamma / (self.s11 * a11);
+        let mut rest = [T::ZERO; packed_len(PARAMS_MAX)];
+        let intercept = self.layout.intercept();
+        for a in 0..n {
+            for b in 0..=a {
+                let mut v = self.schur[packed(a, b)] + c * self.r[a] * self.r[b];
+                // Params 1..n are rest indices 0..n-1; the target (n-1) is never
+                // regularised, nor is the intercept.
+                if a == b && a + 1 < n && intercept != Some(a + 1) {
+                    v += gamma;
+                }
+                rest[packed(a, b)] = v;
+            }
+        }
+        let tol = T::from_u32(4 * PARAMS_MAX as u32) * T::EPSILON;
+        factor_in_place(&mut rest, n, n - 1, tol)?;
+        let mut l = [T::ZERO; packed_len(PARAMS_MAX + 1)];
+        l[0] = l00;
+        for i in 1..=n {
+            l[packed(i, 0)] = self.r[i - 1] / l00;
+            for j in 1..=i {
+                l[packed(i, j)] = rest[packed(i - 1, j - 1)];
+            }
+        }
+        let schur_tt = self.schur[packed(n - 1, n - 1)];
+        let floor = T::from_u32(n as u32) * T::EPSILON * schur_tt;
+        Ok(Factor {
+            n,
+            l,
+            rss_floor: if floor > T::ZERO { floor } else { T::ZERO },
+        })
+    }
+}
+
+/// Cholesky factor `[L 0; lᵀ ρ]` of an augmented normal-equation matrix
+/// (see [`System::factor`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Factor<T: Real> {
+    n: usize,
+    l: [T; packed_len(PARAMS_MAX + 1)],
+    rss_floor: T,
+}
+
+impl<T: Real> Factor<T> {
+    /// Number of coefficients.
+    pub fn params(&self) -> usize {
+        self.n
+    }
+
+    /// `ρ²`: the residual sum of squares of the least-squares solution of the factored
+    /// system (for `γ = 0`: `min_w ‖y − Xw‖²`, a lower bound of every estimator's RSS),
+    /// floored at `n · ε · (what y_{t-1} leaves unexplained)` so that rounding noise on
+    /// noise-free data cannot rank models.
+    pub fn rss_min(&self) -> T {
+        let rho = self.l[packed(self.n, self.n)];
+        let r2 = rho * rho;
+        if r2 > self.rss_floor {
+            r2
+        } else {
+            self.rss_floor
+        }
+    }
+
+    /// Solves `(XᵀX + γD) x = b` in place (`b` of length ≥ `n`, extra entries untouched).
+    pub fn solve(&self, b: &mut [T]) {
+        if b.len() >= self.n {
+            forward(&self.l, self.n, b);
+            backward(&self.l, self.n, b);
+        }
+    }
+
+    /// The regularised least-squares solution `(XᵀX + γD)⁻¹ Xᵀy` (from the factor's
+    /// last row, without forming `Xᵀy`).
+    pub fn solution(&self) -> [T; PARAMS_MAX] {
+        let mut w = [T::ZERO; PARAMS_MAX];
+        for (i, wi) in w.iter_mut().enumerate().take(self.n) {
+            *wi = self.l[packed(self.n, i)];
+        }
+        backward(&self.l, self.n, &mut w);
+        w
+    }
+
+    /// `‖Lᵀ w − l‖²`: how much `w` adds to the residual sum of squares over the
+    /// solution of this factor. For a `γ = 0` factor, `RSS(w) = rss_min() + excess(w)`.
+    pub fn excess(&self, w: &[T]) -> T {
+        let mut e = T::ZERO;
+        for i in 0..self.n {
+            let mut s = -self.l[packed(self.n, i)];
+            for k in i..self.n {
+                s += self.l[packed(k, i)] * w.get(k).copied().unwrap_or(T::ZERO);
+            }
+            e += s * s;
+        }
+        e
+    }
+
+    /// Residual sum of squares `‖y − Xw‖²` of `w` on the factored record (valid for a
+    /// `γ = 0` factor), never below [`Factor::rss_min`].
+    pub fn rss(&self, w: &[T]) -> T {
+        self.rss_min() + self.excess(w)
+    }
+}
