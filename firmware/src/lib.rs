@@ -3,4 +3,5 @@
 //! the on-device self-identification loop (ATmega2560 and STM32F411).
 
 pub mod pump;
+pub mod report;
 pub mod sfm3300;

@@ -1,0 +1,349 @@
+//! Number formatting for machine-readable report lines, with [`ufmt`] and without `core::fmt`.
+//!
+//! `core::fmt` float formatting is large and slow on AVR, and `ufmt` has no float support. The
+//! wrappers here print fixed-point decimals using integer arithmetic only:
+//!
+//! - [`Fixed`]: an `f32` with a chosen number of fractional digits, e.g. `-1.9472`. The exact
+//!   binary value of the float is scaled and rounded (halves away from zero) with integer math
+//!   on its bits; no floating-point operation is executed.
+//! - [`Milli`]: an integer count of thousandths, e.g. milli-slm `12345` → `12.345`.
+//! - [`Decimal`]: any `i32` with an implied number of decimals, e.g. duty units (1/100 %) with 2
+//!   decimals → percent.
+//!
+//! Output format (stable, for host-side parsers): an optional `-`, the integer part without
+//! leading zeros (at least one digit), then `.` and exactly `digits` fractional digits when
+//! `digits > 0`. No `+`, no exponent, no negative zero (a value that rounds to zero prints
+//! unsigned). Special values of [`Fixed`] print as `nan`, `inf`, `-inf` and `ovf` (see there).
+//!
+//! # Example
+//!
+//! ```
+//! use ridge_pump_firmware::report::{Fixed, Milli};
+//! # let mut line = heapless::String::<64>::new();
+//! // `line` is any `ufmt::uWrite`, e.g. a UART writer or a `heapless::String`.
+//! ufmt::uwrite!(line, "y,{},{}", Milli(-273_067), Fixed::new(-1.9472, 4)).ok();
+//! assert_eq!(line.as_str(), "y,-273.067,-1.9472");
+//! ```
+
+use ufmt::{uDisplay, uWrite, Formatter};
+
+/// Largest number of fractional digits [`Fixed`] and [`Decimal`] print; larger requests are
+/// reduced to this. (An `f32` carries about 7 significant decimal digits.)
+pub const MAX_DIGITS: u8 = 9;
+
+/// Magnitude limit of [`Fixed`]: a value whose rounded `|x|·10^digits` is at or above
+/// 2⁶³ (≈ 9.22·10¹⁸, the `i64` range) prints as `ovf`.
+pub const FIXED_LIMIT: u64 = 1 << 63;
+
+/// An `f32` printed as a fixed-point decimal with `digits` fractional digits.
+///
+/// - Rounding is to nearest, halves away from zero, applied to the **exact** binary value of
+///   the float (so `1.005_f32`, which is 1.00499999523…, prints `1.00` with 2 digits).
+/// - NaN prints `nan`; infinities print `inf` / `-inf`.
+/// - A finite value with rounded `|x|·10^digits` ≥ 2⁶³ ([`FIXED_LIMIT`]) prints `ovf`.
+/// - `digits` above [`MAX_DIGITS`] is reduced to [`MAX_DIGITS`].
+///
+/// ```
+/// use ridge_pump_firmware::report::Fixed;
+/// # fn show(x: Fixed) -> heapless::String<32> {
+/// #     let mut s = heapless::String::new();
+/// #     ufmt::uwrite!(s, "{}", x).ok();
+/// #     s
+/// # }
+/// assert_eq!(show(Fixed::new(-1.9472, 4)), "-1.9472");
+/// assert_eq!(show(Fixed::new(0.125, 2)), "0.13");
+/// assert_eq!(show(Fixed::new(2.5, 0)), "3");
+/// assert_eq!(show(Fixed::new(f32::NAN, 3)), "nan");
+/// assert_eq!(show(Fixed::new(1e30, 0)), "ovf");
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fixed {
+    value: f32,
+    digits: u8,
+}
+
+impl Fixed {
+    /// Wraps `value` for printing with `digits` fractional digits (at most [`MAX_DIGITS`]).
+    pub const fn new(value: f32, digits: u8) -> Self {
+        Fixed {
+            value,
+            digits: if digits > MAX_DIGITS {
+                MAX_DIGITS
+            } else {
+                digits
+            },
+        }
+    }
+
+    /// The wrapped value.
+    pub const fn value(&self) -> f32 {
+        self.value
+    }
+
+    /// The number of fractional digits that will be printed.
+    pub const fn digits(&self) -> u8 {
+        self.digits
+    }
+
+    /// The printed number as an integer: `round(value · 10^digits)`, halves away from zero.
+    ///
+    /// `None` for NaN, infinities, and magnitudes at or above [`FIXED_LIMIT`].
+    ///
+    /// ```
+    /// use ridge_pump_firmware::report::Fixed;
+    /// assert_eq!(Fixed::new(-1.9472, 4).scaled(), Some(-19_472));
+    /// assert_eq!(Fixed::new(f32::INFINITY, 0).scaled(), None);
+    /// ```
+    pub fn scaled(&self) -> Option<i64> {
+        match scale_f32(self.value, self.digits) {
+            Scaled::Finite {
+                negative,
+                magnitude,
+            } => {
+                let magnitude = i64::try_from(magnitude).ok()?;
+                Some(if negative { -magnitude } else { magnitude })
+            }
+            Scaled::Nan | Scaled::Infinite { .. } | Scaled::Overflow => None,
+        }
+    }
+}
+
+impl uDisplay for Fixed {
+    fn fmt<W>(&self, f: &mut Formatter<'_, W>) -> Result<(), W::Error>
+    where
+        W: uWrite + ?Sized,
+    {
+        match scale_f32(self.value, self.digits) {
+            Scaled::Finite {
+                negative,
+                magnitude,
+            } => write_decimal(f, negative, magnitude, self.digits),
+            Scaled::Nan => f.write_str("nan"),
+            Scaled::Infinite { negative: false } => f.write_str("inf"),
+            Scaled::Infinite { negative: true } => f.write_str("-inf"),
+            Scaled::Overflow => f.write_str("ovf"),
+        }
+    }
+}
+
+/// Thousandths printed as a decimal with 3 fractional digits: `Milli(12_345)` → `12.345`,
+/// `Milli(-5)` → `-0.005`. Used for milli-slm flow and other milli-unit quantities.
+///
+/// ```
+/// use ridge_pump_firmware::report::Milli;
+/// # let mut s = heapless::String::<16>::new();
+/// ufmt::uwrite!(s, "{}", Milli(-273_067)).ok();
+/// assert_eq!(s.as_str(), "-273.067");
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Milli(pub i32);
+
+impl uDisplay for Milli {
+    fn fmt<W>(&self, f: &mut Formatter<'_, W>) -> Result<(), W::Error>
+    where
+        W: uWrite + ?Sized,
+    {
+        write_decimal(f, self.0 < 0, u64::from(self.0.unsigned_abs()), 3)
+    }
+}
+
+/// An integer with an implied decimal point: prints `value / 10^digits` exactly, e.g.
+/// `Decimal::new(1_234, 2)` → `12.34` (pump duty units of 0.01 % as percent).
+///
+/// `digits` above [`MAX_DIGITS`] is reduced to [`MAX_DIGITS`].
+///
+/// ```
+/// use ridge_pump_firmware::report::Decimal;
+/// # let mut s = heapless::String::<16>::new();
+/// ufmt::uwrite!(s, "{}", Decimal::new(-7, 4)).ok();
+/// assert_eq!(s.as_str(), "-0.0007");
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Decimal {
+    value: i32,
+    digits: u8,
+}
+
+impl Decimal {
+    /// Wraps `value` (in units of 10^−digits) for printing.
+    pub const fn new(value: i32, digits: u8) -> Self {
+        Decimal {
+            value,
+            digits: if digits > MAX_DIGITS {
+                MAX_DIGITS
+            } else {
+                digits
+            },
+        }
+    }
+}
+
+impl uDisplay for Decimal {
+    fn fmt<W>(&self, f: &mut Formatter<'_, W>) -> Result<(), W::Error>
+    where
+        W: uWrite + ?Sized,
+    {
+        write_decimal(
+            f,
+            self.value < 0,
+            u64::from(self.value.unsigned_abs()),
+            self.digits,
+        )
+    }
+}
+
+/// An `f32` scaled by a power of ten and rounded, or why it cannot be.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Scaled {
+    Nan,
+    Infinite { negative: bool },
+    Overflow,
+    Finite { negative: bool, magnitude: u64 },
+}
+
+/// `10^digits` for `digits ≤ MAX_DIGITS` (larger values are treated as `MAX_DIGITS`).
+fn pow10(digits: u8) -> u32 {
+    10u32.pow(u32::from(digits.min(MAX_DIGITS)))
+}
+
+/// Exact `round(|value| · 10^digits)`, halves away from zero, from the bits of `value`.
+///
+/// A finite f32 is `m · 2^e` with `m < 2^24`; `m · 10^digits < 2^24 · 10^9 < 2^54` fits a `u64`,
+/// and the power of two is a shift whose dropped bits decide the rounding.
+fn scale_f32(value: f32, digits: u8) -> Scaled {
+    let bits = value.to_bits();
+    let negative = bits >> 31 != 0;
+    let biased_exponent = (bits >> 23) & 0xFF;
+    let fraction = bits & 0x007F_FFFF;
+    if biased_exponent == 0xFF {
+        return if fraction == 0 {
+            Scaled::Infinite { negative }
+        } else {
+            Scaled::Nan
+        };
+    }
+    // value = mantissa · 2^exponent (IEEE 754 binary32: bias 127, 23 fraction bits).
+    let (mantissa, exponent) = if biased_exponent == 0 {
+        (fraction, -149_i32)
+    } else {
+        (fraction | 0x0080_0000, biased_exponent as i32 - 150)
+    };
+    let product = u64::from(mantissa) * u64::from(pow10(digits));
+    let magnitude = if exponent >= 0 {
+        let shift = exponent.unsigned_abs();
+        if product == 0 {
+            0
+        } else if shift >= product.leading_zeros() {
+            // product · 2^shift would need 64 bits or more: ≥ 2^63.
+            return Scaled::Overflow;
+        } else {
+            product << shift
+        }
+    } else {
+        let shift = exponent.unsigned_abs();
+        if shift >= 64 {
+            // product < 2^54, so product / 2^64 < 1/2: rounds to 0.
+            0
+        } else {
+            let quotient = product >> shift;
+            let remainder = product & ((1u64 << shift) - 1);
+            let half = 1u64 << (shift - 1);
+            if remainder >= half {
+                quotient + 1
+            } else {
+                quotient
+            }
+        }
+    };
+    if magnitude >= FIXED_LIMIT {
+        Scaled::Overflow
+    } else {
+        Scaled::Finite {
+            negative,
+            magnitude,
+        }
+    }
+}
+
+/// Writes `±magnitude / 10^digits` with exactly `digits` fractional digits.
+fn write_decimal<W>(
+    f: &mut Formatter<'_, W>,
+    negative: bool,
+    magnitude: u64,
+    digits: u8,
+) -> Result<(), W::Error>
+where
+    W: uWrite + ?Sized,
+{
+    let divisor = u64::from(pow10(digits));
+    if negative && magnitude != 0 {
+        f.write_str("-")?;
+    }
+    uDisplay::fmt(&(magnitude / divisor), f)?;
+    if digits > 0 {
+        f.write_str(".")?;
+        let fraction = magnitude % divisor;
+        // Leading zeros of the fractional part.
+        let mut threshold = divisor / 10;
+        while threshold > 1 && fraction < threshold {
+            f.write_str("0")?;
+            threshold /= 10;
+        }
+        uDisplay::fmt(&fraction, f)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn finite(negative: bool, magnitude: u64) -> Scaled {
+        Scaled::Finite {
+            negative,
+            magnitude,
+        }
+    }
+
+    #[test]
+    fn scale_special_values() {
+        assert_eq!(scale_f32(f32::NAN, 2), Scaled::Nan);
+        assert_eq!(
+            scale_f32(f32::INFINITY, 2),
+            Scaled::Infinite { negative: false }
+        );
+        assert_eq!(
+            scale_f32(f32::NEG_INFINITY, 2),
+            Scaled::Infinite { negative: true }
+        );
+        assert_eq!(scale_f32(f32::MAX, 0), Scaled::Overflow);
+    }
+
+    #[test]
+    fn scale_rounds_half_away_from_zero() {
+        // 0.125 and 2.5 are exact in binary: true halves.
+        assert_eq!(scale_f32(0.125, 2), finite(false, 13));
+        assert_eq!(scale_f32(-0.125, 2), finite(true, 13));
+        assert_eq!(scale_f32(2.5, 0), finite(false, 3));
+        assert_eq!(scale_f32(-2.5, 0), finite(true, 3));
+        assert_eq!(scale_f32(0.375, 2), finite(false, 38));
+    }
+
+    #[test]
+    fn scale_limit_is_two_to_the_63() {
+        // 2^63 − 2^39, the largest f32 below 2^63: exponent field 189, fraction all ones.
+        let below = f32::from_bits((189 << 23) | 0x7F_FFFF);
+        assert_eq!(scale_f32(below, 0), finite(false, (1 << 63) - (1 << 39)));
+        let limit = f32::from_bits(190 << 23); // 2^63
+        assert_eq!(scale_f32(limit, 0), Scaled::Overflow);
+        assert_eq!(scale_f32(-limit, 0), Scaled::Overflow);
+    }
+
+    #[test]
+    fn scale_subnormals_and_zero() {
+        assert_eq!(scale_f32(0.0, 9), finite(false, 0));
+        assert_eq!(scale_f32(-0.0, 9), finite(true, 0));
+        assert_eq!(scale_f32(f32::from_bits(1), 9), finite(false, 0));
+        assert_eq!(scale_f32(f32::MIN_POSITIVE, 9), finite(false, 0));
+    }
+}
