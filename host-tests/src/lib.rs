@@ -1,1 +1,3 @@
 //! std side of ridge-pump.
+
+pub mod sim;
