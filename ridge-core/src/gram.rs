@@ -81,6 +81,10 @@ pub trait Accumulator: Copy + Default + core::fmt::Debug + PartialEq + sealed::S
     fn schur<T: Real>(s11: Self, sab: Self, sa1: Self, sb1: Self) -> Result<T>;
     /// `n · Σs² − (Σs)²` is zero or numerically zero: the signal is constant.
     fn is_constant(n: u32, sum: Self, sum_sq: Self) -> bool;
+    /// Rounding level of the statistics of a signal with `Σs² = sum_sq` over `n`
+    /// samples, in raw units squared: zero for exact integer sums, about
+    /// `8 (√n + 2) ε₆₄ Σs²` for `f64` sums (accumulation plus the pivot elimination).
+    fn rounding(n: u32, sum_sq: Self) -> f64;
     /// Converts to `T`.
     fn to_real<T: Real>(self) -> T;
     /// A sample count as an accumulator value.
@@ -137,6 +141,9 @@ impl Accumulator for i64 {
             .and_then(|(x, y)| x.checked_sub(y))
             .ok_or(Error::Overflow)?;
         Ok(T::from_i128(num) / T::from_i128(i128::from(s11)))
+    }
+    fn rounding(_: u32, _: i64) -> f64 {
+        0.0
     }
     fn is_constant(n: u32, sum: i64, sum_sq: i64) -> bool {
         let var = i128::from(n) * i128::from(sum_sq) - i128::from(sum) * i128::from(sum);
@@ -199,6 +206,9 @@ impl Accumulator for f64 {
         } else {
             Err(Error::Overflow)
         }
+    }
+    fn rounding(n: u32, sum_sq: f64) -> f64 {
+        8.0 * (libm::sqrt(f64::from(n)) + 2.0) * f64::EPSILON * sum_sq
     }
     fn is_constant(n: u32, sum: f64, sum_sq: f64) -> bool {
         let n = f64::from(n);
@@ -436,6 +446,7 @@ impl<A: Accumulator> Gram<A> {
         let sy = T::from_f64(scale.y);
         let mut normal = Normal::empty(self.n);
         normal.s11 = s11.to_real::<T>() * sy * sy;
+        normal.y_rounding = T::from_f64(A::rounding(self.n, self.yy[0]) * scale.y * scale.y);
         let mut s_a1 = [A::default(); OTHERS.len()];
         for (idx, &c) in OTHERS.iter().enumerate() {
             s_a1[idx] = self.entry(c, Col::Y(1));

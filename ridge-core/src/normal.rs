@@ -69,6 +69,8 @@ pub struct Normal<T: Real> {
     pub(crate) r: [T; N_OTHERS],
     /// Exact Schur complements `S_ab − S_a1 S_1b / S_11`, packed.
     pub(crate) schur: [T; packed_len(N_OTHERS)],
+    /// Rounding level of `yᵀy` from the accumulation (zero for integer statistics).
+    pub(crate) y_rounding: T,
 }
 
 impl<T: Real> Normal<T> {
@@ -78,6 +80,7 @@ impl<T: Real> Normal<T> {
             s11: T::ZERO,
             r: [T::ZERO; N_OTHERS],
             schur: [T::ZERO; packed_len(N_OTHERS)],
+            y_rounding: T::ZERO,
         }
     }
 
@@ -130,6 +133,7 @@ impl<T: Real> Normal<T> {
             layout,
             samples: self.n,
             s11: self.s11,
+            y_rounding: self.y_rounding,
             r: [T::ZERO; PARAMS_MAX],
             schur: [T::ZERO; packed_len(PARAMS_MAX)],
         };
@@ -214,6 +218,7 @@ pub struct System<T: Real> {
     pub(crate) layout: Layout,
     samples: u32,
     s11: T,
+    y_rounding: T,
     /// `Σ c_t y_{t-1}` for params `1..n` and the target (index `n − 1`).
     r: [T; PARAMS_MAX],
     /// Exact Schur complements of params `1..n` and the target, packed.
@@ -323,7 +328,9 @@ impl<T: Real> System<T> {
             }
         }
         let schur_tt = self.schur[packed(n - 1, n - 1)];
-        let floor = T::from_u32(n as u32) * T::EPSILON * schur_tt;
+        // Below this, a residual is rounding noise: Cholesky's backward error on the
+        // target row plus the rounding of the statistics themselves.
+        let floor = T::from_u32(4 * n as u32) * T::EPSILON * schur_tt + self.y_rounding;
         Ok(Factor {
             n,
             l,
@@ -349,7 +356,8 @@ impl<T: Real> Factor<T> {
 
     /// `ρ²`: the residual sum of squares of the least-squares solution of the factored
     /// system (for `γ = 0`: `min_w ‖y − Xw‖²`, a lower bound of every estimator's RSS),
-    /// floored at `n · ε · (what y_{t-1} leaves unexplained)` so that rounding noise on
+    /// floored at the rounding level of the computation (`4 n ε` of what `y_{t-1}` leaves
+    /// unexplained, plus the rounding of float statistics) so that rounding noise on
     /// noise-free data cannot rank models.
     pub fn rss_min(&self) -> T {
         let rho = self.l[packed(self.n, self.n)];
