@@ -220,13 +220,13 @@ impl Multistep {
 const A_MULTISTEP: Multistep = match Multistep::new(A_MULTISTEP_STEPS) {
     Some(m) => m,
     // Evaluated at compile time: an invalid preset table is a build error, not a runtime panic.
-    None => panic!("invalid A-Multistep table"),
+    None => panic!("invalid A-Multistep table"), // ok: const-evaluated, a bad preset fails the build
 };
 
 /// The B-Multistep generator, validated at compile time.
 const B_MULTISTEP: Multistep = match Multistep::new(B_MULTISTEP_STEPS) {
     Some(m) => m,
-    None => panic!("invalid B-Multistep table"),
+    None => panic!("invalid B-Multistep table"), // ok: const-evaluated, a bad preset fails the build
 };
 
 impl Iterator for Multistep {
@@ -440,13 +440,13 @@ impl Ramp {
 const A_RAMP: Ramp = match Ramp::new(A_RAMP_SHAPE) {
     Some(r) => r,
     // Compile-time check of the preset, not a runtime panic.
-    None => panic!("invalid A-Ramp shape"),
+    None => panic!("invalid A-Ramp shape"), // ok: const-evaluated, a bad preset fails the build
 };
 
 /// The B-Ramp generator, validated at compile time.
 const B_RAMP: Ramp = match Ramp::new(B_RAMP_SHAPE) {
     Some(r) => r,
-    None => panic!("invalid B-Ramp shape"),
+    None => panic!("invalid B-Ramp shape"), // ok: const-evaluated, a bad preset fails the build
 };
 
 impl Iterator for Ramp {
@@ -708,7 +708,7 @@ const PRBS_PRESET: Prbs = match Prbs::new(
 ) {
     Some(p) => p,
     // Compile-time check of the preset, not a runtime panic.
-    None => panic!("invalid PRBS preset"),
+    None => panic!("invalid PRBS preset"), // ok: const-evaluated, a bad preset fails the build
 };
 
 impl Iterator for Prbs {

@@ -120,10 +120,12 @@ impl<T: Real> Selection<T> {
     }
 }
 
+/// One candidate's estimation system, least-squares factor and criterion bound. The
+/// validation system (if any) is rebuilt when scored rather than kept, to halve the
+/// stack on an 8-bit MCU.
 struct Candidate<T: Real> {
     system: System<T>,
     ls: Factor<T>,
-    validation: Option<(System<T>, Factor<T>)>,
     bound: T,
 }
 
@@ -160,33 +162,35 @@ impl<T: Real> Search<T> {
     ) -> Result<Candidate<T>> {
         let system = est.system(s, self.offset)?;
         let ls = system.factor(T::ZERO)?;
-        let (validation, bound) = match (self.criterion, val) {
+        let bound = match (self.criterion, val) {
             (Criterion::Validation, Some(v)) => {
-                let vs = v.system(s, self.offset)?;
-                let vls = vs.factor(T::ZERO)?;
-                let b = self.criterion(vls.rss_min(), vs.samples(), s);
-                (Some((vs, vls)), b)
+                let (vs, vls) = self.validation_factor(s, v)?;
+                self.criterion(vls.rss_min(), vs.samples(), s)
             }
-            _ => (None, self.criterion(ls.rss_min(), system.samples(), s)),
+            _ => self.criterion(ls.rss_min(), system.samples(), s),
         };
         // A NaN or +∞ bound cannot be ordered: such a candidate is unusable.
         if !(bound.is_finite() || bound < T::ZERO) {
             return Err(Error::NonFinite);
         }
-        Ok(Candidate {
-            system,
-            ls,
-            validation,
-            bound,
-        })
+        Ok(Candidate { system, ls, bound })
     }
 
-    fn score(&self, c: &Candidate<T>) -> Result<(Fit<T>, T)> {
+    fn validation_factor(&self, s: Structure, val: &Normal<T>) -> Result<(System<T>, Factor<T>)> {
+        let vs = val.system(s, self.offset)?;
+        let vls = vs.factor(T::ZERO)?;
+        Ok((vs, vls))
+    }
+
+    fn score(&self, c: &Candidate<T>, val: Option<&Normal<T>>) -> Result<(Fit<T>, T)> {
         let fit = self.method.fit_with(&c.system, &c.ls)?;
         let s = c.system.structure();
-        let score = match &c.validation {
-            Some((vs, vls)) => self.criterion(vls.rss(&fit.w[..vs.params()]), vs.samples(), s),
-            None => self.criterion(fit.rss, c.system.samples(), s),
+        let score = match (self.criterion, val) {
+            (Criterion::Validation, Some(v)) => {
+                let (vs, vls) = self.validation_factor(s, v)?;
+                self.criterion(vls.rss(&fit.w[..vs.params()]), vs.samples(), s)
+            }
+            _ => self.criterion(fit.rss, c.system.samples(), s),
         };
         if score.is_finite() || score < T::ZERO {
             Ok((fit, score))
@@ -262,7 +266,7 @@ impl<T: Real> Search<T> {
                     continue;
                 };
                 evaluated += 1;
-                match self.score(&c) {
+                match self.score(&c, val) {
                     Ok((fit, score)) => consider(fit, score, &mut best),
                     Err(_) => skipped += 1,
                 }
@@ -274,7 +278,7 @@ impl<T: Real> Search<T> {
                     continue;
                 };
                 evaluated += 1;
-                match self.score(&c) {
+                match self.score(&c, val) {
                     Ok((fit, score)) => consider(fit, score, &mut best),
                     Err(_) => skipped += 1,
                 }
@@ -301,7 +305,7 @@ impl<T: Real> Search<T> {
         self.check(val)?;
         for s in self.grid.iter() {
             if let Ok(c) = self.prepare(s, est, val) {
-                if let Ok((fit, score)) = self.score(&c) {
+                if let Ok((fit, score)) = self.score(&c, val) {
                     visit(s, &fit, score);
                 }
             }
