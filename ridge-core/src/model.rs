@@ -74,6 +74,24 @@ impl<T: Real> ArxModel<T> {
         m
     }
 
+    /// The coefficients in the internal order of `layout` (the inverse of
+    /// [`ArxModel::from_layout`]).
+    pub(crate) fn to_layout(&self, layout: &Layout) -> [T; PARAMS_MAX] {
+        let mut w = [T::ZERO; PARAMS_MAX];
+        for (slot, col) in w.iter_mut().zip(layout.cols.iter()).take(layout.len) {
+            *slot = match *col {
+                Col::Y(i) => self.theta.get(usize::from(i).wrapping_sub(1)).copied(),
+                Col::U(k) => self
+                    .phi
+                    .get(usize::from(k.wrapping_sub(self.structure.d)))
+                    .copied(),
+                Col::One => Some(self.c),
+            }
+            .unwrap_or(T::ZERO);
+        }
+        w
+    }
+
     /// The structure `(p, q, d)`.
     pub fn structure(&self) -> Structure {
         self.structure

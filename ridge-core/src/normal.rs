@@ -153,6 +153,20 @@ impl<T: Real> Normal<T> {
     }
 }
 
+impl<T: Real> Normal<T> {
+    /// Residual sum of squares `‖y − Xw‖²` of `model` on this record (one-step-ahead
+    /// errors of eq. 6 with zero history), in output units squared: how a second `Gram`
+    /// of a validation record scores an identified model without the data.
+    ///
+    /// Errors: as [`Normal::system`] and [`System::factor`].
+    pub fn rss(&self, model: &crate::ArxModel<T>) -> Result<T> {
+        let sys = self.system(model.structure(), model.offset())?;
+        let ls = sys.factor(T::ZERO)?;
+        let w = model.to_layout(&sys.layout);
+        Ok(ls.rss(&w[..sys.params()]))
+    }
+}
+
 /// Where each coefficient of a structure sits in the parameter vector.
 ///
 /// Internal order: `[y_{t-1}, (1), u_{t-d} … u_{t-d-q+1}, y_{t-2} … y_{t-p}]`.

@@ -77,3 +77,30 @@ fn a_true_model_scores_the_noise_level() {
     assert!((m.static_gain() - 1.5 / 0.3).abs() < 1e-12);
     assert_eq!(m.structure(), Structure::new(1, 2, 2).unwrap());
 }
+
+#[test]
+fn a_validation_gram_scores_a_model_without_the_data() {
+    let mut rng = common::Rng::new(8);
+    let u = common::multilevel(&mut rng, 2000, 0.0, 1.0, 7);
+    let y = common::simulate(&[1.1, -0.3], &[2.0, 1.0], 3, 0.5, &u, 0.1, 9);
+    let m = ArxModel::new(&[1.0, -0.25], &[2.2, 0.8], 3, Offset::Intercept, 0.4).unwrap();
+    let mut g = ridge_core::FloatGram::new();
+    for (a, b) in u.iter().zip(&y) {
+        g.push(*a, *b).unwrap();
+    }
+    let rss = g
+        .normal::<f64>(ridge_core::Scale::UNIT)
+        .unwrap()
+        .rss(&m)
+        .unwrap();
+    // Direct: one-step errors with zero history before the record.
+    let at = |v: &[f64], i: isize| if i >= 0 { v[i as usize] } else { 0.0 };
+    let mut want = 0.0;
+    for t in 0..y.len() as isize {
+        let yhat = 0.4 + 1.0 * at(&y, t - 1) - 0.25 * at(&y, t - 2)
+            + 2.2 * at(&u, t - 3)
+            + 0.8 * at(&u, t - 4);
+        want += (y[t as usize] - yhat).powi(2);
+    }
+    assert!((rss - want).abs() < 1e-9 * want, "{rss} vs {want}");
+}
