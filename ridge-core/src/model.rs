@@ -76,7 +76,7 @@ impl<T: Real> ArxModel<T> {
 
     /// The coefficients in the internal order of `layout` (the inverse of
     /// [`ArxModel::from_layout`]).
-    pub(crate) fn to_layout(&self, layout: &Layout) -> [T; PARAMS_MAX] {
+    pub(crate) fn in_layout(&self, layout: &Layout) -> [T; PARAMS_MAX] {
         let mut w = [T::ZERO; PARAMS_MAX];
         for (slot, col) in w.iter_mut().zip(layout.cols.iter()).take(layout.len) {
             *slot = match *col {

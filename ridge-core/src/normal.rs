@@ -162,7 +162,7 @@ impl<T: Real> Normal<T> {
     pub fn rss(&self, model: &crate::ArxModel<T>) -> Result<T> {
         let sys = self.system(model.structure(), model.offset())?;
         let ls = sys.factor(T::ZERO)?;
-        let w = model.to_layout(&sys.layout);
+        let w = model.in_layout(&sys.layout);
         Ok(ls.rss(&w[..sys.params()]))
     }
 }
