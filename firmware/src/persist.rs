@@ -1,0 +1,218 @@
+//! Fixed-size non-volatile record of an identified model (EEPROM on the ATmega2560, a flash
+//! page on the STM32F411).
+//!
+//! Layout (all multi-byte values little-endian), [`RECORD_LEN`] = 69 bytes:
+//!
+//! | Offset | Size | Field |
+//! |---:|---:|---|
+//! | 0 | 4 | magic [`MAGIC`] = `"RPMD"` |
+//! | 4 | 1 | format version [`VERSION`] |
+//! | 5 | 1 | `p` (1..=6) |
+//! | 6 | 1 | `q` (1..=6) |
+//! | 7 | 1 | `d` (0..=6), samples of 10 ms |
+//! | 8 | 1 | offset flag: 0 = none, 1 = intercept |
+//! | 9 | 24 | `θ_1 … θ_6` as `f32` (dimensionless); slots past `p` are `+0.0` |
+//! | 33 | 24 | `φ_0 … φ_5` as `f32` (slm per unit duty fraction); slots past `q` are `+0.0` |
+//! | 57 | 4 | `c` as `f32` (slm); `+0.0` without intercept |
+//! | 61 | 4 | validation free-run fit as `f32` (percent) |
+//! | 65 | 4 | CRC-32 (IEEE 802.3: reflected polynomial 0xEDB88320, init and final XOR 0xFFFFFFFF) of bytes 0..65 |
+//!
+//! [`decode`] accepts only what [`encode`] can produce: it rejects a wrong length, magic,
+//! version or CRC, an invalid structure or offset flag, non-zero unused slots and non-finite
+//! numbers. CRC-32 detects every single-bit and every burst error up to 32 bits.
+
+use ridge_core::{ArxModel, Offset, P_MAX, Q_MAX};
+
+/// Length of a record in bytes.
+pub const RECORD_LEN: usize = 69;
+
+/// The record's first four bytes ("Ridge-Pump Model Data").
+pub const MAGIC: [u8; 4] = *b"RPMD";
+
+/// Format version written by [`encode`] and the only one [`decode`] accepts.
+pub const VERSION: u8 = 1;
+
+/// Offset of the CRC in the record (the CRC covers bytes `0..CRC_AT`).
+const CRC_AT: usize = RECORD_LEN - 4;
+const THETA_AT: usize = 9;
+const PHI_AT: usize = THETA_AT + 4 * P_MAX;
+const C_AT: usize = PHI_AT + 4 * Q_MAX;
+const FIT_AT: usize = C_AT + 4;
+const _: () = assert!(FIT_AT + 4 == CRC_AT);
+
+/// Why a stored record was not accepted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PersistError {
+    /// Fewer than [`RECORD_LEN`] bytes.
+    Length,
+    /// The first four bytes are not [`MAGIC`] (e.g. erased memory, `0xFF…`).
+    Magic,
+    /// A format version other than [`VERSION`] (an older or newer firmware wrote it).
+    Version,
+    /// The CRC does not match: the record is corrupt.
+    Crc,
+    /// The structure is outside the supported range, the offset flag is not 0/1, or an
+    /// unused coefficient slot is not zero.
+    Structure,
+    /// A coefficient or the fit is NaN or infinite.
+    NonFinite,
+}
+
+impl PersistError {
+    /// Short lower-case name used in report lines: `length`, `magic`, `version`, `crc`,
+    /// `structure`, `nonfinite`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            PersistError::Length => "length",
+            PersistError::Magic => "magic",
+            PersistError::Version => "version",
+            PersistError::Crc => "crc",
+            PersistError::Structure => "structure",
+            PersistError::NonFinite => "nonfinite",
+        }
+    }
+}
+
+/// CRC-32 (IEEE 802.3, as zlib's `crc32`): reflected polynomial 0xEDB88320, initial value and
+/// final XOR 0xFFFFFFFF. Bitwise, without a table (a table would cost 1 KB of AVR SRAM).
+///
+/// ```
+/// use ridge_pump_firmware::persist::crc32;
+/// assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+/// ```
+pub fn crc32(data: &[u8]) -> u32 {
+    let mut crc = 0xFFFF_FFFFu32;
+    for &byte in data {
+        crc ^= u32::from(byte);
+        for _ in 0..8 {
+            let mask = (crc & 1).wrapping_neg();
+            crc = (crc >> 1) ^ (0xEDB8_8320 & mask);
+        }
+    }
+    !crc
+}
+
+/// Encodes `model` and its validation `fit` (percent) into a record (layout in the
+/// [module docs](self)).
+pub fn encode(model: &ArxModel<f32>, fit: f32) -> [u8; RECORD_LEN] {
+    let mut out = [0u8; RECORD_LEN];
+    let s = model.structure();
+    let mut w = Writer {
+        buf: &mut out,
+        at: 0,
+    };
+    w.bytes(&MAGIC);
+    w.bytes(&[VERSION, s.p, s.q, s.d]);
+    w.bytes(&[match model.offset() {
+        Offset::None => 0,
+        Offset::Intercept => 1,
+    }]);
+    let mut theta = [0.0f32; P_MAX];
+    for (slot, v) in theta.iter_mut().zip(model.theta()) {
+        *slot = *v;
+    }
+    let mut phi = [0.0f32; Q_MAX];
+    for (slot, v) in phi.iter_mut().zip(model.phi()) {
+        *slot = *v;
+    }
+    for v in theta.iter().chain(phi.iter()) {
+        w.bytes(&v.to_le_bytes());
+    }
+    w.bytes(&model.intercept().to_le_bytes());
+    w.bytes(&fit.to_le_bytes());
+    let crc = crc32(out.get(..CRC_AT).unwrap_or(&[]));
+    if let Some(slot) = out.get_mut(CRC_AT..) {
+        slot.copy_from_slice(&crc.to_le_bytes());
+    }
+    out
+}
+
+/// Decodes a record written by [`encode`]: the model and its fit (percent).
+///
+/// Only the first [`RECORD_LEN`] bytes are read (a board may pass a whole EEPROM page).
+/// Checks, in this order: length, magic, version, CRC, structure and layout, finiteness.
+pub fn decode(bytes: &[u8]) -> Result<(ArxModel<f32>, f32), PersistError> {
+    let rec: &[u8; RECORD_LEN] = bytes
+        .get(..RECORD_LEN)
+        .and_then(|b| b.try_into().ok())
+        .ok_or(PersistError::Length)?;
+    let [m0, m1, m2, m3, version, p, q, d, off, ..] = *rec;
+    if [m0, m1, m2, m3] != MAGIC {
+        return Err(PersistError::Magic);
+    }
+    if version != VERSION {
+        return Err(PersistError::Version);
+    }
+    if crc32(rec.get(..CRC_AT).unwrap_or(&[])) != read_u32(rec, CRC_AT) {
+        return Err(PersistError::Crc);
+    }
+    let offset = match off {
+        0 => Offset::None,
+        1 => Offset::Intercept,
+        _ => return Err(PersistError::Structure),
+    };
+    let (pu, qu) = (usize::from(p), usize::from(q));
+    if p == 0 || pu > P_MAX || q == 0 || qu > Q_MAX || usize::from(d) > ridge_core::D_MAX {
+        return Err(PersistError::Structure);
+    }
+    let mut theta = [0.0f32; P_MAX];
+    let mut phi = [0.0f32; Q_MAX];
+    for (i, t) in theta.iter_mut().enumerate() {
+        *t = read_f32(rec, THETA_AT + 4 * i);
+    }
+    for (j, f) in phi.iter_mut().enumerate() {
+        *f = read_f32(rec, PHI_AT + 4 * j);
+    }
+    let c = read_f32(rec, C_AT);
+    let fit = read_f32(rec, FIT_AT);
+    // Unused slots (and c without an intercept) are exactly +0.0, as `encode` writes them.
+    let unused_zero = theta.iter().skip(pu).all(|v| v.to_bits() == 0)
+        && phi.iter().skip(qu).all(|v| v.to_bits() == 0)
+        && (offset == Offset::Intercept || c.to_bits() == 0);
+    if !unused_zero {
+        return Err(PersistError::Structure);
+    }
+    if !fit.is_finite() {
+        return Err(PersistError::NonFinite);
+    }
+    let model = ArxModel::new(
+        theta.get(..pu).unwrap_or(&[]),
+        phi.get(..qu).unwrap_or(&[]),
+        d,
+        offset,
+        c,
+    )
+    .map_err(|e| match e {
+        ridge_core::Error::NonFinite => PersistError::NonFinite,
+        _ => PersistError::Structure,
+    })?;
+    Ok((model, fit))
+}
+
+/// Sequential writer into the record buffer (never panics: writes past the end are dropped).
+struct Writer<'a> {
+    buf: &'a mut [u8; RECORD_LEN],
+    at: usize,
+}
+
+impl Writer<'_> {
+    fn bytes(&mut self, b: &[u8]) {
+        let end = self.at.saturating_add(b.len());
+        if let Some(slot) = self.buf.get_mut(self.at..end) {
+            slot.copy_from_slice(b);
+        }
+        self.at = end;
+    }
+}
+
+/// Little-endian `u32` at `at` (0 past the end, which the constant layout never reaches).
+fn read_u32(rec: &[u8; RECORD_LEN], at: usize) -> u32 {
+    rec.get(at..at.saturating_add(4))
+        .and_then(|b| <[u8; 4]>::try_from(b).ok())
+        .map_or(0, u32::from_le_bytes)
+}
+
+/// Little-endian `f32` at `at`.
+fn read_f32(rec: &[u8; RECORD_LEN], at: usize) -> f32 {
+    f32::from_bits(read_u32(rec, at))
+}
