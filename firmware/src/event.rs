@@ -1,0 +1,434 @@
+//! Events of the self-identification state machine ([`crate::selfid`]) and their
+//! machine-readable report lines.
+//!
+//! Every [`Event`] prints (with [`ufmt`], no `core::fmt`, no float formatting code) as one line
+//! without the line terminator: a keyword, then `key=value` fields separated by single spaces.
+//! Numbers use [`crate::report`]: flows in slm with 3 decimals, duties in percent with 2
+//! decimals, fit in percent with 1 decimal, coefficients with 6 decimals, lists comma-separated.
+//!
+//! | Event | Line |
+//! |---|---|
+//! | [`Event::StoredRejected`] | `STORED-REJECTED crc` |
+//! | [`Event::Loaded`] | `LOADED p=1 q=1 d=3 off=1 theta=0.935000 phi=6.500000 c=-0.125000 fit=87.3` |
+//! | [`Event::Excite`] | `EXCITE A-Multistep n=3000 attempt=1/3` |
+//! | [`Event::Identified`] | `ID p=1 q=1 d=3 off=1 theta=0.935000 phi=6.500000 c=-0.125000 score=-1234.5 eval=14/252 skip=0 iters=200` |
+//! | [`Event::Validate`] | `VALIDATE B-Multistep n=3000` |
+//! | [`Event::Accepted`] | `ACCEPT fit=87.3 rmse=3.230 one=2.094 n=2994 persist` |
+//! | [`Event::Rejected`] | `REJECT fit=42.1<70.0 attempt=1/3` |
+//! | [`Event::Residual`] | `RES rms=0.812 mean=-0.013 flow=50.125 n=100` |
+//! | [`Event::Drift`] | `DRIFT rms=3.456 limit=2.000 s=3 reid=0` |
+//! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125` |
+
+use ridge_core::excitation::Record;
+use ridge_core::{ArxModel, Error as CoreError, Offset};
+use ufmt::{uDisplay, uWrite, Formatter};
+
+use crate::persist::PersistError;
+use crate::report::{Decimal, Fixed, Milli};
+use crate::sfm3300;
+
+/// Why a flow reading failed, as the board reports it to
+/// [`SelfIdentification::tick`](crate::selfid::SelfIdentification::tick).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SensorFault {
+    /// Every read attempt was NACKed (no new value, or no sensor).
+    Nack,
+    /// The CRC-8 of the flow word did not match.
+    Crc,
+    /// Any other bus error.
+    Bus,
+}
+
+impl<E> From<sfm3300::Error<E>> for SensorFault {
+    /// `NotReady` → [`SensorFault::Nack`], `Crc` → [`SensorFault::Crc`], `I2c(_)` →
+    /// [`SensorFault::Bus`].
+    fn from(e: sfm3300::Error<E>) -> Self {
+        match e {
+            sfm3300::Error::NotReady => SensorFault::Nack,
+            sfm3300::Error::Crc => SensorFault::Crc,
+            sfm3300::Error::I2c(_) => SensorFault::Bus,
+        }
+    }
+}
+
+impl SensorFault {
+    /// Short lower-case name used in report lines: `nack`, `crc`, `bus`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            SensorFault::Nack => "nack",
+            SensorFault::Crc => "crc",
+            SensorFault::Bus => "bus",
+        }
+    }
+}
+
+/// Why the state machine stopped the pump and latched the fault state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FaultReason {
+    /// `count` consecutive sensor errors, the last one `error`.
+    /// Line: `FAULT sensor=crc n=5`.
+    Sensor {
+        /// The last error.
+        error: SensorFault,
+        /// Consecutive errors counted (the configured limit).
+        count: u8,
+    },
+    /// A reading outside the configured flow range. `counts` is the reading
+    /// (`raw − 32768`, 1/120 slm). Line: `FAULT range flow=-260.375` (slm).
+    FlowRange {
+        /// The offending reading, 1/120 slm.
+        counts: i16,
+    },
+    /// The pump was commanded at least the stall duty but the flow stayed below the stall
+    /// flow for the configured time. `duty` is the last commanded duty (1/10 000), `counts`
+    /// the last reading (1/120 slm). Line: `FAULT stall duty=45.00 flow=0.125` (%, slm).
+    Stall {
+        /// Duty applied during the last interval, 1/10 000 of full scale.
+        duty: u16,
+        /// Last flow reading, 1/120 slm.
+        counts: i16,
+    },
+    /// Every identification attempt was rejected. Line: `FAULT unidentified attempts=3`.
+    Unidentified {
+        /// Attempts made.
+        attempts: u8,
+    },
+}
+
+/// Why an identification attempt was refused.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RejectReason {
+    /// The flow did not respond to the excitation: the RMS deviation of the flow from its
+    /// mean over the excitation record, `rms` in slm, is below the configured minimum (or
+    /// the input/output was exactly constant: `rms = 0`). Line: `REJECT not-excited rms=0.012`.
+    NotExcited {
+        /// RMS of the flow around its mean over the record, slm.
+        rms: f32,
+    },
+    /// The structure search failed with this ridge-core error.
+    /// Line: `REJECT search=no-candidate` (see [`core_error_name`]).
+    Search(CoreError),
+    /// The free-run fit on the validation record, `fit` %, is below the configured `min` %.
+    /// Line: `REJECT fit=42.1<70.0`.
+    Fit {
+        /// Free-run fit on the validation record, percent.
+        fit: f32,
+        /// Configured minimum, percent.
+        min: f32,
+    },
+    /// The validation produced no finite score (too short a record, or a diverging model).
+    /// Line: `REJECT nonfinite`.
+    NonFinite,
+    /// More sensor errors during a record than allowed (each one replaced by the previous
+    /// reading). Line: `REJECT gaps=11`.
+    SensorGaps {
+        /// Sensor errors in the record so far.
+        gaps: u16,
+    },
+}
+
+/// Figures of a structure search.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SearchStats {
+    /// Criterion value of the chosen structure (dimensionless, e.g. delay-free AIC).
+    pub score: f32,
+    /// Candidates in the grid (252 by default).
+    pub candidates: u16,
+    /// Candidates on which the estimator ran (the rest was pruned by exact bounds).
+    pub evaluated: u16,
+    /// Candidates that could not be fitted on this record.
+    pub skipped: u16,
+    /// Estimator iterations of the chosen structure (Ridge-M iterates).
+    pub iterations: u32,
+    /// Samples in the estimation record.
+    pub samples: u32,
+}
+
+/// Something the board should report (one line each, see the [module docs](self)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Event {
+    /// The stored model given to `SelfIdentification::new` is unusable; the pump
+    /// identifies a new one. Line: `STORED-REJECTED <reason>` (see [`PersistError::name`]).
+    StoredRejected(PersistError),
+    /// A valid stored model was loaded; identification is skipped and the pump runs.
+    Loaded {
+        /// The model (physical units: slm and duty fraction).
+        model: ArxModel<f32>,
+        /// Its stored validation fit, percent.
+        fit: f32,
+    },
+    /// An excitation record starts (`samples` ticks of `record`), identification attempt
+    /// `attempt` of `attempts`.
+    Excite {
+        /// The excitation preset.
+        record: Record,
+        /// Its length in samples (10 ms each).
+        samples: u32,
+        /// This attempt, from 1.
+        attempt: u8,
+        /// Configured number of attempts.
+        attempts: u8,
+    },
+    /// The structure search picked `model`.
+    Identified {
+        /// The identified model (physical units).
+        model: ArxModel<f32>,
+        /// Search figures.
+        stats: SearchStats,
+    },
+    /// The validation record starts (`samples` ticks of `record`).
+    Validate {
+        /// The validation preset.
+        record: Record,
+        /// Its length in samples.
+        samples: u32,
+    },
+    /// The model passed validation. **The board must now write
+    /// [`SelfIdentification::persist_bytes`](crate::selfid::SelfIdentification::persist_bytes)
+    /// to non-volatile memory** ([`Event::persist`] is `true`). Scores are on the
+    /// validation record from sample `m` on, seeded with measured samples (SPEC §6).
+    Accepted {
+        /// Free-run fit, percent.
+        fit: f32,
+        /// Free-run RMSE, slm.
+        rmse: f32,
+        /// One-step-ahead RMSE, slm.
+        one_step: f32,
+        /// Samples scored.
+        samples: u32,
+    },
+    /// The attempt was refused for `reason`. When `attempt == attempts` the fault state
+    /// follows ([`FaultReason::Unidentified`]); otherwise the next attempt starts.
+    Rejected {
+        /// Why.
+        reason: RejectReason,
+        /// This attempt, from 1.
+        attempt: u8,
+        /// Configured number of attempts.
+        attempts: u8,
+    },
+    /// Run mode, once per monitor window (100 ticks = 1 s by default): one-step prediction
+    /// residuals of the model against the measured flow.
+    Residual {
+        /// RMS of the residuals, slm.
+        rms: f32,
+        /// Mean residual (measured − predicted), slm.
+        mean: f32,
+        /// Mean measured flow, slm.
+        flow: f32,
+        /// Samples scored in the window.
+        samples: u16,
+    },
+    /// Run mode: the residual RMS exceeded its limit for `seconds` consecutive windows.
+    /// The drift flag is set; with `reidentify` a new identification starts.
+    Drift {
+        /// RMS of the last window, slm.
+        rms: f32,
+        /// Limit of the last window, slm.
+        limit: f32,
+        /// Consecutive windows above the limit.
+        seconds: u8,
+        /// Whether re-identification was started.
+        reidentify: bool,
+    },
+    /// The pump was stopped (duty 0) and the state machine latched its fault state.
+    Fault(FaultReason),
+}
+
+impl Event {
+    /// `true` when the board must write
+    /// [`persist_bytes`](crate::selfid::SelfIdentification::persist_bytes) to non-volatile
+    /// memory ([`Event::Accepted`]).
+    pub fn persist(&self) -> bool {
+        matches!(self, Event::Accepted { .. })
+    }
+}
+
+/// Short kebab-case name of a ridge-core error, as used in `REJECT search=<name>`:
+/// `nonfinite`, `overflow`, `too-short`, `invalid-structure`, `invalid-parameter`,
+/// `not-excited`, `not-positive-definite`, `no-candidate`.
+pub const fn core_error_name(e: CoreError) -> &'static str {
+    match e {
+        CoreError::NonFinite => "nonfinite",
+        CoreError::Overflow => "overflow",
+        CoreError::TooShort { .. } => "too-short",
+        CoreError::InvalidStructure => "invalid-structure",
+        CoreError::InvalidParameter => "invalid-parameter",
+        CoreError::NotExcited => "not-excited",
+        CoreError::NotPositiveDefinite => "not-positive-definite",
+        CoreError::NoCandidate => "no-candidate",
+    }
+}
+
+/// Digits of coefficients in report lines.
+const COEF_DIGITS: u8 = 6;
+
+/// Writes `values` comma-separated with `digits` decimals.
+fn write_list<W>(f: &mut Formatter<'_, W>, values: &[f32], digits: u8) -> Result<(), W::Error>
+where
+    W: uWrite + ?Sized,
+{
+    for (i, v) in values.iter().enumerate() {
+        if i > 0 {
+            f.write_str(",")?;
+        }
+        uDisplay::fmt(&Fixed::new(*v, digits), f)?;
+    }
+    Ok(())
+}
+
+/// Writes `p=.. q=.. d=.. off=.. theta=.. phi=.. c=..`.
+fn write_model<W>(f: &mut Formatter<'_, W>, m: &ArxModel<f32>) -> Result<(), W::Error>
+where
+    W: uWrite + ?Sized,
+{
+    let s = m.structure();
+    let off: u8 = match m.offset() {
+        Offset::None => 0,
+        Offset::Intercept => 1,
+    };
+    ufmt::uwrite!(f, "p={} q={} d={} off={} theta=", s.p, s.q, s.d, off)?;
+    write_list(f, m.theta(), COEF_DIGITS)?;
+    f.write_str(" phi=")?;
+    write_list(f, m.phi(), COEF_DIGITS)?;
+    ufmt::uwrite!(f, " c={}", Fixed::new(m.intercept(), COEF_DIGITS))
+}
+
+/// Flow counts (1/120 slm) as milli-slm for printing.
+fn slm(counts: i16) -> Milli {
+    Milli(sfm3300::counts_to_millislm(counts))
+}
+
+/// Duty (1/10 000) as percent with 2 decimals.
+fn percent(duty: u16) -> Decimal {
+    Decimal::new(i32::from(duty), 2)
+}
+
+impl uDisplay for RejectReason {
+    fn fmt<W>(&self, f: &mut Formatter<'_, W>) -> Result<(), W::Error>
+    where
+        W: uWrite + ?Sized,
+    {
+        match *self {
+            RejectReason::NotExcited { rms } => {
+                ufmt::uwrite!(f, "not-excited rms={}", Fixed::new(rms, 3))
+            }
+            RejectReason::Search(e) => ufmt::uwrite!(f, "search={}", core_error_name(e)),
+            RejectReason::Fit { fit, min } => {
+                ufmt::uwrite!(f, "fit={}<{}", Fixed::new(fit, 1), Fixed::new(min, 1))
+            }
+            RejectReason::NonFinite => f.write_str("nonfinite"),
+            RejectReason::SensorGaps { gaps } => ufmt::uwrite!(f, "gaps={}", gaps),
+        }
+    }
+}
+
+impl uDisplay for FaultReason {
+    fn fmt<W>(&self, f: &mut Formatter<'_, W>) -> Result<(), W::Error>
+    where
+        W: uWrite + ?Sized,
+    {
+        match *self {
+            FaultReason::Sensor { error, count } => {
+                ufmt::uwrite!(f, "sensor={} n={}", error.name(), count)
+            }
+            FaultReason::FlowRange { counts } => ufmt::uwrite!(f, "range flow={}", slm(counts)),
+            FaultReason::Stall { duty, counts } => {
+                ufmt::uwrite!(f, "stall duty={} flow={}", percent(duty), slm(counts))
+            }
+            FaultReason::Unidentified { attempts } => {
+                ufmt::uwrite!(f, "unidentified attempts={}", attempts)
+            }
+        }
+    }
+}
+
+impl uDisplay for Event {
+    fn fmt<W>(&self, f: &mut Formatter<'_, W>) -> Result<(), W::Error>
+    where
+        W: uWrite + ?Sized,
+    {
+        match self {
+            Event::StoredRejected(e) => ufmt::uwrite!(f, "STORED-REJECTED {}", e.name()),
+            Event::Loaded { model, fit } => {
+                f.write_str("LOADED ")?;
+                write_model(f, model)?;
+                ufmt::uwrite!(f, " fit={}", Fixed::new(*fit, 1))
+            }
+            Event::Excite {
+                record,
+                samples,
+                attempt,
+                attempts,
+            } => ufmt::uwrite!(
+                f,
+                "EXCITE {} n={} attempt={}/{}",
+                record.name(),
+                *samples,
+                *attempt,
+                *attempts
+            ),
+            Event::Identified { model, stats } => {
+                f.write_str("ID ")?;
+                write_model(f, model)?;
+                ufmt::uwrite!(
+                    f,
+                    " score={} eval={}/{} skip={} iters={}",
+                    Fixed::new(stats.score, 1),
+                    stats.evaluated,
+                    stats.candidates,
+                    stats.skipped,
+                    stats.iterations
+                )
+            }
+            Event::Validate { record, samples } => {
+                ufmt::uwrite!(f, "VALIDATE {} n={}", record.name(), *samples)
+            }
+            Event::Accepted {
+                fit,
+                rmse,
+                one_step,
+                samples,
+            } => ufmt::uwrite!(
+                f,
+                "ACCEPT fit={} rmse={} one={} n={} persist",
+                Fixed::new(*fit, 1),
+                Fixed::new(*rmse, 3),
+                Fixed::new(*one_step, 3),
+                *samples
+            ),
+            Event::Rejected {
+                reason,
+                attempt,
+                attempts,
+            } => ufmt::uwrite!(f, "REJECT {} attempt={}/{}", reason, *attempt, *attempts),
+            Event::Residual {
+                rms,
+                mean,
+                flow,
+                samples,
+            } => ufmt::uwrite!(
+                f,
+                "RES rms={} mean={} flow={} n={}",
+                Fixed::new(*rms, 3),
+                Fixed::new(*mean, 3),
+                Fixed::new(*flow, 3),
+                *samples
+            ),
+            Event::Drift {
+                rms,
+                limit,
+                seconds,
+                reidentify,
+            } => ufmt::uwrite!(
+                f,
+                "DRIFT rms={} limit={} s={} reid={}",
+                Fixed::new(*rms, 3),
+                Fixed::new(*limit, 3),
+                *seconds,
+                u8::from(*reidentify)
+            ),
+            Event::Fault(reason) => ufmt::uwrite!(f, "FAULT {}", reason),
+        }
+    }
+}

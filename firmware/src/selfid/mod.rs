@@ -1,0 +1,811 @@
+//! The power-up self-identification state machine: hardware-agnostic and pure.
+//!
+//! The board glue reads the SFM3300 every 10 ms, calls [`SelfIdentification::tick`] with the
+//! reading, applies the returned duty to the pump at once, and reports the returned event (one
+//! line, see [`crate::event`]). When [`SelfIdentification::needs_search`] is true it runs the
+//! structure search from its main loop: either [`SelfIdentification::search`] (blocking, no
+//! ticks meanwhile: the PWM keeps the base duty) or, to keep ticking from the timer interrupt
+//! while the search runs, [`SelfIdentification::take_search`] →
+//! [`SearchJob::run`] → [`SelfIdentification::finish_search`].
+//!
+//! # States
+//! ```text
+//! WaitSensor ─first good reading─▶ Settle ─┬─(valid stored model)──────────────▶ Run  (LOADED)
+//!                                          └▶ Excite ─▶ Search ─▶ Validate ─┬─▶ Run  (ACCEPT, persist)
+//!                        ▲                                     │           │
+//!                        └──────── REJECT (attempt < attempts) ┴───────────┘
+//! any state ─sensor errors / flow out of range / stall / all attempts rejected─▶ Fault (duty 0, latched)
+//! ```
+//! - **WaitSensor**: duty 0 until the first good reading.
+//! - **Settle**: [`Config::base_duty`] for [`Config::settle_ticks`].
+//! - **Excite**: the [`Config::excitation`] record; every tick feeds the exact integer
+//!   statistics with `IntGram::push(u, y)`, `u` the duty (1/10 000) applied during the
+//!   interval that ends with the reading `y` (counts `raw − 32768`, 1/120 slm).
+//! - **Search**: base duty until the search is done (ridge-core `Search<f32>` on
+//!   `Gram::normal::<f32>(Scale::SFM3300_DUTY_10K)`, [`Config::search`]).
+//! - **Validate**: the [`Config::validation`] record, scored with a streaming
+//!   [`Evaluation<f32>`] in physical units (seeded with measured samples, SPEC §6); a model with
+//!   a free-run fit below [`Config::min_fit`] is rejected.
+//! - **Run**: [`Config::run_duty`] ([`SelfIdentification::set_run_duty`]), with the one-step
+//!   residual monitor ([`crate::monitor`]).
+//! - **Fault**: duty 0 from the tick that detected it on, for ever (until a new
+//!   [`SelfIdentification::new`]).
+//!
+//! Sensor errors shorter than [`Config::sensor_fault_limit`] are bridged: during a record the
+//! previous reading is used (counted as a gap, at most [`Config::max_gaps`] per record), in run
+//! mode the tick is not scored.
+
+mod search;
+
+pub use search::{run as search_with_pet, Found};
+
+use ridge_core::excitation::{Excitation, Record, DUTY_FULL_SCALE};
+use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Scale, Search};
+
+use crate::event::{Event, FaultReason, RejectReason, SearchStats, SensorFault};
+use crate::monitor::{Monitor, MonitorConfig, FRACTION_PER_DUTY, SLM_PER_COUNT};
+use crate::persist::{self, PersistError, RECORD_LEN};
+
+/// Settings of the state machine. Duties in 1/10 000 of full scale, flows in SFM3300 counts
+/// (1/120 slm), times in ticks of 10 ms.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Config {
+    /// Duty while settling, searching and between attempts (default 3000 = 30 %).
+    pub base_duty: u16,
+    /// Ticks at the base duty before a record or before run mode (default 200 = 2 s).
+    pub settle_ticks: u16,
+    /// Estimation record (default A-Multistep, 3000 samples).
+    pub excitation: Record,
+    /// Validation record (default B-Multistep, 3000 samples).
+    pub validation: Record,
+    /// Structure search. Default: ridge-core's (Ridge-M γ = 1000, β = 0.01, 200 iterates,
+    /// delay-free AIC with α = 12, the 252-candidate grid, exact pruning) **with an
+    /// intercept**: the statistics are of absolute duty and flow, and a pump has a dead zone
+    /// (on the simulated default pump the validation free-run fit is 91 % with the intercept
+    /// and 56 % without). [`ridge_core::Criterion::Validation`] is not supported here.
+    pub search: Search<f32>,
+    /// Smallest accepted free-run fit on the validation record, percent (default 70).
+    pub min_fit: f32,
+    /// Smallest RMS deviation of the flow from its mean over the estimation record, slm
+    /// (default 1.0): below it the record is "not excited".
+    pub min_response: f32,
+    /// Largest number of sensor errors bridged within one record (default 10).
+    pub max_gaps: u16,
+    /// Identification attempts before the fault state (default 3).
+    pub attempts: u8,
+    /// Consecutive sensor errors that raise a fault (default 5).
+    pub sensor_fault_limit: u8,
+    /// Largest |flow| accepted, counts (default 30 000 = 250 slm).
+    pub flow_limit: i16,
+    /// Stall detection: at a duty of at least `stall_duty` (default 4000 = 40 %) ...
+    pub stall_duty: u16,
+    /// ... a flow below `stall_flow` counts (default 240 = 2 slm) ...
+    pub stall_flow: i16,
+    /// ... for `stall_ticks` consecutive ticks (default 50 = 0.5 s) is a stall.
+    pub stall_ticks: u16,
+    /// Duty held in run mode (default 3000 = 30 %).
+    pub run_duty: u16,
+    /// Run-mode monitor.
+    pub monitor: MonitorConfig,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            base_duty: 3_000,
+            settle_ticks: 200,
+            excitation: Record::AMultistep,
+            validation: Record::BMultistep,
+            search: Search {
+                offset: Offset::Intercept,
+                ..Search::default()
+            },
+            min_fit: 70.0,
+            min_response: 1.0,
+            max_gaps: 10,
+            attempts: 3,
+            sensor_fault_limit: 5,
+            flow_limit: 30_000,
+            stall_duty: 4_000,
+            stall_flow: 240,
+            stall_ticks: 50,
+            run_duty: 3_000,
+            monitor: MonitorConfig::default(),
+        }
+    }
+}
+
+/// The externally visible state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum State {
+    /// Waiting for the first good sensor reading (duty 0).
+    WaitSensor,
+    /// Holding the base duty before a record or run mode.
+    Settle,
+    /// Running the estimation record.
+    Excite,
+    /// Waiting for (or running) the structure search, at the base duty.
+    Search,
+    /// Running the validation record.
+    Validate,
+    /// Holding the run duty and monitoring the model.
+    Run,
+    /// Stopped (duty 0), latched.
+    Fault,
+}
+
+/// What one [`SelfIdentification::tick`] returns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tick {
+    /// Duty to apply now, 1/10 000 of full scale (0 = stop).
+    pub duty: u16,
+    /// At most one event to report.
+    pub event: Option<Event>,
+}
+
+/// Statistics of one estimation record.
+#[derive(Debug, Clone)]
+struct Recording {
+    gram: IntGram,
+    /// `Σ y` and `Σ y²` of the flow counts, for the excitation check.
+    sum_y: i64,
+    sum_y2: i64,
+    gaps: u16,
+}
+
+impl Recording {
+    fn new() -> Self {
+        Recording {
+            gram: IntGram::new(),
+            sum_y: 0,
+            sum_y2: 0,
+            gaps: 0,
+        }
+    }
+
+    /// RMS deviation of the flow from its mean, slm (exact integer variance first).
+    fn response_rms(&self) -> f32 {
+        let n = i128::from(self.gram.len());
+        if n == 0 {
+            return 0.0;
+        }
+        let var_n2 = n * i128::from(self.sum_y2) - i128::from(self.sum_y) * i128::from(self.sum_y);
+        let var = var_n2.max(0) as f32 / (n * n) as f32;
+        ridge_core::Real::sqrt(var) * SLM_PER_COUNT
+    }
+}
+
+/// What follows a settle phase.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Then {
+    Run,
+    Excite,
+}
+
+#[derive(Debug, Clone)]
+enum Phase {
+    Wait,
+    Settle {
+        left: u16,
+        then: Then,
+    },
+    Excite {
+        gen: Excitation,
+        rec: Recording,
+    },
+    SearchReady {
+        rec: Recording,
+    },
+    Searching,
+    Validate {
+        gen: Excitation,
+        eval: Evaluation<f32>,
+        model: ArxModel<f32>,
+        gaps: u16,
+        started: bool,
+    },
+    Run {
+        monitor: Monitor,
+    },
+    Fault,
+}
+
+/// The self-identification state machine; all state, fixed size, no heap
+/// (see the [module docs](self)).
+#[derive(Debug, Clone)]
+pub struct SelfIdentification {
+    cfg: Config,
+    phase: Phase,
+    /// Duty returned by the last tick: applied during the interval that ends with the next
+    /// reading.
+    duty: u16,
+    /// Last good reading, counts.
+    last_counts: i16,
+    /// Consecutive sensor errors.
+    errors: u8,
+    /// Consecutive ticks meeting the stall condition.
+    stall: u16,
+    /// Identification attempt in progress (1-based; 0 before the first).
+    attempt: u8,
+    /// Bumped whenever a search result would be stale.
+    generation: u8,
+    model: Option<ArxModel<f32>>,
+    fit: f32,
+    stored_error: Option<PersistError>,
+    fault: Option<FaultReason>,
+    fault_announced: bool,
+    drift: bool,
+    /// A (re-)identification was requested: never settle into the stored model.
+    identify: bool,
+}
+
+// RAM guard: 598 bytes measured on avr-none (640 on x86-64). The search itself runs on the
+// stack (see `search_with_pet`).
+#[cfg(target_arch = "avr")]
+const _: () = assert!(core::mem::size_of::<SelfIdentification>() <= 640);
+
+/// A structure search taken out of the state machine ([`SelfIdentification::take_search`]),
+/// to run in the main loop while the timer interrupt keeps calling
+/// [`SelfIdentification::tick`].
+#[derive(Debug, Clone)]
+pub struct SearchJob {
+    rec: Recording,
+    search: Search<f32>,
+    min_response: f32,
+    generation: u8,
+}
+
+/// The result of a [`SearchJob`], for [`SelfIdentification::finish_search`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SearchOutcome {
+    result: Result<(ArxModel<f32>, SearchStats), RejectReason>,
+    generation: u8,
+}
+
+impl SearchOutcome {
+    /// The identified model and the search figures, or why the record was refused.
+    pub fn result(&self) -> Result<(ArxModel<f32>, SearchStats), RejectReason> {
+        self.result
+    }
+}
+
+impl SearchJob {
+    /// Samples in the estimation record.
+    pub fn samples(&self) -> u32 {
+        self.rec.gram.len()
+    }
+
+    /// The exact statistics of the estimation record.
+    pub fn gram(&self) -> &IntGram {
+        &self.rec.gram
+    }
+
+    /// Runs the search: the excitation check, `Gram::normal::<f32>`, then the pruned
+    /// structure search ([`search_with_pet`], identical to `Search::run`). Calls `pet` at
+    /// least once per Cholesky factorisation or Ridge-M iterate (see [`search_with_pet`]).
+    pub fn run(&self, mut pet: impl FnMut()) -> SearchOutcome {
+        pet();
+        let result = self.evaluate(&mut pet);
+        pet();
+        SearchOutcome {
+            result,
+            generation: self.generation,
+        }
+    }
+
+    fn evaluate(
+        &self,
+        pet: &mut impl FnMut(),
+    ) -> Result<(ArxModel<f32>, SearchStats), RejectReason> {
+        let rms = self.rec.response_rms();
+        if rms < self.min_response || rms.is_nan() {
+            return Err(RejectReason::NotExcited { rms });
+        }
+        let normal = self
+            .rec
+            .gram
+            .normal::<f32>(Scale::SFM3300_DUTY_10K)
+            .map_err(|e| match e {
+                ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
+                e => RejectReason::Search(e),
+            })?;
+        pet();
+        let found = search::run(&self.search, &normal, pet).map_err(RejectReason::Search)?;
+        Ok((
+            found.model,
+            SearchStats {
+                score: found.score,
+                candidates: found.candidates,
+                evaluated: found.evaluated,
+                skipped: found.skipped,
+                iterations: found.iterations,
+                samples: normal.samples(),
+            },
+        ))
+    }
+}
+
+impl SelfIdentification {
+    /// A state machine with settings `config`. `stored` is the persisted record read from
+    /// EEPROM/flash (see [`crate::persist`]) or `None`. A valid record skips identification:
+    /// after settling the pump runs with that model ([`Event::Loaded`]). An invalid one is
+    /// reported once ([`Event::StoredRejected`], on the first tick) and a new model is
+    /// identified.
+    pub fn new(config: Config, stored: Option<&[u8]>) -> Self {
+        let (model, fit, stored_error) = match stored.map(persist::decode) {
+            Some(Ok((m, fit))) => (Some(m), fit, None),
+            Some(Err(e)) => (None, 0.0, Some(e)),
+            None => (None, 0.0, None),
+        };
+        SelfIdentification {
+            cfg: config,
+            phase: Phase::Wait,
+            duty: 0,
+            last_counts: 0,
+            errors: 0,
+            stall: 0,
+            attempt: 0,
+            generation: 0,
+            model,
+            fit,
+            stored_error,
+            fault: None,
+            fault_announced: false,
+            drift: false,
+            identify: false,
+        }
+    }
+
+    /// Called once per 10 ms tick with the sensor result of this tick (counts = raw − 32768,
+    /// 1/120 slm). Returns the duty to apply now (1/10 000 of full scale, 0 = stop) and at most
+    /// one event to report.
+    ///
+    /// Faults take effect in the same tick: the returned duty is 0 and stays 0.
+    pub fn tick(&mut self, flow: Result<i16, SensorFault>) -> Tick {
+        let applied = self.duty;
+        if matches!(self.phase, Phase::Fault) {
+            return self.fault_tick();
+        }
+        let reading = match flow {
+            Ok(c) => {
+                self.errors = 0;
+                Some(c)
+            }
+            Err(e) => {
+                self.errors = self.errors.saturating_add(1);
+                if self.errors >= self.cfg.sensor_fault_limit.max(1) {
+                    return self.fault_now(FaultReason::Sensor {
+                        error: e,
+                        count: self.errors,
+                    });
+                }
+                None
+            }
+        };
+        if let Some(c) = reading {
+            if i32::from(c).abs() > i32::from(self.cfg.flow_limit) {
+                return self.fault_now(FaultReason::FlowRange { counts: c });
+            }
+            if applied >= self.cfg.stall_duty && c < self.cfg.stall_flow {
+                self.stall = self.stall.saturating_add(1);
+                if self.stall >= self.cfg.stall_ticks.max(1) {
+                    return self.fault_now(FaultReason::Stall {
+                        duty: applied,
+                        counts: c,
+                    });
+                }
+            } else {
+                self.stall = 0;
+            }
+            self.last_counts = c;
+        }
+        let event = self.advance(applied, reading);
+        if matches!(self.phase, Phase::Fault) {
+            self.duty = 0;
+        }
+        let event = match event {
+            Some(e) => Some(e),
+            None => self.stored_error.take().map(Event::StoredRejected),
+        };
+        Tick {
+            duty: self.duty,
+            event,
+        }
+    }
+
+    /// `true` while the structure search is due: the board should call
+    /// [`search`](Self::search) (or [`take_search`](Self::take_search)) from its main loop.
+    pub fn needs_search(&self) -> bool {
+        matches!(self.phase, Phase::SearchReady { .. })
+    }
+
+    /// Runs the structure search now (blocking; seconds on the ATmega2560), calling `pet`
+    /// often enough for a watchdog of ≥ 250 ms (at least once per ≤ 13 × 13 Cholesky
+    /// factorisation or Ridge-M iterate). Returns the event to report: [`Event::Identified`]
+    /// (validation follows) or [`Event::Rejected`]. `None` when no search was due.
+    ///
+    /// No tick can run meanwhile: the pump keeps the base duty and faults are not detected
+    /// until the search returns. Use [`take_search`](Self::take_search) to keep ticking.
+    pub fn search(&mut self, pet: impl FnMut()) -> Option<Event> {
+        let job = self.take_search()?;
+        let outcome = job.run(pet);
+        self.finish_search(outcome)
+    }
+
+    /// Takes the due structure search out of the state machine (`None` when none is due).
+    /// Ticks go on at the base duty, with fault detection, until
+    /// [`finish_search`](Self::finish_search).
+    pub fn take_search(&mut self) -> Option<SearchJob> {
+        if !self.needs_search() {
+            return None;
+        }
+        match core::mem::replace(&mut self.phase, Phase::Searching) {
+            Phase::SearchReady { rec } => Some(SearchJob {
+                rec,
+                search: self.cfg.search,
+                min_response: self.cfg.min_response,
+                generation: self.generation,
+            }),
+            other => {
+                self.phase = other;
+                None
+            }
+        }
+    }
+
+    /// Applies the result of a [`SearchJob`]: starts the validation or handles the
+    /// rejection. Returns the event to report ([`Event::Identified`] or [`Event::Rejected`]),
+    /// or `None` when the outcome is stale (a fault or a re-identification came in between).
+    pub fn finish_search(&mut self, outcome: SearchOutcome) -> Option<Event> {
+        if !matches!(self.phase, Phase::Searching) || outcome.generation != self.generation {
+            return None;
+        }
+        match outcome.result {
+            Ok((model, stats)) => {
+                self.phase = Phase::Validate {
+                    gen: self.cfg.validation.generator(),
+                    eval: Evaluation::new(model),
+                    model,
+                    gaps: 0,
+                    started: false,
+                };
+                Some(Event::Identified { model, stats })
+            }
+            Err(reason) => Some(self.reject(reason)),
+        }
+    }
+
+    /// The current state.
+    pub fn state(&self) -> State {
+        match self.phase {
+            Phase::Wait => State::WaitSensor,
+            Phase::Settle { .. } => State::Settle,
+            Phase::Excite { .. } => State::Excite,
+            Phase::SearchReady { .. } | Phase::Searching => State::Search,
+            Phase::Validate { .. } => State::Validate,
+            Phase::Run { .. } => State::Run,
+            Phase::Fault => State::Fault,
+        }
+    }
+
+    /// The model in use: loaded from the stored record or accepted by validation (physical
+    /// units: flow in slm, duty as a fraction 0..1).
+    pub fn model(&self) -> Option<&ArxModel<f32>> {
+        self.model.as_ref()
+    }
+
+    /// The validation free-run fit of [`model`](Self::model), percent.
+    pub fn fit(&self) -> Option<f32> {
+        self.model.map(|_| self.fit)
+    }
+
+    /// The record to persist for [`model`](Self::model) (write it when an event says
+    /// [`Event::persist`]).
+    pub fn persist_bytes(&self) -> Option<[u8; RECORD_LEN]> {
+        self.model.as_ref().map(|m| persist::encode(m, self.fit))
+    }
+
+    /// Starts a new identification (settle, excite, search, validate) from the next tick.
+    /// Ignored in the fault state. The current model (and the drift flag) stay until a new
+    /// model is accepted.
+    pub fn request_reidentification(&mut self) {
+        if matches!(self.phase, Phase::Fault) {
+            return;
+        }
+        self.attempt = 0;
+        self.identify = true;
+        self.generation = self.generation.wrapping_add(1);
+        // Still waiting for the sensor: the identification starts after it, as at boot.
+        if !matches!(self.phase, Phase::Wait) {
+            // The base duty takes effect with the next tick's return value.
+            self.phase = Phase::Settle {
+                left: self.cfg.settle_ticks,
+                then: Then::Excite,
+            };
+        }
+    }
+
+    /// Sets the duty held in run mode, 1/10 000 of full scale (clamped to 10 000); takes
+    /// effect at the next tick in run mode.
+    pub fn set_run_duty(&mut self, duty: u16) {
+        self.cfg.run_duty = duty.min(DUTY_FULL_SCALE);
+    }
+
+    /// The duty held in run mode, 1/10 000 of full scale.
+    pub fn run_duty(&self) -> u16 {
+        self.cfg.run_duty
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &Config {
+        &self.cfg
+    }
+
+    /// The duty returned by the last tick, 1/10 000 of full scale.
+    pub fn duty(&self) -> u16 {
+        self.duty
+    }
+
+    /// Whether the run-mode monitor raised a model drift (cleared when a new model is
+    /// accepted).
+    pub fn drift(&self) -> bool {
+        self.drift
+    }
+
+    /// The latched fault, if any.
+    pub fn fault(&self) -> Option<FaultReason> {
+        self.fault
+    }
+
+    /// The identification attempt in progress or last made (1-based; 0 before the first).
+    pub fn attempt(&self) -> u8 {
+        self.attempt
+    }
+
+    /// The exact statistics of the estimation record while it is being recorded or waits for
+    /// the search (for diagnostics and host tests).
+    pub fn gram(&self) -> Option<&IntGram> {
+        match &self.phase {
+            Phase::Excite { rec, .. } | Phase::SearchReady { rec } => Some(&rec.gram),
+            _ => None,
+        }
+    }
+
+    fn fault_tick(&mut self) -> Tick {
+        self.duty = 0;
+        let event = if self.fault_announced {
+            None
+        } else {
+            self.fault_announced = true;
+            self.fault.map(Event::Fault)
+        };
+        Tick { duty: 0, event }
+    }
+
+    /// Enters the fault state now and reports it in this tick.
+    fn fault_now(&mut self, reason: FaultReason) -> Tick {
+        self.enter_fault(reason);
+        self.fault_tick()
+    }
+
+    fn enter_fault(&mut self, reason: FaultReason) {
+        self.phase = Phase::Fault;
+        self.duty = 0;
+        self.fault = Some(reason);
+        self.fault_announced = false;
+        self.generation = self.generation.wrapping_add(1);
+    }
+
+    /// Refuses the current attempt: next attempt, or the fault state after the last one.
+    fn reject(&mut self, reason: RejectReason) -> Event {
+        let attempts = self.cfg.attempts.max(1);
+        let attempt = self.attempt;
+        if attempt >= attempts {
+            self.enter_fault(FaultReason::Unidentified { attempts });
+        } else {
+            self.phase = Phase::Settle {
+                left: self.cfg.settle_ticks,
+                then: Then::Excite,
+            };
+            self.duty = self.cfg.base_duty;
+        }
+        Event::Rejected {
+            reason,
+            attempt,
+            attempts,
+        }
+    }
+
+    /// The phase logic of one tick (faults already checked).
+    fn advance(&mut self, applied: u16, reading: Option<i16>) -> Option<Event> {
+        let y = reading.unwrap_or(self.last_counts);
+        match &mut self.phase {
+            Phase::Wait => {
+                reading?;
+                let then = if self.model.is_some() && !self.identify {
+                    Then::Run
+                } else {
+                    Then::Excite
+                };
+                self.phase = Phase::Settle {
+                    left: self.cfg.settle_ticks,
+                    then,
+                };
+                self.duty = self.cfg.base_duty;
+                self.settle_step()
+            }
+            Phase::Settle { .. } => self.settle_step(),
+            Phase::Excite { gen, rec } => {
+                if reading.is_none() {
+                    rec.gaps = rec.gaps.saturating_add(1);
+                    if rec.gaps > self.cfg.max_gaps {
+                        let gaps = rec.gaps;
+                        return Some(self.reject(RejectReason::SensorGaps { gaps }));
+                    }
+                }
+                if let Err(e) = rec.gram.push(i32::from(applied), i32::from(y)) {
+                    return Some(self.reject(RejectReason::Search(e)));
+                }
+                let y64 = i64::from(y);
+                rec.sum_y = rec.sum_y.saturating_add(y64);
+                rec.sum_y2 = rec.sum_y2.saturating_add(y64 * y64);
+                match gen.next_duty() {
+                    Some(d) => {
+                        self.duty = d;
+                        None
+                    }
+                    None => {
+                        self.end_excitation();
+                        None
+                    }
+                }
+            }
+            Phase::SearchReady { .. } | Phase::Searching => {
+                self.duty = self.cfg.base_duty;
+                None
+            }
+            Phase::Validate {
+                gen,
+                eval,
+                gaps,
+                started,
+                ..
+            } => {
+                if !*started {
+                    *started = true;
+                    let record = self.cfg.validation;
+                    let samples = gen.len_samples();
+                    return match gen.next_duty() {
+                        Some(d) => {
+                            self.duty = d;
+                            Some(Event::Validate { record, samples })
+                        }
+                        None => Some(self.end_validation()),
+                    };
+                }
+                if reading.is_none() {
+                    *gaps = gaps.saturating_add(1);
+                    if *gaps > self.cfg.max_gaps {
+                        let gaps = *gaps;
+                        return Some(self.reject(RejectReason::SensorGaps { gaps }));
+                    }
+                }
+                eval.push(
+                    f32::from(applied) * FRACTION_PER_DUTY,
+                    f32::from(y) * SLM_PER_COUNT,
+                );
+                match gen.next_duty() {
+                    Some(d) => {
+                        self.duty = d;
+                        None
+                    }
+                    None => Some(self.end_validation()),
+                }
+            }
+            Phase::Run { monitor } => {
+                self.duty = self.cfg.run_duty;
+                let event = monitor.step(applied, reading);
+                if let Some(Event::Drift { reidentify, .. }) = event {
+                    self.drift = true;
+                    if reidentify {
+                        self.request_reidentification();
+                        self.duty = self.cfg.base_duty;
+                    }
+                }
+                event
+            }
+            Phase::Fault => None,
+        }
+    }
+
+    /// One settle tick: base duty; at the end, run mode or the excitation.
+    fn settle_step(&mut self) -> Option<Event> {
+        let Phase::Settle { left, then } = &mut self.phase else {
+            return None;
+        };
+        self.duty = self.cfg.base_duty;
+        *left = left.saturating_sub(1);
+        if *left > 0 {
+            return None;
+        }
+        match (*then, self.model) {
+            (Then::Run, Some(model)) => {
+                self.phase = Phase::Run {
+                    monitor: Monitor::new(model, self.cfg.monitor),
+                };
+                self.duty = self.cfg.run_duty;
+                Some(Event::Loaded {
+                    model,
+                    fit: self.fit,
+                })
+            }
+            _ => {
+                self.attempt = self.attempt.saturating_add(1);
+                let mut gen = self.cfg.excitation.generator();
+                let samples = gen.len_samples();
+                match gen.next_duty() {
+                    Some(d) => {
+                        self.phase = Phase::Excite {
+                            gen,
+                            rec: Recording::new(),
+                        };
+                        self.duty = d;
+                        Some(Event::Excite {
+                            record: self.cfg.excitation,
+                            samples,
+                            attempt: self.attempt,
+                            attempts: self.cfg.attempts.max(1),
+                        })
+                    }
+                    None => {
+                        self.phase = Phase::SearchReady {
+                            rec: Recording::new(),
+                        };
+                        None
+                    }
+                }
+            }
+        }
+    }
+
+    /// The excitation record is complete: wait for the search at the base duty.
+    fn end_excitation(&mut self) {
+        if let Phase::Excite { rec, .. } = core::mem::replace(&mut self.phase, Phase::Searching) {
+            self.phase = Phase::SearchReady { rec };
+        }
+        self.duty = self.cfg.base_duty;
+    }
+
+    /// The validation record is complete: accept (run mode) or reject.
+    fn end_validation(&mut self) -> Event {
+        let Phase::Validate { eval, model, .. } = &self.phase else {
+            return self.reject(RejectReason::NonFinite);
+        };
+        let model = *model;
+        let (free, one) = match (eval.free_run(), eval.one_step()) {
+            (Some(f), Some(o)) if f.fit.is_finite() && f.rmse.is_finite() && o.rmse.is_finite() => {
+                (f, o)
+            }
+            _ => return self.reject(RejectReason::NonFinite),
+        };
+        if free.fit < self.cfg.min_fit {
+            return self.reject(RejectReason::Fit {
+                fit: free.fit,
+                min: self.cfg.min_fit,
+            });
+        }
+        self.model = Some(model);
+        self.fit = free.fit;
+        self.drift = false;
+        self.phase = Phase::Run {
+            monitor: Monitor::new(model, self.cfg.monitor),
+        };
+        self.duty = self.cfg.run_duty;
+        Event::Accepted {
+            fit: free.fit,
+            rmse: free.rmse,
+            one_step: one.rmse,
+            samples: free.n,
+        }
+    }
+}
