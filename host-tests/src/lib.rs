@@ -1,3 +1,4 @@
 //! std side of ridge-pump.
 
+pub mod identify;
 pub mod sim;

@@ -1,0 +1,374 @@
+//! Streaming passes over a CSV record: statistics for estimation ([`read_record`]) and
+//! scores of a model ([`evaluate_file`]), each in constant memory.
+//!
+//! Scores follow SPEC §6: one-step-ahead and free-run predictors are seeded with the
+//! first `m = max(p, d + q − 1)` measured samples and samples `m..N` are scored
+//! ([`ridge_core::Evaluation`]), so a model is not charged for a start-up transient it
+//! cannot know.
+
+use std::path::{Path, PathBuf};
+
+use ridge_core::{
+    ArxModel, Criterion, Error as CoreError, Evaluation, FloatGram, Normal, Offset, Scale,
+    Structure,
+};
+
+use super::csv::{CsvRecord, Sample};
+use super::error::IdError;
+
+/// The statistics of one record after a streaming pass, plus what is needed to explain
+/// a problem with it.
+#[derive(Debug, Clone)]
+pub struct RecordStats {
+    /// The file.
+    pub path: PathBuf,
+    /// Exact streaming statistics of all samples (f64 sums).
+    pub gram: FloatGram,
+    /// Line of the first and last sample (0 when there is none).
+    pub lines: (u64, u64),
+    /// Smallest and largest input.
+    pub u_range: (f64, f64),
+    /// Smallest and largest output.
+    pub y_range: (f64, f64),
+}
+
+impl RecordStats {
+    /// Number of samples.
+    pub fn rows(&self) -> u32 {
+        self.gram.len()
+    }
+
+    /// `"1024 data rows (lines 2–1025)"`.
+    pub fn describe_rows(&self) -> String {
+        match self.rows() {
+            0 => "no data rows".to_string(),
+            1 => format!("1 data row (line {})", self.lines.0),
+            n => format!("{n} data rows (lines {}–{})", self.lines.0, self.lines.1),
+        }
+    }
+
+    /// The solve-time statistics in physical units (`f64`, [`Scale::UNIT`]).
+    ///
+    /// Errors name the file: fewer than 2 rows, or a constant input or output (the
+    /// record does not excite the plant).
+    pub fn normal(&self) -> Result<Normal<f64>, IdError> {
+        self.gram
+            .normal::<f64>(Scale::UNIT)
+            .map_err(|e| match e {
+                CoreError::NotExcited => {
+                    let what = if self.u_range.0 == self.u_range.1 {
+                        format!(
+                            "column u is constant ({}) over all {}: the input does not excite the plant",
+                            self.u_range.0,
+                            self.describe_rows()
+                        )
+                    } else if self.y_range.0 == self.y_range.1 {
+                        format!(
+                            "column y is constant ({}) over all {}: the output shows no response",
+                            self.y_range.0,
+                            self.describe_rows()
+                        )
+                    } else {
+                        format!(
+                            "input or output varies too little to identify anything ({}; u in [{}, {}], y in [{}, {}])",
+                            self.describe_rows(),
+                            self.u_range.0,
+                            self.u_range.1,
+                            self.y_range.0,
+                            self.y_range.1
+                        )
+                    };
+                    IdError::file(&self.path, what)
+                }
+                CoreError::TooShort { needed, .. } => IdError::file(
+                    &self.path,
+                    format!("{}, at least {needed} needed", self.describe_rows()),
+                ),
+                other => IdError::file(&self.path, format!("{other}")),
+            })
+    }
+}
+
+/// Reads a whole CSV record into streaming statistics (one pass, constant memory).
+///
+/// Errors: everything [`CsvRecord`] reports, with file and line.
+pub fn read_record(path: impl AsRef<Path>) -> Result<RecordStats, IdError> {
+    let path = path.as_ref();
+    let mut stats = RecordStats {
+        path: path.to_path_buf(),
+        gram: FloatGram::new(),
+        lines: (0, 0),
+        u_range: (f64::INFINITY, f64::NEG_INFINITY),
+        y_range: (f64::INFINITY, f64::NEG_INFINITY),
+    };
+    for s in CsvRecord::open(path)? {
+        let s = s?;
+        stats.gram.push(s.u, s.y).map_err(|e| {
+            IdError::line(
+                path,
+                s.line,
+                format!("cannot add this sample to the statistics: {e}"),
+            )
+        })?;
+        if stats.lines.0 == 0 {
+            stats.lines.0 = s.line;
+        }
+        stats.lines.1 = s.line;
+        stats.u_range = (stats.u_range.0.min(s.u), stats.u_range.1.max(s.u));
+        stats.y_range = (stats.y_range.0.min(s.y), stats.y_range.1.max(s.y));
+    }
+    Ok(stats)
+}
+
+/// Scores of one model on one record, from measured initial conditions (samples `m..N`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Figures {
+    /// Samples scored: `N − m`.
+    pub n: u32,
+    /// One-step-ahead RMSE (eq. 16), output units.
+    pub rmse_one_step: f64,
+    /// Free-run RMSE, output units.
+    pub rmse_free_run: f64,
+    /// One-step fit %, `100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖)`.
+    pub fit_one_step: f64,
+    /// Free-run fit % (what MATLAB `compare` shows).
+    pub fit_free_run: f64,
+}
+
+/// Scores `model` on a stream of samples; `trace` (if any) receives every measured and
+/// predicted value for a plot. `Ok(None)` when the stream has no sample past the seed.
+pub fn evaluate<I>(
+    samples: I,
+    model: ArxModel<f64>,
+    mut trace: Option<&mut Trace>,
+) -> Result<Option<Figures>, IdError>
+where
+    I: IntoIterator<Item = Result<Sample, IdError>>,
+{
+    let mut ev = Evaluation::new(model);
+    for (i, s) in samples.into_iter().enumerate() {
+        let s = s?;
+        let pred = ev.push(s.u, s.y);
+        if let Some(t) = trace.as_deref_mut() {
+            t.push(i as u64, s.y, pred);
+        }
+    }
+    if let Some(t) = trace {
+        t.finish();
+    }
+    Ok(match (ev.one_step(), ev.free_run()) {
+        (Some(a), Some(b)) => Some(Figures {
+            n: a.n,
+            rmse_one_step: a.rmse,
+            rmse_free_run: b.rmse,
+            fit_one_step: a.fit,
+            fit_free_run: b.fit,
+        }),
+        _ => None,
+    })
+}
+
+/// Scores `model` on the CSV record at `path` in one streaming pass (see [`evaluate`]).
+///
+/// Errors: CSV errors with file and line; a record with no sample past the `m` seed
+/// samples.
+pub fn evaluate_file(
+    path: impl AsRef<Path>,
+    model: ArxModel<f64>,
+    trace: Option<&mut Trace>,
+) -> Result<Figures, IdError> {
+    let path = path.as_ref();
+    evaluate(CsvRecord::open(path)?, model, trace)?.ok_or_else(|| {
+        let m = model.structure().seed_len();
+        IdError::file(
+            path,
+            format!(
+                "too short to score the model: its first {m} samples only seed the predictors (SPEC §6), at least {} data rows needed",
+                m + 1
+            ),
+        )
+    })
+}
+
+/// The value of a structure criterion (SPEC §4) for a residual sum of squares `rss` on
+/// `samples` samples: `N ln(RSS/N)` plus `α (p + q + d)` (paper), `α (p + q)` (AIC),
+/// `ln(N) (p + q)` (BIC) or nothing (validation); `p + q` counts the intercept too.
+/// The same formula as [`ridge_core::Search`], for models the search did not fit (RLS).
+pub fn criterion_value(
+    criterion: Criterion,
+    alpha: f64,
+    rss: f64,
+    samples: u32,
+    structure: Structure,
+    offset: Offset,
+) -> f64 {
+    let n = f64::from(samples);
+    let k = f64::from(structure.p) + f64::from(structure.q) + offset.params() as f64;
+    let fit = n * (rss / n).ln();
+    match criterion {
+        Criterion::Paper => fit + alpha * (k + f64::from(structure.d)),
+        Criterion::Aic => fit + alpha * k,
+        Criterion::Bic => fit + n.ln() * k,
+        Criterion::Validation => fit,
+    }
+}
+
+/// A bounded picture of one signal for plotting: every sample while the record has at
+/// most `max_points` samples, otherwise the minimum and maximum of each of
+/// `max_points / 2` equal buckets (a min/max envelope, so spikes stay visible).
+#[derive(Debug, Clone, Default)]
+pub struct Envelope {
+    /// `(sample index, value)` in index order.
+    pub points: Vec<(f64, f64)>,
+    current: Option<Bucket>,
+}
+
+/// The open bucket of an [`Envelope`]: its id and its `(index, value)` extremes.
+#[derive(Debug, Clone, Copy)]
+struct Bucket {
+    id: u64,
+    lo: (u64, f64),
+    hi: (u64, f64),
+}
+
+impl Envelope {
+    fn push(&mut self, bucket: u64, i: u64, v: f64) {
+        if !v.is_finite() {
+            return;
+        }
+        let b = i / bucket.max(1);
+        match &mut self.current {
+            Some(c) if c.id == b => {
+                if v < c.lo.1 {
+                    c.lo = (i, v);
+                }
+                if v > c.hi.1 {
+                    c.hi = (i, v);
+                }
+            }
+            _ => {
+                self.flush();
+                self.current = Some(Bucket {
+                    id: b,
+                    lo: (i, v),
+                    hi: (i, v),
+                });
+            }
+        }
+    }
+
+    fn flush(&mut self) {
+        if let Some(Bucket { lo, hi, .. }) = self.current.take() {
+            let (a, b) = if lo.0 <= hi.0 { (lo, hi) } else { (hi, lo) };
+            self.points.push((a.0 as f64, a.1));
+            if b.0 != a.0 {
+                self.points.push((b.0 as f64, b.1));
+            }
+        }
+    }
+
+    /// Smallest and largest value, if any.
+    pub fn range(&self) -> Option<(f64, f64)> {
+        self.points.iter().fold(None, |acc, &(_, v)| match acc {
+            None => Some((v, v)),
+            Some((lo, hi)) => Some((lo.min(v), hi.max(v))),
+        })
+    }
+}
+
+/// Measured, one-step and free-run output of one record, decimated for a plot
+/// (memory bounded by `max_points` per signal whatever the record length).
+#[derive(Debug, Clone)]
+pub struct Trace {
+    /// Samples per bucket.
+    bucket: u64,
+    /// Samples pushed.
+    pub samples: u64,
+    /// Measured output.
+    pub measured: Envelope,
+    /// One-step-ahead prediction (from sample `m` on).
+    pub one_step: Envelope,
+    /// Free-run simulation (from sample `m` on).
+    pub free_run: Envelope,
+}
+
+impl Trace {
+    /// A trace for a record of `total` samples keeping about `max_points` points per
+    /// signal (at least 4).
+    pub fn new(total: u64, max_points: usize) -> Self {
+        let max_points = max_points.max(4) as u64;
+        let bucket = if total <= max_points {
+            1
+        } else {
+            total.div_ceil(max_points / 2)
+        };
+        Trace {
+            bucket,
+            samples: 0,
+            measured: Envelope::default(),
+            one_step: Envelope::default(),
+            free_run: Envelope::default(),
+        }
+    }
+
+    /// Adds sample `i`: the measurement and, once seeded, `(one-step, free-run)`.
+    pub fn push(&mut self, i: u64, y: f64, pred: Option<(f64, f64)>) {
+        self.samples = self.samples.max(i + 1);
+        self.measured.push(self.bucket, i, y);
+        if let Some((a, b)) = pred {
+            self.one_step.push(self.bucket, i, a);
+            self.free_run.push(self.bucket, i, b);
+        }
+    }
+
+    /// Flushes the last bucket (call once after the last sample).
+    pub fn finish(&mut self) {
+        self.measured.flush();
+        self.one_step.flush();
+        self.free_run.flush();
+    }
+
+    /// `true` when the signals were decimated to a min/max envelope.
+    pub fn decimated(&self) -> bool {
+        self.bucket > 1
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn envelope_is_bounded_and_keeps_extremes() {
+        let n = 1_000_000u64;
+        let mut t = Trace::new(n, 2000);
+        for i in 0..n {
+            let y = if i == 123_457 { 50.0 } else { (i % 100) as f64 };
+            t.push(i, y, Some((y, y)));
+        }
+        t.finish();
+        assert!(t.decimated());
+        assert!(
+            t.measured.points.len() <= 2002,
+            "{}",
+            t.measured.points.len()
+        );
+        assert_eq!(t.measured.range(), Some((0.0, 99.0)));
+        let mut t = Trace::new(10, 2000);
+        for i in 0..10 {
+            t.push(i, i as f64, None);
+        }
+        t.finish();
+        assert_eq!(t.measured.points.len(), 10);
+        assert!(t.one_step.points.is_empty());
+    }
+
+    #[test]
+    fn criterion_matches_the_formula() {
+        let s = Structure::new(2, 3, 1).unwrap();
+        let v = criterion_value(Criterion::Paper, 12.0, 5.0, 100, s, Offset::Intercept);
+        assert!((v - (100.0 * (0.05f64).ln() + 12.0 * 7.0)).abs() < 1e-12);
+        let v = criterion_value(Criterion::Bic, 12.0, 5.0, 100, s, Offset::None);
+        assert!((v - (100.0 * (0.05f64).ln() + (100f64).ln() * 5.0)).abs() < 1e-12);
+    }
+}

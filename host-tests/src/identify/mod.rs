@@ -1,0 +1,294 @@
+//! `ridge-id`: ARX identification of a logged `u`/`y` record (CSV), as a library.
+//!
+//! The binary `ridge-id` (`src/bin/ridge-id.rs`) only parses the command line
+//! ([`cli`]) and prints a [`Report`]; everything else is here so that other programs
+//! (e.g. the paper tables) can reuse the pieces:
+//! - [`csv::CsvRecord`]: streaming CSV reader with line-numbered errors.
+//! - [`eval::read_record`]: one streaming pass into exact statistics
+//!   ([`ridge_core::FloatGram`], `f64`).
+//! - [`eval::evaluate_file`]: one streaming pass scoring a model one-step and free-run
+//!   from measured initial conditions (SPEC §6), optionally collecting a bounded
+//!   [`eval::Trace`] for [`plot::write_png`].
+//! - [`run`]: the whole identification of [`Options`] → [`Report`] (text or JSON).
+//!
+//! Memory is independent of the record length: the estimation record is read once for
+//! the statistics, once more to score the model (and once more for RLS); the
+//! validation record once for its statistics and once to score the model. The plot
+//! keeps at most ~2000 points per signal (a min/max envelope for longer records).
+
+pub mod cli;
+pub mod csv;
+pub mod error;
+pub mod eval;
+pub mod options;
+pub mod plot;
+pub mod report;
+
+pub use error::IdError;
+pub use eval::{evaluate_file, read_record, Figures, RecordStats, Trace};
+pub use options::{MethodName, Options};
+pub use report::{Hyper, Report, SearchInfo};
+
+use ridge_core::{ArxModel, Criterion, Error as CoreError, Grid, Normal, Rls, Search, Structure};
+
+use csv::CsvRecord;
+use eval::criterion_value;
+
+/// Points kept per signal for the plot.
+pub const PLOT_POINTS: usize = 2000;
+
+/// Rows a structure needs on a record: `m` seed samples, one per coefficient, plus one
+/// (the core's [`ridge_core::Normal::system`] rule).
+pub fn rows_needed(s: Structure, offset: ridge_core::Offset) -> u32 {
+    (s.seed_len() + s.params(offset) + 1) as u32
+}
+
+/// Checks that `rec` has enough rows for the smallest candidate of `grid`.
+fn check_rows(rec: &RecordStats, grid: &Grid, offset: ridge_core::Offset) -> Result<(), IdError> {
+    let Some((s, needed)) = grid
+        .iter()
+        .map(|s| (s, rows_needed(s, offset)))
+        .min_by_key(|&(_, n)| n)
+    else {
+        return Ok(());
+    };
+    if rec.rows() < needed {
+        let which = if grid.len() == 1 {
+            "structure"
+        } else {
+            "smallest candidate structure"
+        };
+        return Err(IdError::file(
+            &rec.path,
+            format!(
+                "{}, but the {which} (p = {}, q = {}, d = {}) needs at least {needed} \
+                 (m = {} seed samples, one per coefficient, plus one)",
+                rec.describe_rows(),
+                s.p,
+                s.q,
+                s.d,
+                s.seed_len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Explains why no candidate of `grid` could be fitted on `normal`.
+fn no_candidate(
+    rec: &RecordStats,
+    normal: &Normal<f64>,
+    grid: &Grid,
+    offset: ridge_core::Offset,
+) -> IdError {
+    let mut singular = 0usize;
+    let mut short = 0usize;
+    for s in grid.iter() {
+        match normal.system(s, offset).and_then(|sys| sys.factor(0.0)) {
+            Err(CoreError::TooShort { .. }) => short += 1,
+            Err(CoreError::NotPositiveDefinite) => singular += 1,
+            _ => {}
+        }
+    }
+    let detail = if singular > 0 && short == 0 {
+        "the normal equations are singular: the input does not excite these structures \
+         (too few distinct input values or a too-regular input)"
+            .to_string()
+    } else {
+        format!("{singular} candidates singular (insufficient excitation), {short} longer than the record")
+    };
+    let which = if grid.len() == 1 {
+        "the structure".to_string()
+    } else {
+        format!("none of the {} candidate structures", grid.len())
+    };
+    IdError::file(
+        &rec.path,
+        format!(
+            "{which} could not be fitted on {}: {detail}",
+            rec.describe_rows()
+        ),
+    )
+}
+
+/// Runs RLS on the estimation record, one update per sample.
+fn run_rls(opts: &Options, structure: Structure) -> Result<(ArxModel<f64>, u32), IdError> {
+    let mut rls = Rls::new(structure, opts.offset, opts.lambda, opts.delta)
+        .map_err(|e| IdError::Usage(format!("rls: {e}")))?;
+    for s in CsvRecord::open(&opts.input)? {
+        let s = s?;
+        rls.update(s.u, s.y).map_err(|e| {
+            IdError::line(
+                &opts.input,
+                s.line,
+                format!("the RLS update diverged here ({e}); try a smaller --delta"),
+            )
+        })?;
+    }
+    Ok((rls.model(), rls.samples()))
+}
+
+/// Identifies an ARX model as `opts` says and scores it (see the [module docs](self)).
+///
+/// Errors: bad options ([`IdError::Usage`]); unreadable or malformed records, records
+/// too short for the grid or without excitation (file and line named); a plot that
+/// cannot be written.
+pub fn run(opts: &Options) -> Result<Report, IdError> {
+    opts.check()?;
+    let grid = opts.effective_grid();
+    let est = read_record(&opts.input)?;
+    let val = opts.validate.as_ref().map(read_record).transpose()?;
+    let est_normal = est.normal()?;
+    check_rows(&est, &grid, opts.offset)?;
+    let val_normal = match (&val, opts.criterion) {
+        (Some(v), Criterion::Validation) => {
+            let n = v.normal()?;
+            check_rows(v, &grid, opts.offset)?;
+            Some(n)
+        }
+        (Some(v), _) => {
+            // Not needed for the search, but a record without excitation cannot
+            // validate anything: say so rather than print a meaningless fit.
+            v.normal()?;
+            None
+        }
+        (None, _) => None,
+    };
+    let search = Search {
+        grid,
+        offset: opts.offset,
+        criterion: opts.criterion,
+        alpha: opts.alpha,
+        method: opts.core_method(),
+        prune: true,
+    };
+    let sel = search
+        .run(&est_normal, val_normal.as_ref())
+        .map_err(|e| match e {
+            CoreError::NoCandidate => match (&val, &val_normal) {
+                (Some(v), Some(vn)) if no_fit_on(vn, &grid, opts) => {
+                    no_candidate(v, vn, &grid, opts.offset)
+                }
+                _ => no_candidate(&est, &est_normal, &grid, opts.offset),
+            },
+            other => IdError::Usage(format!("structure search: {other}")),
+        })?;
+    let structure = sel.structure();
+    let (model, iterations, rss, score) = match opts.method {
+        MethodName::Rls => {
+            let (model, samples) = run_rls(opts, structure)?;
+            let rss_of = |n: &Normal<f64>, path: &std::path::Path| {
+                n.rss(&model)
+                    .map_err(|e| IdError::file(path, format!("cannot score the RLS model: {e}")))
+            };
+            let rss = rss_of(&est_normal, &opts.input)?;
+            let score = match (&val_normal, &val) {
+                (Some(vn), Some(v)) => criterion_value(
+                    opts.criterion,
+                    opts.alpha,
+                    rss_of(vn, &v.path)?,
+                    vn.samples(),
+                    structure,
+                    opts.offset,
+                ),
+                _ => criterion_value(
+                    opts.criterion,
+                    opts.alpha,
+                    rss,
+                    est_normal.samples(),
+                    structure,
+                    opts.offset,
+                ),
+            };
+            (model, samples, rss, score)
+        }
+        _ => (sel.fit.model(), sel.fit.iterations, sel.fit.rss, sel.score),
+    };
+
+    let mut est_trace = opts
+        .plot
+        .as_ref()
+        .map(|_| Trace::new(u64::from(est.rows()), PLOT_POINTS));
+    let estimation = evaluate_file(&opts.input, model, est_trace.as_mut())?;
+    let mut val_trace = match (&opts.plot, &val) {
+        (Some(_), Some(v)) => Some(Trace::new(u64::from(v.rows()), PLOT_POINTS)),
+        _ => None,
+    };
+    let validation = match &opts.validate {
+        Some(p) => Some(evaluate_file(p, model, val_trace.as_mut())?),
+        None => None,
+    };
+
+    if let (Some(path), Some(et)) = (&opts.plot, &est_trace) {
+        let s = structure;
+        let name = |p: &std::path::Path| {
+            p.file_name()
+                .map(|f| f.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        };
+        let title = |what: &str, p: &std::path::Path, f: &Figures| {
+            format!(
+                "{what}: {}   {} ({},{},{})   free-run fit {:.1} %, RMSE {:.4}",
+                name(p),
+                opts.method.name(),
+                s.p,
+                s.q,
+                s.d,
+                f.fit_free_run,
+                f.rmse_free_run
+            )
+        };
+        let mut panels = vec![plot::Panel {
+            title: title("estimation", &opts.input, &estimation),
+            trace: et,
+        }];
+        if let (Some(vt), Some(vp), Some(vf)) = (&val_trace, &opts.validate, &validation) {
+            panels.push(plot::Panel {
+                title: title("validation", vp, vf),
+                trace: vt,
+            });
+        }
+        plot::write_png(path, &panels)?;
+    }
+
+    Ok(Report {
+        input: opts.input.clone(),
+        input_rows: est.rows(),
+        validate: opts.validate.clone(),
+        validate_rows: val.as_ref().map(|v| v.rows()),
+        method: opts.method,
+        criterion: opts.criterion,
+        model,
+        score,
+        iterations,
+        rss,
+        hyper: Hyper {
+            gamma: opts.gamma,
+            beta: opts.beta,
+            alpha: opts.alpha,
+            max_iter: opts.max_iter,
+            tol: opts.tol,
+            lambda: opts.lambda,
+            delta: opts.delta,
+        },
+        search: SearchInfo {
+            candidates: sel.candidates,
+            evaluated: sel.evaluated,
+            skipped: sel.skipped,
+            fixed: opts.structure.is_some(),
+        },
+        estimation,
+        validation,
+        plot: opts.plot.clone(),
+    })
+}
+
+/// `true` when no candidate of `grid` can be fitted on `normal` (least squares).
+fn no_fit_on(normal: &Normal<f64>, grid: &Grid, opts: &Options) -> bool {
+    grid.iter().all(|s| {
+        normal
+            .system(s, opts.offset)
+            .and_then(|sys| sys.factor(0.0))
+            .is_err()
+    })
+}

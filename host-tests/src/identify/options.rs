@@ -1,0 +1,315 @@
+//! What an identification run does: [`Options`] and the names used on the command line
+//! and in reports.
+
+use std::fmt;
+use std::path::PathBuf;
+use std::str::FromStr;
+
+use ridge_core::{
+    AdaptiveLasso, Criterion, Grid, Method as CoreMethod, Offset, OrderRange, Ridge, RidgeM,
+    Structure, D_MAX, P_MAX, Q_MAX,
+};
+
+use super::error::IdError;
+
+/// The estimator, by its command-line name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MethodName {
+    /// `ridge-m`: Ridge with momentum (the paper's method), [`RidgeM`].
+    #[default]
+    RidgeM,
+    /// `ridge`: plain Ridge, [`Ridge`] (one Ridge-M iterate).
+    Ridge,
+    /// `ols`: ordinary least squares.
+    Ols,
+    /// `rls`: recursive least squares on the structure chosen by a Ridge-M search (or
+    /// fixed by `--structure`), run sample by sample over the estimation record.
+    Rls,
+    /// `alasso`: adaptive LASSO, [`AdaptiveLasso::default`] (λ by BIC).
+    AdaptiveLasso,
+}
+
+impl MethodName {
+    /// All methods, in command-line order.
+    pub const ALL: [MethodName; 5] = [
+        MethodName::RidgeM,
+        MethodName::Ridge,
+        MethodName::Ols,
+        MethodName::Rls,
+        MethodName::AdaptiveLasso,
+    ];
+
+    /// The command-line and report name (`ridge-m`, `ridge`, `ols`, `rls`, `alasso`).
+    pub fn name(self) -> &'static str {
+        match self {
+            MethodName::RidgeM => "ridge-m",
+            MethodName::Ridge => "ridge",
+            MethodName::Ols => "ols",
+            MethodName::Rls => "rls",
+            MethodName::AdaptiveLasso => "alasso",
+        }
+    }
+}
+
+impl fmt::Display for MethodName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for MethodName {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        MethodName::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| {
+                format!("unknown method {s:?} (expected ridge-m, ridge, ols, rls or alasso)")
+            })
+    }
+}
+
+/// The command-line and report name of a criterion (`paper`, `aic`, `bic`, `validation`).
+pub fn criterion_name(c: Criterion) -> &'static str {
+    match c {
+        Criterion::Paper => "paper",
+        Criterion::Aic => "aic",
+        Criterion::Bic => "bic",
+        Criterion::Validation => "validation",
+    }
+}
+
+/// Parses a criterion name (see [`criterion_name`]).
+pub fn parse_criterion(s: &str) -> Result<Criterion, String> {
+    [
+        Criterion::Paper,
+        Criterion::Aic,
+        Criterion::Bic,
+        Criterion::Validation,
+    ]
+    .into_iter()
+    .find(|c| criterion_name(*c) == s)
+    .ok_or_else(|| format!("unknown criterion {s:?} (expected paper, aic, bic or validation)"))
+}
+
+/// The command-line name of an offset choice (`none`, `intercept`).
+pub fn offset_name(o: Offset) -> &'static str {
+    match o {
+        Offset::None => "none",
+        Offset::Intercept => "intercept",
+    }
+}
+
+/// Parses an offset name (see [`offset_name`]).
+pub fn parse_offset(s: &str) -> Result<Offset, String> {
+    match s {
+        "none" => Ok(Offset::None),
+        "intercept" => Ok(Offset::Intercept),
+        _ => Err(format!("unknown offset {s:?} (expected none or intercept)")),
+    }
+}
+
+/// Parses an inclusive order range: `1..=6` or a single number `3`, checked against
+/// `lo..=hi`.
+pub fn parse_range(s: &str, lo: u8, hi: u8) -> Result<OrderRange, String> {
+    let num = |t: &str| -> Result<u8, String> {
+        let t = t.trim();
+        t.parse::<u8>()
+            .ok()
+            .filter(|v| (lo..=hi).contains(v))
+            .ok_or_else(|| format!("{t:?} is not a whole number in {lo}..={hi}"))
+    };
+    let r = if let Some((a, b)) = s.split_once("..=") {
+        OrderRange::new(num(a)?, num(b)?)
+    } else if s.contains("..") {
+        return Err(format!(
+            "{s:?}: write an inclusive range as a..=b (e.g. {lo}..={hi}) or a single number"
+        ));
+    } else {
+        let v = num(s)?;
+        OrderRange::new(v, v)
+    };
+    if r.min > r.max {
+        return Err(format!("{s:?} is an empty range"));
+    }
+    Ok(r)
+}
+
+/// Parses a fixed structure `P,Q,D`, e.g. `2,2,3`.
+pub fn parse_structure(s: &str) -> Result<Structure, String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    let [p, q, d] = parts.as_slice() else {
+        return Err(format!("{s:?}: expected P,Q,D (three numbers, e.g. 2,2,3)"));
+    };
+    let p = parse_range(p, 1, P_MAX as u8)?.min;
+    let q = parse_range(q, 1, Q_MAX as u8)?.min;
+    let d = parse_range(d, 0, D_MAX as u8)?.min;
+    Structure::new(p, q, d).map_err(|e| format!("{s:?}: {e}"))
+}
+
+/// Everything an identification run needs; [`Options::new`] gives the defaults of the
+/// `ridge-id` command line.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Options {
+    /// Estimation record (CSV with `u` and `y` columns).
+    pub input: PathBuf,
+    /// Optional validation record, scored like the estimation record; required by
+    /// [`Criterion::Validation`].
+    pub validate: Option<PathBuf>,
+    /// Estimator (default `ridge-m`).
+    pub method: MethodName,
+    /// Structure criterion (default delay-free AIC, the core's default: SPEC §4).
+    pub criterion: Criterion,
+    /// Ridge / Ridge-M regularisation γ (default 1000).
+    pub gamma: f64,
+    /// Ridge-M momentum β (default 0.01).
+    pub beta: f64,
+    /// Penalty weight α of the `paper` and `aic` criteria (default 12).
+    pub alpha: f64,
+    /// Ridge-M maximum iterates (default 200).
+    pub max_iter: u32,
+    /// Ridge-M stopping tolerance ε (default 1e-6).
+    pub tol: f64,
+    /// RLS forgetting factor λ ∈ (0, 1] (default 1).
+    pub lambda: f64,
+    /// RLS initial covariance δ > 0, `P₀ = δI` (default 1e3).
+    pub delta: f64,
+    /// Search grid (default p 1..=6, q 1..=6, d 0..=6); ignored when `structure` is set.
+    pub grid: Grid,
+    /// A fixed structure (a single-point grid).
+    pub structure: Option<Structure>,
+    /// Constant term (default none, the paper's model).
+    pub offset: Offset,
+    /// Write a PNG of measured, one-step and free-run output here.
+    pub plot: Option<PathBuf>,
+}
+
+impl Options {
+    /// The defaults of `ridge-id identify --input INPUT`.
+    pub fn new(input: impl Into<PathBuf>) -> Self {
+        Options {
+            input: input.into(),
+            validate: None,
+            method: MethodName::RidgeM,
+            criterion: Criterion::Aic,
+            gamma: 1000.0,
+            beta: 0.01,
+            alpha: 12.0,
+            max_iter: 200,
+            tol: 1e-6,
+            lambda: 1.0,
+            delta: 1e3,
+            grid: Grid::default(),
+            structure: None,
+            offset: Offset::None,
+            plot: None,
+        }
+    }
+
+    /// The grid actually searched: the fixed structure, or [`Options::grid`].
+    pub fn effective_grid(&self) -> Grid {
+        self.structure.map(Grid::single).unwrap_or(self.grid)
+    }
+
+    /// The Ridge-M estimator of these options.
+    pub fn ridge_m(&self) -> RidgeM<f64> {
+        RidgeM {
+            gamma: self.gamma,
+            beta: self.beta,
+            tol: self.tol,
+            max_iter: self.max_iter,
+        }
+    }
+
+    /// The core estimator run on each candidate: the method itself, or Ridge-M for
+    /// `rls` (which is not a Gram method: it only borrows the search's structure).
+    pub fn core_method(&self) -> CoreMethod<f64> {
+        match self.method {
+            MethodName::RidgeM | MethodName::Rls => CoreMethod::RidgeM(self.ridge_m()),
+            MethodName::Ridge => CoreMethod::Ridge(Ridge { gamma: self.gamma }),
+            MethodName::Ols => CoreMethod::Ols,
+            MethodName::AdaptiveLasso => CoreMethod::AdaptiveLasso(AdaptiveLasso::default()),
+        }
+    }
+
+    /// Checks values and combinations, with a message naming the option.
+    pub fn check(&self) -> Result<(), IdError> {
+        let bad = |m: String| Err(IdError::Usage(m));
+        if !(self.gamma.is_finite() && self.gamma > 0.0) {
+            return bad(format!("--gamma {}: must be a number above 0", self.gamma));
+        }
+        if !(self.beta.is_finite() && (0.0..1.0).contains(&self.beta)) {
+            return bad(format!("--beta {}: must be in [0, 1)", self.beta));
+        }
+        if !(self.alpha.is_finite() && self.alpha >= 0.0) {
+            return bad(format!("--alpha {}: must be a number ≥ 0", self.alpha));
+        }
+        if self.max_iter == 0 {
+            return bad("--max-iter 0: must be at least 1".into());
+        }
+        if !(self.tol.is_finite() && self.tol >= 0.0) {
+            return bad(format!("--tol {}: must be a number ≥ 0", self.tol));
+        }
+        if !(self.lambda.is_finite() && self.lambda > 0.0 && self.lambda <= 1.0) {
+            return bad(format!("--lambda {}: must be in (0, 1]", self.lambda));
+        }
+        if !(self.delta.is_finite() && self.delta > 0.0) {
+            return bad(format!("--delta {}: must be a number above 0", self.delta));
+        }
+        if self.criterion == Criterion::Validation && self.validate.is_none() {
+            return bad(
+                "--criterion validation needs a validation record: add --validate VAL.csv".into(),
+            );
+        }
+        if let Err(e) = self.effective_grid().check() {
+            return bad(format!("search ranges: {e}"));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges() {
+        assert_eq!(parse_range("1..=6", 1, 6), Ok(OrderRange::new(1, 6)));
+        assert_eq!(parse_range("3", 1, 6), Ok(OrderRange::new(3, 3)));
+        assert_eq!(parse_range(" 0 ..= 2", 0, 6), Ok(OrderRange::new(0, 2)));
+        assert!(parse_range("1..6", 1, 6).unwrap_err().contains("a..=b"));
+        assert!(parse_range("0", 1, 6).is_err());
+        assert!(parse_range("7", 1, 6).is_err());
+        assert!(parse_range("4..=2", 1, 6).unwrap_err().contains("empty"));
+        assert!(parse_range("x", 1, 6).is_err());
+    }
+
+    #[test]
+    fn structures_and_names() {
+        assert_eq!(
+            parse_structure("2,2,3"),
+            Structure::new(2, 2, 3).map_err(|e| e.to_string())
+        );
+        assert!(parse_structure("2,2").is_err());
+        assert!(parse_structure("0,1,0").is_err());
+        for m in MethodName::ALL {
+            assert_eq!(m.name().parse::<MethodName>(), Ok(m));
+        }
+        for c in ["paper", "aic", "bic", "validation"] {
+            assert_eq!(criterion_name(parse_criterion(c).unwrap()), c);
+        }
+        assert_eq!(parse_offset("intercept"), Ok(Offset::Intercept));
+        assert!(parse_offset("const").is_err());
+    }
+
+    #[test]
+    fn checks() {
+        let mut o = Options::new("x.csv");
+        assert!(o.check().is_ok());
+        o.criterion = Criterion::Validation;
+        assert!(o.check().unwrap_err().to_string().contains("--validate"));
+        let mut o = Options::new("x.csv");
+        o.beta = 1.0;
+        assert!(o.check().unwrap_err().to_string().starts_with("--beta"));
+    }
+}

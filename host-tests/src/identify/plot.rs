@@ -1,0 +1,127 @@
+//! PNG plot of measured vs one-step vs free-run output, one panel per record.
+//!
+//! Drawn with `plotters` (bitmap backend, PNG encoder) and text rendered by `ab_glyph`
+//! from the DejaVu Sans font embedded by the `dejavu` crate: no system fonts, fontconfig
+//! or freetype are needed.
+
+use std::path::Path;
+use std::sync::Once;
+
+use plotters::prelude::*;
+use plotters::style::{register_font, FontStyle};
+
+use super::error::IdError;
+use super::eval::Trace;
+
+/// One panel: a title and the decimated signals of one record.
+#[derive(Debug, Clone)]
+pub struct Panel<'a> {
+    /// Panel caption, e.g. `validation: VAL.csv`.
+    pub title: String,
+    /// The signals.
+    pub trace: &'a Trace,
+}
+
+static FONTS: Once = Once::new();
+
+fn register_fonts() {
+    FONTS.call_once(|| {
+        for family in ["sans-serif", "serif", "monospace"] {
+            // The font is a valid TTF shipped by the crate; failure would only lose text.
+            let _ = register_font(family, FontStyle::Normal, dejavu::sans::regular());
+        }
+    });
+}
+
+/// Axis range of a panel: the measured range, widened to the predictions but never past
+/// one measured span on either side (a diverging free-run would flatten everything).
+fn y_range(trace: &Trace) -> (f64, f64) {
+    let (lo, hi) = trace.measured.range().unwrap_or((0.0, 1.0));
+    let span = if hi > lo { hi - lo } else { lo.abs().max(1.0) };
+    let (mut a, mut b) = (lo, hi);
+    for e in [&trace.one_step, &trace.free_run] {
+        if let Some((l, h)) = e.range() {
+            a = a.min(l.max(lo - span));
+            b = b.max(h.min(hi + span));
+        }
+    }
+    // Head room above the data for the legend.
+    let pad = 0.05 * (b - a).max(span);
+    (a - pad, b + 4.0 * pad)
+}
+
+/// Writes `panels` stacked vertically into the PNG file `path` (1200 px wide, 420 px per
+/// panel). Values outside a panel's axis range are clipped to its edge.
+pub fn write_png(path: &Path, panels: &[Panel<'_>]) -> Result<(), IdError> {
+    register_fonts();
+    let err = |e: &dyn std::fmt::Display| IdError::Plot {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    let rows = panels.len().max(1);
+    let root = BitMapBackend::new(path, (1200, 420 * rows as u32)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let areas = root.split_evenly((rows, 1));
+    for (area, panel) in areas.iter().zip(panels) {
+        let t = panel.trace;
+        let x_max = (t.samples.max(2) - 1) as f64;
+        let (y0, y1) = y_range(t);
+        let mut chart = ChartBuilder::on(area)
+            .caption(&panel.title, ("sans-serif", 22))
+            .margin(12)
+            .x_label_area_size(42)
+            .y_label_area_size(64)
+            .build_cartesian_2d(0.0..x_max, y0..y1)
+            .map_err(|e| err(&e))?;
+        chart
+            .configure_mesh()
+            .x_desc(if t.decimated() {
+                "sample (min/max envelope per bucket)"
+            } else {
+                "sample"
+            })
+            .y_desc("output y")
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .label_style(("sans-serif", 15))
+            .axis_desc_style(("sans-serif", 16))
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(|e| err(&e))?;
+        let clip = |pts: &[(f64, f64)]| -> Vec<(f64, f64)> {
+            pts.iter().map(|&(x, v)| (x, v.clamp(y0, y1))).collect()
+        };
+        let series = [
+            (
+                "measured",
+                &t.measured,
+                RGBColor(120, 120, 120).mix(0.9),
+                4u32,
+            ),
+            (
+                "one-step ahead",
+                &t.one_step,
+                RGBColor(20, 90, 220).mix(1.0),
+                1,
+            ),
+            ("free run", &t.free_run, RGBColor(225, 50, 20).mix(0.95), 2),
+        ];
+        for (label, env, color, width) in series {
+            let style = color.stroke_width(width);
+            chart
+                .draw_series(LineSeries::new(clip(&env.points), style))
+                .map_err(|e| err(&e))?
+                .label(label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font(("sans-serif", 15))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK.mix(0.5))
+            .draw()
+            .map_err(|e| err(&e))?;
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}

@@ -1,0 +1,360 @@
+//! The result of an identification run and its two renderings: readable text
+//! ([`Report::to_text`]) and one JSON object ([`Report::to_json`]).
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use ridge_core::{ArxModel, Criterion, Offset};
+use serde::Serialize;
+
+use super::eval::Figures;
+use super::options::{criterion_name, offset_name, MethodName};
+
+/// Hyper-parameters of a run (all of them, whether the method uses them or not).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hyper {
+    /// Ridge / Ridge-M γ.
+    pub gamma: f64,
+    /// Ridge-M β.
+    pub beta: f64,
+    /// Criterion weight α.
+    pub alpha: f64,
+    /// Ridge-M maximum iterates.
+    pub max_iter: u32,
+    /// Ridge-M tolerance ε.
+    pub tol: f64,
+    /// RLS forgetting factor λ.
+    pub lambda: f64,
+    /// RLS initial covariance δ.
+    pub delta: f64,
+}
+
+/// How the structure was found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SearchInfo {
+    /// Candidates in the grid (1 with `--structure`).
+    pub candidates: u16,
+    /// Candidates the estimator ran on (the rest were pruned exactly, SPEC §4).
+    pub evaluated: u16,
+    /// Candidates that could not be fitted (too short, or not excited on this record).
+    pub skipped: u16,
+    /// `true` when the structure was given (`--structure`).
+    pub fixed: bool,
+}
+
+/// Everything an identification run produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Report {
+    /// Estimation record.
+    pub input: PathBuf,
+    /// Its number of samples `N`.
+    pub input_rows: u32,
+    /// Validation record, if any.
+    pub validate: Option<PathBuf>,
+    /// Its number of samples.
+    pub validate_rows: Option<u32>,
+    /// Estimator.
+    pub method: MethodName,
+    /// Structure criterion.
+    pub criterion: Criterion,
+    /// The identified model (structure, θ, φ, offset).
+    pub model: ArxModel<f64>,
+    /// Criterion value of the model (on the validation statistics for `validation`).
+    pub score: f64,
+    /// Ridge-M iterates / adaptive-LASSO sweeps / 1 for closed forms / samples for RLS.
+    pub iterations: u32,
+    /// `‖y − Xw‖²` on the estimation record with zero history (the regression of eq. 6).
+    pub rss: f64,
+    /// Hyper-parameters.
+    pub hyper: Hyper,
+    /// Search statistics.
+    pub search: SearchInfo,
+    /// Scores on the estimation record.
+    pub estimation: Figures,
+    /// Scores on the validation record.
+    pub validation: Option<Figures>,
+    /// The PNG written, if any.
+    pub plot: Option<PathBuf>,
+}
+
+#[derive(Serialize)]
+struct JsonStructure {
+    p: u8,
+    q: u8,
+    d: u8,
+}
+
+#[derive(Serialize)]
+struct JsonHyper {
+    gamma: f64,
+    beta: f64,
+    alpha: f64,
+    max_iter: u32,
+    tol: f64,
+}
+
+#[derive(Serialize)]
+struct JsonFigures {
+    n: u32,
+    rmse_one_step: f64,
+    rmse_free_run: f64,
+    fit_free_run: f64,
+}
+
+impl From<&Figures> for JsonFigures {
+    fn from(f: &Figures) -> Self {
+        JsonFigures {
+            n: f.n,
+            rmse_one_step: f.rmse_one_step,
+            rmse_free_run: f.rmse_free_run,
+            fit_free_run: f.fit_free_run,
+        }
+    }
+}
+
+#[derive(Serialize)]
+struct Json<'a> {
+    method: &'a str,
+    criterion: &'a str,
+    structure: JsonStructure,
+    theta: &'a [f64],
+    phi: &'a [f64],
+    offset: f64,
+    score: f64,
+    iterations: u32,
+    hyper: JsonHyper,
+    estimation: JsonFigures,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    validation: Option<JsonFigures>,
+}
+
+/// `1.234568`, `-1.2e-7`: six significant digits, plain or scientific.
+fn num(v: f64) -> String {
+    if !v.is_finite() {
+        return format!("{v}");
+    }
+    let a = v.abs();
+    if a != 0.0 && !(1e-3..1e6).contains(&a) {
+        format!("{v:.5e}")
+    } else {
+        format!("{v:.6}")
+    }
+}
+
+/// A hyper-parameter as typed: `1000`, `0.01`, `1e-6`.
+fn hp(v: f64) -> String {
+    let a = v.abs();
+    if a != 0.0 && !(1e-3..1e7).contains(&a) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+impl Report {
+    /// The JSON object of `ridge-id --json`:
+    /// `{"method", "criterion", "structure": {"p","q","d"}, "theta", "phi", "offset",
+    /// "score", "iterations", "hyper": {"gamma","beta","alpha","max_iter","tol"},
+    /// "estimation": {"n","rmse_one_step","rmse_free_run","fit_free_run"},
+    /// "validation": {…} (only with a validation record)}`.
+    /// `offset` is the intercept (0 without one); `n` counts the scored samples `m..N`.
+    /// A non-finite number (a diverging free run) is written as `null`.
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::to_value(self.json_view()).unwrap_or(serde_json::Value::Null)
+    }
+
+    /// [`Report::to_json`] as one line of text, keys in the documented order.
+    pub fn to_json_string(&self) -> String {
+        serde_json::to_string(&self.json_view()).unwrap_or_else(|_| "null".to_string())
+    }
+
+    fn json_view(&self) -> Json<'_> {
+        let s = self.model.structure();
+        Json {
+            method: self.method.name(),
+            criterion: criterion_name(self.criterion),
+            structure: JsonStructure {
+                p: s.p,
+                q: s.q,
+                d: s.d,
+            },
+            theta: self.model.theta(),
+            phi: self.model.phi(),
+            offset: self.model.intercept(),
+            score: self.score,
+            iterations: self.iterations,
+            hyper: JsonHyper {
+                gamma: self.hyper.gamma,
+                beta: self.hyper.beta,
+                alpha: self.hyper.alpha,
+                max_iter: self.hyper.max_iter,
+                tol: self.hyper.tol,
+            },
+            estimation: JsonFigures::from(&self.estimation),
+            validation: self.validation.as_ref().map(JsonFigures::from),
+        }
+    }
+
+    /// The model as an equation, e.g. `y(t) = 1.2 y(t-1) - 0.4 y(t-2) + 0.5 u(t-3) + 0.1`.
+    pub fn equation(&self) -> String {
+        let m = &self.model;
+        let d = usize::from(m.structure().d);
+        let mut terms: Vec<(f64, String)> = Vec::new();
+        for (i, &t) in m.theta().iter().enumerate() {
+            terms.push((t, format!(" y(t-{})", i + 1)));
+        }
+        for (j, &f) in m.phi().iter().enumerate() {
+            let lag = j + d;
+            let u = if lag == 0 {
+                " u(t)".to_string()
+            } else {
+                format!(" u(t-{lag})")
+            };
+            terms.push((f, u));
+        }
+        if m.offset() == Offset::Intercept {
+            terms.push((m.intercept(), String::new()));
+        }
+        let mut out = String::from("y(t) =");
+        for (k, (c, name)) in terms.iter().enumerate() {
+            let sign = if *c < 0.0 { "-" } else { "+" };
+            if k == 0 {
+                let lead = if *c < 0.0 { " -" } else { "" };
+                let _ = write!(out, "{lead} {}{name}", num(c.abs()));
+            } else {
+                let _ = write!(out, " {sign} {}{name}", num(c.abs()));
+            }
+        }
+        out
+    }
+
+    /// The readable report.
+    pub fn to_text(&self) -> String {
+        let mut o = String::new();
+        let m = &self.model;
+        let s = m.structure();
+        let h = &self.hyper;
+        let _ = writeln!(
+            o,
+            "ridge-id: ARX model of {} ({} samples)",
+            self.input.display(),
+            self.input_rows
+        );
+        let method = match self.method {
+            MethodName::RidgeM => format!(
+                "ridge-m (gamma {}, beta {}, tol {}, max-iter {})",
+                hp(h.gamma),
+                hp(h.beta),
+                hp(h.tol),
+                h.max_iter
+            ),
+            MethodName::Ridge => format!("ridge (gamma {})", hp(h.gamma)),
+            MethodName::Ols => "ols (least squares)".to_string(),
+            MethodName::Rls => format!(
+                "rls (lambda {}, delta {}); structure from a ridge-m search (gamma {}, beta {}, tol {}, max-iter {})",
+                hp(h.lambda),
+                hp(h.delta),
+                hp(h.gamma),
+                hp(h.beta),
+                hp(h.tol),
+                h.max_iter
+            ),
+            MethodName::AdaptiveLasso => {
+                "alasso (adaptive LASSO, weights 1/|w_ols|, lambda by BIC)".to_string()
+            }
+        };
+        let _ = writeln!(o, "  method      {method}");
+        let crit = match self.criterion {
+            Criterion::Paper => {
+                format!("paper: N ln(RSS/N) + alpha (p+q+d), alpha {}", hp(h.alpha))
+            }
+            Criterion::Aic => format!(
+                "aic (delay-free): N ln(RSS/N) + alpha (p+q), alpha {}",
+                hp(h.alpha)
+            ),
+            Criterion::Bic => "bic: N ln(RSS/N) + ln(N) (p+q)".to_string(),
+            Criterion::Validation => {
+                "validation: N_v ln(RSS_v/N_v) on the validation record".to_string()
+            }
+        };
+        let _ = writeln!(o, "  criterion   {crit}");
+        let search = if self.search.fixed {
+            "fixed by --structure".to_string()
+        } else {
+            format!(
+                "{} candidates, {} fitted (the rest pruned exactly), {} not fittable",
+                self.search.candidates, self.search.evaluated, self.search.skipped
+            )
+        };
+        let _ = writeln!(o, "  search      {search}");
+        let _ = writeln!(
+            o,
+            "  structure   p = {}, q = {}, d = {}   offset: {}",
+            s.p,
+            s.q,
+            s.d,
+            offset_name(m.offset())
+        );
+        let iter_note = match self.method {
+            MethodName::RidgeM if self.iterations >= h.max_iter => " (max-iter reached)",
+            MethodName::RidgeM => " (converged: step below tol)",
+            MethodName::Rls => " (one update per sample)",
+            _ => "",
+        };
+        let _ = writeln!(o, "  iterations  {}{iter_note}", self.iterations);
+        let _ = writeln!(
+            o,
+            "  score       {}   (RSS on the estimation record {})",
+            num(self.score),
+            num(self.rss)
+        );
+        let _ = writeln!(o);
+        let _ = writeln!(o, "  {}", self.equation());
+        let list = |v: &[f64]| v.iter().map(|x| num(*x)).collect::<Vec<_>>().join(", ");
+        let _ = writeln!(o, "  theta = [{}]", list(m.theta()));
+        let _ = writeln!(o, "  phi   = [{}]", list(m.phi()));
+        if m.offset() == Offset::Intercept {
+            let _ = writeln!(o, "  offset = {}", num(m.intercept()));
+        }
+        let _ = writeln!(o, "  static gain {}", num(m.static_gain()));
+        let _ = writeln!(o);
+        let seed = s.seed_len();
+        let _ = writeln!(
+            o,
+            "  Scores from measured initial conditions: both predictors are seeded with the first"
+        );
+        let _ = writeln!(
+            o,
+            "  m = max(p, d+q-1) = {seed} measured samples and samples m..N are scored (SPEC §6)."
+        );
+        let _ = writeln!(
+            o,
+            "  {:<11} {:>8} {:>14} {:>14} {:>13} {:>13}",
+            "record", "scored", "one-step RMSE", "free-run RMSE", "one-step fit", "free-run fit"
+        );
+        let mut row = |name: &str, f: &Figures| {
+            let _ = writeln!(
+                o,
+                "  {:<11} {:>8} {:>14} {:>14} {:>12.2}% {:>12.2}%",
+                name,
+                f.n,
+                num(f.rmse_one_step),
+                num(f.rmse_free_run),
+                f.fit_one_step,
+                f.fit_free_run
+            );
+        };
+        row("estimation", &self.estimation);
+        if let Some(v) = &self.validation {
+            row("validation", v);
+        }
+        if let (Some(p), Some(r)) = (&self.validate, self.validate_rows) {
+            let _ = writeln!(o, "  (validation record: {}, {r} samples)", p.display());
+        }
+        if let Some(p) = &self.plot {
+            let _ = writeln!(o);
+            let _ = writeln!(o, "  plot written to {}", p.display());
+        }
+        o
+    }
+}
