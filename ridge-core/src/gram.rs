@@ -64,15 +64,16 @@ pub trait Accumulator: Copy + Default + core::fmt::Debug + PartialEq + sealed::S
     fn check_sample(s: Self::Sample) -> Result<()>;
     /// `|s|` as an accumulator value.
     fn magnitude(s: Self::Sample) -> Self;
-    /// `true` when `n` more products of samples bounded by `max_abs` cannot overflow.
-    fn headroom(max_abs: Self, n: u32) -> bool;
+    /// The largest sample count whose sums cannot overflow when every sample is
+    /// bounded by `max_abs` (each sum is at most `n · max_abs²`).
+    fn capacity(max_abs: Self) -> u32;
     /// `a · b` as an accumulator value.
     fn product(a: Self::Sample, b: Self::Sample) -> Self;
     /// `s` as an accumulator value.
     fn widen(s: Self::Sample) -> Self;
-    /// `self + other` (cannot overflow once [`Accumulator::headroom`] held).
+    /// `self + other` (cannot overflow within [`Accumulator::capacity`]).
     fn plus(self, other: Self) -> Self;
-    /// `self − other` (cannot overflow once [`Accumulator::headroom`] held).
+    /// `self − other` (cannot overflow within [`Accumulator::capacity`]).
     fn minus(self, other: Self) -> Self;
     /// `true` for zero.
     fn is_zero(self) -> bool;
@@ -104,10 +105,11 @@ impl Accumulator for i64 {
         i64::from(s).abs()
     }
     #[inline]
-    fn headroom(max_abs: i64, n: u32) -> bool {
+    fn capacity(max_abs: i64) -> u32 {
         // Every accumulator is bounded by n · max², every sum by n · max ≤ n · max².
-        let m = max_abs.unsigned_abs() as u128;
-        m * m * u128::from(n) <= i64::MAX as u128
+        let m = max_abs.unsigned_abs();
+        let sq = m.saturating_mul(m).max(1);
+        u32::try_from((i64::MAX as u64) / sq).unwrap_or(u32::MAX)
     }
     #[inline]
     fn product(a: i32, b: i32) -> i64 {
@@ -176,8 +178,19 @@ impl Accumulator for f64 {
         libm::fabs(s)
     }
     #[inline]
-    fn headroom(max_abs: f64, n: u32) -> bool {
-        max_abs * max_abs * f64::from(n) < 1e300
+    fn capacity(max_abs: f64) -> u32 {
+        let sq = max_abs * max_abs;
+        if sq <= 1e300 / f64::from(u32::MAX) {
+            u32::MAX
+        } else {
+            // Truncation towards zero is the safe side; ∞ or NaN give 0.
+            let c = 1e300 / sq;
+            if c >= 1.0 {
+                c as u32
+            } else {
+                0
+            }
+        }
     }
     #[inline]
     fn product(a: f64, b: f64) -> f64 {
@@ -269,6 +282,8 @@ pub struct Gram<A: Accumulator> {
     sum_u: A,
     /// Largest `|sample|` seen, for the overflow check.
     max_abs: A,
+    /// Sample count up to which the sums cannot overflow at `max_abs`.
+    capacity: u32,
     /// `y_hist[k] = y_{N-k}` (zero before the record).
     y_hist: [A::Sample; P_MAX + 1],
     /// `u_hist[k] = u_{N-k}` (zero before the record).
@@ -298,6 +313,7 @@ impl<A: Accumulator> Gram<A> {
             sum_y: A::default(),
             sum_u: A::default(),
             max_abs: A::default(),
+            capacity: u32::MAX,
             y_hist: [A::Sample::default(); P_MAX + 1],
             u_hist: [A::Sample::default(); L_MAX],
         }
@@ -324,22 +340,25 @@ impl<A: Accumulator> Gram<A> {
         let mu = A::magnitude(u);
         let my = A::magnitude(y);
         let mut max_abs = self.max_abs;
+        let mut capacity = self.capacity;
         for m in [mu, my] {
             if m.minus(max_abs).is_positive() {
                 max_abs = m;
+                // Rare (only when a new extreme arrives): the division stays off the
+                // per-sample path, which matters on an 8-bit MCU.
+                capacity = A::capacity(max_abs);
             }
         }
         let n = self.n.checked_add(1).ok_or(Error::Overflow)?;
-        if !A::headroom(max_abs, n) {
+        if n > capacity {
             return Err(Error::Overflow);
         }
         self.max_abs = max_abs;
+        self.capacity = capacity;
         self.n = n;
 
-        self.y_hist.copy_within(0..P_MAX, 1);
-        self.y_hist[0] = y;
-        self.u_hist.copy_within(0..L_MAX - 1, 1);
-        self.u_hist[0] = u;
+        shift_in(&mut self.y_hist, y);
+        shift_in(&mut self.u_hist, u);
 
         for (acc, &yk) in self.yy.iter_mut().zip(self.y_hist.iter()) {
             *acc = acc.plus(A::product(y, yk));
@@ -460,6 +479,17 @@ impl<A: Accumulator> Gram<A> {
         }
         normal.check_finite()?;
         Ok(normal)
+    }
+}
+
+/// `h[k] ← h[k − 1]`, `h[0] ← v`: an unrolled shift instead of a `memmove` call.
+#[inline(always)]
+fn shift_in<S: Copy>(h: &mut [S], v: S) {
+    for k in (1..h.len()).rev() {
+        h[k] = h[k - 1];
+    }
+    if let Some(first) = h.first_mut() {
+        *first = v;
     }
 }
 
