@@ -113,12 +113,14 @@ impl Accumulator for i64 {
     }
     #[inline]
     fn product(a: i32, b: i32) -> i64 {
-        // Sensor and PWM counts fit in 16 bits: a 16 × 16 → 32-bit multiply is far
-        // cheaper than a 64-bit one on an 8-bit MCU.
-        match (i16::try_from(a), i16::try_from(b)) {
-            (Ok(a), Ok(b)) => i64::from(i32::from(a) * i32::from(b)),
-            _ => i64::from(a) * i64::from(b),
+        // Sensor and PWM counts fit in 16 bits: on an 8-bit MCU a 16 × 16 → 32-bit
+        // multiply is far cheaper than a 64-bit one. 32-bit cores have a widening
+        // multiply instruction and take the plain path.
+        #[cfg(target_arch = "avr")]
+        if let (Ok(a), Ok(b)) = (i16::try_from(a), i16::try_from(b)) {
+            return i64::from(i32::from(a) * i32::from(b));
         }
+        i64::from(a) * i64::from(b)
     }
     #[inline]
     fn widen(s: i32) -> i64 {
