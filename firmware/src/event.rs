@@ -10,13 +10,13 @@
 //! |---|---|
 //! | [`Event::StoredRejected`] | `STORED-REJECTED crc` |
 //! | [`Event::Loaded`] | `LOADED p=1 q=1 d=3 off=1 theta=0.935000 phi=6.500000 c=-0.125000 fit=87.3` |
-//! | [`Event::Excite`] | `EXCITE A-Multistep n=3000 attempt=1/3` |
+//! | [`Event::Excite`] | `EXCITE A-Multistep n=3000 u0=30.00 y0=19.058 attempt=1/3` |
 //! | [`Event::Identified`] | `ID p=1 q=1 d=3 off=1 theta=0.935000 phi=6.500000 c=-0.125000 score=-1234.5 eval=14/252 skip=0 iters=200` |
 //! | [`Event::Validate`] | `VALIDATE B-Multistep n=3000` |
 //! | [`Event::Accepted`] | `ACCEPT fit=87.3 rmse=3.230 one=2.094 n=2994 persist` |
 //! | [`Event::Rejected`] | `REJECT fit=42.1<70.0 attempt=1/3` |
 //! | [`Event::Residual`] | `RES rms=0.812 mean=-0.013 flow=50.125 n=100` |
-//! | [`Event::Drift`] | `DRIFT rms=3.456 limit=2.000 s=3 reid=0` |
+//! | [`Event::Drift`] | `DRIFT rms=3.200 mean=-2.997 flow=35.400 s=3 reid=0` |
 //! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125` |
 
 use ridge_core::excitation::Record;
@@ -164,6 +164,10 @@ pub enum Event {
         record: Record,
         /// Its length in samples (10 ms each).
         samples: u32,
+        /// Operating point: the base duty, 1/10 000 of full scale.
+        u0: u16,
+        /// Operating point: the mean settled flow, counts (1/120 slm).
+        y0: i16,
         /// This attempt, from 1.
         attempt: u8,
         /// Configured number of attempts.
@@ -219,13 +223,16 @@ pub enum Event {
         /// Samples scored in the window.
         samples: u16,
     },
-    /// Run mode: the residual RMS exceeded its limit for `seconds` consecutive windows.
-    /// The drift flag is set; with `reidentify` a new identification starts.
+    /// Run mode: the residual RMS or bias exceeded its limit for `seconds` consecutive
+    /// windows (see [`crate::monitor`]). The drift flag is set; with `reidentify` a new
+    /// identification starts.
     Drift {
-        /// RMS of the last window, slm.
+        /// Residual RMS of the last window, slm.
         rms: f32,
-        /// Limit of the last window, slm.
-        limit: f32,
+        /// Mean residual (measured − predicted) of the last window, slm.
+        mean: f32,
+        /// Mean measured flow of the last window, slm.
+        flow: f32,
         /// Consecutive windows above the limit.
         seconds: u8,
         /// Whether re-identification was started.
@@ -358,13 +365,17 @@ impl uDisplay for Event {
             Event::Excite {
                 record,
                 samples,
+                u0,
+                y0,
                 attempt,
                 attempts,
             } => ufmt::uwrite!(
                 f,
-                "EXCITE {} n={} attempt={}/{}",
+                "EXCITE {} n={} u0={} y0={} attempt={}/{}",
                 record.name(),
                 *samples,
+                percent(*u0),
+                slm(*y0),
                 *attempt,
                 *attempts
             ),
@@ -417,14 +428,16 @@ impl uDisplay for Event {
             ),
             Event::Drift {
                 rms,
-                limit,
+                mean,
+                flow,
                 seconds,
                 reidentify,
             } => ufmt::uwrite!(
                 f,
-                "DRIFT rms={} limit={} s={} reid={}",
+                "DRIFT rms={} mean={} flow={} s={} reid={}",
                 Fixed::new(*rms, 3),
-                Fixed::new(*limit, 3),
+                Fixed::new(*mean, 3),
+                Fixed::new(*flow, 3),
                 *seconds,
                 u8::from(*reidentify)
             ),

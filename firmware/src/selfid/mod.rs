@@ -17,12 +17,25 @@
 //! any state ─sensor errors / flow out of range / stall / all attempts rejected─▶ Fault (duty 0, latched)
 //! ```
 //! - **WaitSensor**: duty 0 until the first good reading.
-//! - **Settle**: [`Config::base_duty`] for [`Config::settle_ticks`].
+//! - **Settle**: [`Config::base_duty`] for [`Config::settle_ticks`]. The rounded mean flow of
+//!   the last [`SETTLE_MEAN_TICKS`] ticks is the operating point `y0` (counts), with
+//!   `u0` = the base duty.
 //! - **Excite**: the [`Config::excitation`] record; every tick feeds the exact integer
-//!   statistics with `IntGram::push(u, y)`, `u` the duty (1/10 000) applied during the
-//!   interval that ends with the reading `y` (counts `raw − 32768`, 1/120 slm).
+//!   statistics with `IntGram::push(u − u0, y − y0)`, `u` the duty (1/10 000) applied during
+//!   the interval that ends with the reading `y` (counts `raw − 32768`, 1/120 slm).
 //! - **Search**: base duty until the search is done (ridge-core `Search<f32>` on
-//!   `Gram::normal::<f32>(Scale::SFM3300_DUTY_10K)`, [`Config::search`]).
+//!   `Gram::normal::<f32>(Scale::SFM3300_DUTY_10K)`, [`Config::search`]); the model of the
+//!   deviations is turned into the absolute model with an intercept ([`absolute_model`]).
+//!
+//! ## Why deviations from the operating point
+//! The statistics assume zero history before the record (paper, Algorithm 1), but the pump
+//! enters the record running at the base duty. With absolute values the first rows of the
+//! regression would see zero past flows while the flow is ~20 slm: on a noise-free linear
+//! plant those few rows dominate the residual sum of squares (20² slm² each against
+//! quantisation noise of 2·10⁻⁵ slm² per sample) and bias every estimate. With deviations
+//! from the settled operating point the zero history is what the plant really had, so the
+//! records are exactly the ARX regression of eq. (6), and ridge-core's default search
+//! (no offset) applies as is; the operating point becomes the intercept of the stored model.
 //! - **Validate**: the [`Config::validation`] record, scored with a streaming
 //!   [`Evaluation<f32>`] in physical units (seeded with measured samples, SPEC §6); a model with
 //!   a free-run fit below [`Config::min_fit`] is rejected.
@@ -58,11 +71,10 @@ pub struct Config {
     pub excitation: Record,
     /// Validation record (default B-Multistep, 3000 samples).
     pub validation: Record,
-    /// Structure search. Default: ridge-core's (Ridge-M γ = 1000, β = 0.01, 200 iterates,
-    /// delay-free AIC with α = 12, the 252-candidate grid, exact pruning) **with an
-    /// intercept**: the statistics are of absolute duty and flow, and a pump has a dead zone
-    /// (on the simulated default pump the validation free-run fit is 91 % with the intercept
-    /// and 56 % without). [`ridge_core::Criterion::Validation`] is not supported here.
+    /// Structure search on the deviations from the operating point. Default: ridge-core's
+    /// `Search::default()` (Ridge-M γ = 1000, β = 0.01, 200 iterates, delay-free AIC with
+    /// α = 12, the 252-candidate grid, exact pruning, no offset).
+    /// [`ridge_core::Criterion::Validation`] is not supported here.
     pub search: Search<f32>,
     /// Smallest accepted free-run fit on the validation record, percent (default 70).
     pub min_fit: f32,
@@ -96,10 +108,7 @@ impl Default for Config {
             settle_ticks: 200,
             excitation: Record::AMultistep,
             validation: Record::BMultistep,
-            search: Search {
-                offset: Offset::Intercept,
-                ..Search::default()
-            },
+            search: Search::default(),
             min_fit: 70.0,
             min_response: 1.0,
             max_gaps: 10,
@@ -146,6 +155,10 @@ pub struct Tick {
 /// Statistics of one estimation record.
 #[derive(Debug, Clone)]
 struct Recording {
+    /// Operating point: the base duty (1/10 000) and the mean settled flow (counts).
+    u0: u16,
+    y0: i16,
+    /// Exact statistics of the deviations `(u − u0, y − y0)`.
     gram: IntGram,
     /// `Σ y` and `Σ y²` of the flow counts, for the excitation check.
     sum_y: i64,
@@ -154,8 +167,10 @@ struct Recording {
 }
 
 impl Recording {
-    fn new() -> Self {
+    fn new(u0: u16, y0: i16) -> Self {
         Recording {
+            u0,
+            y0,
             gram: IntGram::new(),
             sum_y: 0,
             sum_y2: 0,
@@ -175,6 +190,38 @@ impl Recording {
     }
 }
 
+/// Settle ticks (at the end of the settle phase) whose mean flow is the operating point.
+pub const SETTLE_MEAN_TICKS: u16 = 50;
+
+/// Converts a model identified on deviations from the operating point `(u0, y0)` (duty
+/// 1/10 000, flow counts) into the absolute model with an intercept (physical units):
+/// `c = c_dev + y0 (1 − Σθ) − u0 Σφ` (slm, with `y0` in slm and `u0` as a fraction).
+///
+/// Errors: [`ridge_core::Error::NonFinite`] for non-finite coefficients.
+pub fn absolute_model(
+    dev: &ArxModel<f32>,
+    u0: u16,
+    y0: i16,
+) -> Result<ArxModel<f32>, ridge_core::Error> {
+    let mut sum_theta = 0.0f32;
+    for t in dev.theta() {
+        sum_theta += *t;
+    }
+    let mut sum_phi = 0.0f32;
+    for f in dev.phi() {
+        sum_phi += *f;
+    }
+    let c = dev.intercept() + f32::from(y0) * SLM_PER_COUNT * (1.0 - sum_theta)
+        - f32::from(u0) * FRACTION_PER_DUTY * sum_phi;
+    ArxModel::new(
+        dev.theta(),
+        dev.phi(),
+        dev.structure().d,
+        Offset::Intercept,
+        c,
+    )
+}
+
 /// What follows a settle phase.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Then {
@@ -188,6 +235,9 @@ enum Phase {
     Settle {
         left: u16,
         then: Then,
+        /// Sum and count of the good readings of the last [`SETTLE_MEAN_TICKS`] ticks.
+        sum: i32,
+        n: u8,
     },
     Excite {
         gen: Excitation,
@@ -208,6 +258,15 @@ enum Phase {
         monitor: Monitor,
     },
     Fault,
+}
+
+fn settle(left: u16, then: Then) -> Phase {
+    Phase::Settle {
+        left,
+        then,
+        sum: 0,
+        n: 0,
+    }
 }
 
 /// The self-identification state machine; all state, fixed size, no heap
@@ -311,8 +370,10 @@ impl SearchJob {
             })?;
         pet();
         let found = search::run(&self.search, &normal, pet).map_err(RejectReason::Search)?;
+        let model =
+            absolute_model(&found.model, self.rec.u0, self.rec.y0).map_err(RejectReason::Search)?;
         Ok((
-            found.model,
+            model,
             SearchStats {
                 score: found.score,
                 candidates: found.candidates,
@@ -518,10 +579,7 @@ impl SelfIdentification {
         // Still waiting for the sensor: the identification starts after it, as at boot.
         if !matches!(self.phase, Phase::Wait) {
             // The base duty takes effect with the next tick's return value.
-            self.phase = Phase::Settle {
-                left: self.cfg.settle_ticks,
-                then: Then::Excite,
-            };
+            self.phase = settle(self.cfg.settle_ticks, Then::Excite);
         }
     }
 
@@ -603,10 +661,7 @@ impl SelfIdentification {
         if attempt >= attempts {
             self.enter_fault(FaultReason::Unidentified { attempts });
         } else {
-            self.phase = Phase::Settle {
-                left: self.cfg.settle_ticks,
-                then: Then::Excite,
-            };
+            self.phase = settle(self.cfg.settle_ticks, Then::Excite);
             self.duty = self.cfg.base_duty;
         }
         Event::Rejected {
@@ -627,14 +682,11 @@ impl SelfIdentification {
                 } else {
                     Then::Excite
                 };
-                self.phase = Phase::Settle {
-                    left: self.cfg.settle_ticks,
-                    then,
-                };
+                self.phase = settle(self.cfg.settle_ticks, then);
                 self.duty = self.cfg.base_duty;
-                self.settle_step()
+                self.settle_step(reading)
             }
-            Phase::Settle { .. } => self.settle_step(),
+            Phase::Settle { .. } => self.settle_step(reading),
             Phase::Excite { gen, rec } => {
                 if reading.is_none() {
                     rec.gaps = rec.gaps.saturating_add(1);
@@ -643,7 +695,9 @@ impl SelfIdentification {
                         return Some(self.reject(RejectReason::SensorGaps { gaps }));
                     }
                 }
-                if let Err(e) = rec.gram.push(i32::from(applied), i32::from(y)) {
+                let du = i32::from(applied) - i32::from(rec.u0);
+                let dy = i32::from(y) - i32::from(rec.y0);
+                if let Err(e) = rec.gram.push(du, dy) {
                     return Some(self.reject(RejectReason::Search(e)));
                 }
                 let y64 = i64::from(y);
@@ -719,15 +773,28 @@ impl SelfIdentification {
     }
 
     /// One settle tick: base duty; at the end, run mode or the excitation.
-    fn settle_step(&mut self) -> Option<Event> {
-        let Phase::Settle { left, then } = &mut self.phase else {
+    fn settle_step(&mut self, reading: Option<i16>) -> Option<Event> {
+        let Phase::Settle { left, then, sum, n } = &mut self.phase else {
             return None;
         };
         self.duty = self.cfg.base_duty;
+        if *left <= SETTLE_MEAN_TICKS && reading.is_some() {
+            *sum = sum.saturating_add(i32::from(self.last_counts));
+            *n = n.saturating_add(1);
+        }
         *left = left.saturating_sub(1);
         if *left > 0 {
             return None;
         }
+        // Rounded mean of the settled flow (the last reading if none was good).
+        let y0 = if *n > 0 {
+            let (s, k) = (*sum, i32::from(*n));
+            let half = if s >= 0 { k / 2 } else { -(k / 2) };
+            i16::try_from((s + half) / k).unwrap_or(self.last_counts)
+        } else {
+            self.last_counts
+        };
+        let u0 = self.cfg.base_duty;
         match (*then, self.model) {
             (Then::Run, Some(model)) => {
                 self.phase = Phase::Run {
@@ -747,19 +814,21 @@ impl SelfIdentification {
                     Some(d) => {
                         self.phase = Phase::Excite {
                             gen,
-                            rec: Recording::new(),
+                            rec: Recording::new(u0, y0),
                         };
                         self.duty = d;
                         Some(Event::Excite {
                             record: self.cfg.excitation,
                             samples,
+                            u0,
+                            y0,
                             attempt: self.attempt,
                             attempts: self.cfg.attempts.max(1),
                         })
                     }
                     None => {
                         self.phase = Phase::SearchReady {
-                            rec: Recording::new(),
+                            rec: Recording::new(u0, y0),
                         };
                         None
                     }

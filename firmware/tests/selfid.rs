@@ -1,0 +1,969 @@
+//! The self-identification state machine driven in closed loop by synthetic plants simulated
+//! inside the tests (integer sensor counts, the duties the state machine returns).
+
+use std::collections::VecDeque;
+
+use ridge_core::excitation::Record;
+use ridge_core::{ArxModel, IntGram, Method, Offset, RidgeM, Scale, Search, Structure};
+use ridge_pump_firmware::event::{Event, FaultReason, RejectReason, SearchStats, SensorFault};
+use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
+use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, Tick};
+
+/// A linear first-order ARX plant with transport delay, in physical units:
+/// `y_t = a y_{t-1} + b u_{t-d} + c + e_t` (slm, duty fraction), computed in SFM3300 counts
+/// with the rounding to whole counts inside the recursion. `e_t` is a white equation error:
+/// ±2 counts of uniform dither (a deterministic xorshift stream) plus the rounding, so the
+/// plant *is* an ARX(1, 1, d) model and least squares is consistent. (Rounding only the
+/// reading would be an output error, which ARX needs higher orders for; rounding without the
+/// dither gets stuck in a dead band and makes a constant, not a white, error.)
+#[derive(Clone, Debug)]
+struct Plant {
+    a: f64,
+    b: f64,
+    c: f64,
+    d: usize,
+    y: f64,
+    /// Inputs, newest last; `u_{t-d}` is `hist[len - 1 - d]`.
+    hist: VecDeque<f64>,
+    /// Overrides the reading (flat sensor, stalled pump...).
+    stuck: Option<i16>,
+    /// Dither state (xorshift64).
+    rng: u64,
+}
+
+impl Plant {
+    fn new(a: f64, b: f64, c: f64, d: usize) -> Self {
+        Plant {
+            a,
+            b,
+            c,
+            d,
+            y: 0.0,
+            hist: VecDeque::from(vec![0.0; d + 1]),
+            stuck: None,
+            rng: 0x9E37_79B9_7F4A_7C15,
+        }
+    }
+
+    /// The reference plant: τ ≈ 95 ms, gain 100 slm per unit duty, offset −10 slm, 3 samples
+    /// of delay (20 slm at 30 % duty, 80 slm at 90 %).
+    fn reference() -> Self {
+        Plant::new(0.9, 10.0, -1.0, 3)
+    }
+
+    /// Applies `duty` (1/10 000) for one interval; returns the reading at its end (counts).
+    fn step(&mut self, duty: u16) -> i16 {
+        self.hist.push_back(f64::from(duty) / 10_000.0);
+        self.hist.pop_front();
+        let u = self.hist[self.hist.len() - 1 - self.d];
+        self.rng ^= self.rng << 13;
+        self.rng ^= self.rng >> 7;
+        self.rng ^= self.rng << 17;
+        let dither = (self.rng >> 11) as f64 / (1u64 << 53) as f64 * 4.0 - 2.0;
+        let counts = ((self.a * self.y + self.b * u + self.c) * 120.0 + dither)
+            .round()
+            .clamp(-32768.0, 32767.0);
+        self.y = counts / 120.0;
+        match self.stuck {
+            Some(c) => c,
+            None => counts as i16,
+        }
+    }
+}
+
+/// The operating point the state machine must have used for the `k`-th excitation record:
+/// the rounded mean of the readings of the last 50 settle ticks before it.
+fn settled_y0(log: &[(u16, i16, State)], k: usize) -> i16 {
+    let starts: Vec<usize> = (1..log.len())
+        .filter(|&i| log[i].2 == State::Excite && log[i - 1].2 == State::Settle)
+        .collect();
+    let start = starts[k];
+    let window = &log[start - 50..start];
+    assert!(window.iter().all(|l| l.2 == State::Settle));
+    let sum: i32 = window.iter().map(|l| i32::from(l.1)).sum();
+    (f64::from(sum) / 50.0).round() as i16
+}
+
+/// Counts as the slm text of the report lines.
+fn millislm(counts: i16) -> String {
+    let m = ridge_pump_firmware::sfm3300::counts_to_millislm(counts);
+    format!(
+        "{}{}.{:03}",
+        if m < 0 { "-" } else { "" },
+        m.abs() / 1000,
+        m.abs() % 1000
+    )
+}
+
+/// The number after `key=` in a report line.
+fn field(line: &str, key: &str) -> f64 {
+    let pat = format!(" {key}=");
+    let at = line.find(&pat).unwrap_or_else(|| panic!("{key} in {line}")) + pat.len();
+    let rest = &line[at..];
+    let end = rest.find([' ', '<', ',']).unwrap_or(rest.len());
+    rest[..end].parse().unwrap()
+}
+
+fn line(e: &Event) -> String {
+    let mut s = heapless::String::<512>::new();
+    ufmt::uwrite!(s, "{}", e).unwrap();
+    s.as_str().to_owned()
+}
+
+/// Runs the closed loop: plant → tick → duty; runs the search when due. Stops after `max`
+/// ticks or when `until` holds.
+struct Rig {
+    sm: SelfIdentification,
+    plant: Plant,
+    duty: u16,
+    ticks: usize,
+    events: Vec<String>,
+    /// (duty applied, reading, state before the tick) of every tick.
+    log: Vec<(u16, i16, State)>,
+    pets: usize,
+}
+
+impl Rig {
+    fn new(cfg: Config, stored: Option<&[u8]>, plant: Plant) -> Self {
+        Rig {
+            sm: SelfIdentification::new(cfg, stored),
+            plant,
+            duty: 0,
+            ticks: 0,
+            events: Vec::new(),
+            log: Vec::new(),
+            pets: 0,
+        }
+    }
+
+    fn tick_with(&mut self, reading: Result<i16, SensorFault>) -> Tick {
+        let before = self.sm.state();
+        let t = self.sm.tick(reading);
+        self.log
+            .push((self.duty, *reading.as_ref().unwrap_or(&i16::MIN), before));
+        self.duty = t.duty;
+        self.ticks += 1;
+        if let Some(e) = &t.event {
+            self.events.push(line(e));
+        }
+        if self.sm.needs_search() {
+            let mut pets = 0;
+            if let Some(e) = self.sm.search(|| pets += 1) {
+                self.events.push(line(&e));
+            }
+            self.pets += pets;
+        }
+        t
+    }
+
+    fn tick(&mut self) -> Tick {
+        let y = self.plant.step(self.duty);
+        self.tick_with(Ok(y))
+    }
+
+    fn run_until(&mut self, max: usize, until: impl Fn(&Self) -> bool) {
+        for _ in 0..max {
+            if until(self) {
+                return;
+            }
+            self.tick();
+        }
+        assert!(
+            until(self),
+            "not reached in {max} ticks: {:#?}",
+            self.events
+        );
+    }
+
+    fn run_to(&mut self, state: State) {
+        self.run_until(20_000, |r| r.sm.state() == state);
+    }
+
+    fn has_event(&self, prefix: &str) -> bool {
+        self.events.iter().any(|e| e.starts_with(prefix))
+    }
+}
+
+#[test]
+fn identifies_the_linear_plant_and_runs() {
+    let mut rig = Rig::new(Config::default(), None, Plant::reference());
+    rig.run_to(State::Run);
+    let ev = &rig.events;
+    // Settle 2 s, excite 30 s, search, validate 30 s.
+    assert_eq!(
+        ev[0],
+        format!(
+            "EXCITE A-Multistep n=3000 u0=30.00 y0={} attempt=1/3",
+            millislm(settled_y0(&rig.log, 0))
+        )
+    );
+    assert!(
+        ev[1].starts_with("ID p=1 q=1 d=3 off=1 theta=0.9"),
+        "{ev:#?}"
+    );
+    assert!(ev[2].starts_with("VALIDATE B-Multistep n=3000"), "{ev:#?}");
+    assert!(ev[3].starts_with("ACCEPT fit="), "{ev:#?}");
+    assert!(ev[3].ends_with(" persist"));
+    assert_eq!(ev.len(), 4, "{ev:#?}");
+    // The plant is the truth: structure, static gain and offset exactly; the dynamics are
+    // slowed by Ridge-M's regularisation (see `ridge_m_bias_vanishes_when_converged`).
+    let m = *rig.sm.model().unwrap();
+    assert_eq!(m.structure(), Structure::new(1, 1, 3).unwrap());
+    assert_eq!(m.offset(), Offset::Intercept);
+    assert!((m.static_gain() - 100.0).abs() < 0.2, "{m:?}");
+    let y_at_zero = m.intercept() / (1.0 - m.theta()[0]);
+    assert!((y_at_zero + 10.0).abs() < 0.05, "{m:?}");
+    assert!(m.theta()[0] > 0.9 && m.theta()[0] < 0.93, "{m:?}");
+    assert!(m.phi()[0] > 7.0 && m.phi()[0] < 10.0, "{m:?}");
+    let fit = rig.sm.fit().unwrap();
+    assert!(fit > 95.0, "{fit}");
+    // The search pets the watchdog at least once per Ridge-M iterate.
+    assert!(rig.pets > 200, "{}", rig.pets);
+    // The persisted bytes are the model.
+    let bytes = rig.sm.persist_bytes().unwrap();
+    assert_eq!(persist::decode(&bytes).unwrap(), (m, fit));
+    // Run mode: the run duty, residuals each second at the quantisation level.
+    let before = rig.events.len();
+    for _ in 0..300 {
+        let t = rig.tick();
+        assert_eq!(t.duty, 3_000);
+    }
+    let res: Vec<&String> = rig.events[before..].iter().collect();
+    assert_eq!(res.len(), 3, "{res:#?}");
+    // The first window holds the transient from the end of the validation record (55 %).
+    for r in &res[1..] {
+        assert!(r.starts_with("RES rms="), "{r}");
+        assert!(field(r, "rms") < 0.02, "{r}"); // the dither: 1.2 counts RMS
+        assert!(field(r, "mean").abs() < 0.005, "{r}");
+        assert!((field(r, "flow") - 20.0).abs() < 0.05, "{r}");
+        assert!(r.ends_with(" n=100"), "{r}");
+    }
+    assert!(!rig.sm.drift());
+}
+
+#[test]
+fn ridge_m_bias_vanishes_when_converged() {
+    // Ridge-M with γ = 1000 in duty-fraction units shrinks φ hard (Σ(Δu)² ≈ 100 ≪ γ); 200
+    // iterates do not undo it on a noise-free first-order plant (θ 0.917, φ 8.3 instead of
+    // 0.9, 10). Converged Ridge-M, or OLS, recovers the plant exactly.
+    for method in [
+        Method::RidgeM(RidgeM {
+            max_iter: 20_000,
+            ..RidgeM::default()
+        }),
+        Method::Ols,
+    ] {
+        let mut cfg = Config::default();
+        cfg.search.method = method;
+        let mut rig = Rig::new(cfg, None, Plant::reference());
+        rig.run_to(State::Run);
+        let m = rig.sm.model().unwrap();
+        assert_eq!(m.structure(), Structure::new(1, 1, 3).unwrap());
+        assert!((m.theta()[0] - 0.9).abs() < 1e-4, "{m:?}");
+        assert!((m.phi()[0] - 10.0).abs() < 5e-3, "{m:?}");
+        assert!((m.intercept() + 1.0).abs() < 5e-3, "{m:?}");
+        assert!(rig.sm.fit().unwrap() > 99.5);
+    }
+}
+
+#[test]
+fn the_record_is_the_exact_statistics_of_applied_duty_and_next_reading() {
+    let mut rig = Rig::new(Config::default(), None, Plant::reference());
+    rig.run_until(20_000, |r| r.sm.state() == State::Excite);
+    // Snapshot just before the search: stop when the search is due, without running it.
+    let mut gram = None;
+    for _ in 0..4000 {
+        let y = rig.plant.step(rig.duty);
+        let before = rig.sm.state();
+        let t = rig.sm.tick(Ok(y));
+        rig.log.push((rig.duty, y, before));
+        rig.duty = t.duty;
+        if rig.sm.needs_search() {
+            gram = rig.sm.gram().cloned();
+            break;
+        }
+    }
+    let gram = gram.expect("search due");
+    // Independent recomputation: every tick that ran in Excite pushed (duty applied during
+    // the interval, reading at its end) as deviations from (u0, y0) = (3000, settled mean).
+    let y0 = i32::from(settled_y0(&rig.log, 0));
+    let mut expect = IntGram::new();
+    for &(u, y, state) in &rig.log {
+        if state == State::Excite {
+            expect.push(i32::from(u) - 3000, i32::from(y) - y0).unwrap();
+        }
+    }
+    assert_eq!(expect.len(), 3000);
+    assert_eq!(gram, expect);
+    // The excitation is the A-Multistep preset, in order.
+    let duties: Vec<u16> = rig
+        .log
+        .iter()
+        .filter(|l| l.2 == State::Excite)
+        .map(|l| l.0)
+        .collect();
+    let preset: Vec<u16> = Record::AMultistep.generator().collect();
+    assert_eq!(duties, preset);
+}
+
+#[test]
+fn search_is_only_run_when_due() {
+    let mut sm = SelfIdentification::new(Config::default(), None);
+    assert!(!sm.needs_search());
+    assert_eq!(sm.search(|| {}), None);
+    assert!(sm.take_search().is_none());
+    assert_eq!(sm.state(), State::WaitSensor);
+}
+
+#[test]
+fn waits_for_the_sensor_then_settles_at_base_duty() {
+    let mut sm = SelfIdentification::new(Config::default(), None);
+    for _ in 0..4 {
+        assert_eq!(
+            sm.tick(Err(SensorFault::Nack)),
+            Tick {
+                duty: 0,
+                event: None
+            }
+        );
+    }
+    assert_eq!(sm.state(), State::WaitSensor);
+    let t = sm.tick(Ok(5));
+    assert_eq!(t.duty, 3_000);
+    assert_eq!(sm.state(), State::Settle);
+    for _ in 0..198 {
+        assert_eq!(sm.tick(Ok(2_400)).duty, 3_000);
+    }
+    // The 200th settle tick starts the excitation with the first A-Multistep level.
+    let t = sm.tick(Ok(2_400));
+    assert_eq!(t.duty, 2_000);
+    assert_eq!(sm.state(), State::Excite);
+    assert_eq!(
+        line(&t.event.unwrap()),
+        "EXCITE A-Multistep n=3000 u0=30.00 y0=20.000 attempt=1/3"
+    );
+}
+
+#[test]
+fn a_flat_response_is_rejected_as_not_excited_then_faults() {
+    // The sensor reads a constant 5 slm whatever the duty (e.g. a blocked duct).
+    let mut plant = Plant::reference();
+    plant.stuck = Some(600);
+    let mut rig = Rig::new(Config::default(), None, plant);
+    rig.run_to(State::Fault);
+    let rejects: Vec<&String> = rig
+        .events
+        .iter()
+        .filter(|e| e.starts_with("REJECT"))
+        .collect();
+    assert_eq!(
+        rejects,
+        [
+            "REJECT not-excited rms=0.000 attempt=1/3",
+            "REJECT not-excited rms=0.000 attempt=2/3",
+            "REJECT not-excited rms=0.000 attempt=3/3"
+        ]
+    );
+    // The last rejection (from the search) latches the fault; the next tick stops the pump
+    // and reports it.
+    assert_eq!(
+        rig.events.last().unwrap(),
+        "REJECT not-excited rms=0.000 attempt=3/3"
+    );
+    let t = rig.tick();
+    assert_eq!(t.duty, 0);
+    assert_eq!(line(&t.event.unwrap()), "FAULT unidentified attempts=3");
+    assert_eq!(
+        rig.sm.fault(),
+        Some(FaultReason::Unidentified { attempts: 3 })
+    );
+    for _ in 0..100 {
+        assert_eq!(rig.tick().duty, 0);
+    }
+    assert!(rig.sm.model().is_none());
+}
+
+#[test]
+fn a_noisy_but_unresponsive_flow_is_not_excited() {
+    // ±3 counts of noise around 5 slm: RMS well below the 1 slm minimum.
+    let mut sm = SelfIdentification::new(Config::default(), None);
+    let mut duty = 0;
+    let mut k: i32 = 0;
+    let mut reject = None;
+    for _ in 0..10_000 {
+        k += 1;
+        let y = 600 + ((k * 7919) % 7 - 3) as i16;
+        let t = sm.tick(Ok(y));
+        duty = t.duty;
+        if sm.needs_search() {
+            reject = sm.search(|| {});
+            break;
+        }
+    }
+    let _ = duty;
+    match reject {
+        Some(Event::Rejected {
+            reason: RejectReason::NotExcited { rms },
+            attempt: 1,
+            attempts: 3,
+        }) => assert!(rms > 0.0 && rms < 0.03, "{rms}"),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(sm.state(), State::Settle);
+    assert!(!sm.needs_search());
+}
+
+#[test]
+fn a_model_that_fails_validation_is_rejected_and_the_next_attempt_succeeds() {
+    let mut rig = Rig::new(Config::default(), None, Plant::reference());
+    rig.run_to(State::Validate);
+    // The plant's gain drops by half during validation: the model must not pass.
+    rig.plant.b = 5.0;
+    rig.plant.c = -0.5;
+    rig.run_until(10_000, |r| r.has_event("REJECT"));
+    let reject = rig.events.iter().find(|e| e.starts_with("REJECT")).unwrap();
+    assert!(reject.starts_with("REJECT fit="), "{reject}");
+    assert!(reject.ends_with("<70.0 attempt=1/3"), "{reject}");
+    assert_eq!(rig.sm.state(), State::Settle);
+    assert!(rig.sm.model().is_none());
+    assert!(rig.sm.persist_bytes().is_none());
+    // Second attempt on the changed plant.
+    rig.run_to(State::Run);
+    let y0 = millislm(settled_y0(&rig.log, 1));
+    assert!(rig.has_event(&format!(
+        "EXCITE A-Multistep n=3000 u0=30.00 y0={y0} attempt=2/3"
+    )));
+    let m = rig.sm.model().unwrap();
+    assert!((m.static_gain() - 50.0).abs() < 0.2, "{m:?}");
+    assert_eq!(rig.sm.attempt(), 2);
+}
+
+#[test]
+fn a_too_strict_fit_threshold_rejects_every_attempt() {
+    let cfg = Config {
+        min_fit: 100.0,
+        attempts: 2,
+        ..Config::default()
+    };
+    let mut rig = Rig::new(cfg, None, Plant::reference());
+    rig.run_to(State::Fault);
+    // The rejection at the end of the validation stops the pump in the same tick.
+    assert_eq!(rig.duty, 0);
+    let rejects = rig
+        .events
+        .iter()
+        .filter(|e| e.starts_with("REJECT fit="))
+        .count();
+    assert_eq!(rejects, 2);
+    let last = rig.events.last().unwrap();
+    assert!(last.ends_with("<100.0 attempt=2/2"), "{last}");
+    let t = rig.tick();
+    assert_eq!(t.duty, 0);
+    assert_eq!(line(&t.event.unwrap()), "FAULT unidentified attempts=2");
+    assert_latched(&mut rig);
+}
+
+/// A rig in each state, for the fault tests.
+fn rig_in(state: State) -> Rig {
+    let mut rig = Rig::new(Config::default(), None, Plant::reference());
+    match state {
+        State::Search => {
+            rig.run_until(20_000, |r| {
+                r.sm.needs_search() || r.sm.state() == State::Validate
+            });
+        }
+        s => rig.run_to(s),
+    }
+    rig
+}
+
+#[test]
+fn consecutive_sensor_errors_stop_the_pump_in_every_state() {
+    for state in [
+        State::WaitSensor,
+        State::Settle,
+        State::Excite,
+        State::Validate,
+        State::Run,
+    ] {
+        for fault in [SensorFault::Nack, SensorFault::Crc, SensorFault::Bus] {
+            let mut rig = rig_in(state);
+            for k in 1..=4 {
+                let t = rig.tick_with(Err(fault));
+                assert!(!matches!(t.event, Some(Event::Fault(_))), "{state:?} {k}");
+                if state != State::WaitSensor {
+                    assert!(t.duty > 0, "{state:?}: bridged error {k} keeps running");
+                }
+            }
+            let t = rig.tick_with(Err(fault));
+            assert_eq!(t.duty, 0, "{state:?}");
+            assert_eq!(
+                t.event,
+                Some(Event::Fault(FaultReason::Sensor {
+                    error: fault,
+                    count: 5
+                }))
+            );
+            assert_latched(&mut rig);
+        }
+    }
+}
+
+/// After a fault: duty 0 and no event for ever, whatever the readings and requests.
+fn assert_latched(rig: &mut Rig) {
+    assert_eq!(rig.sm.state(), State::Fault);
+    rig.sm.request_reidentification();
+    rig.sm.set_run_duty(9_000);
+    for k in 0..300 {
+        let reading = if k % 2 == 0 {
+            Ok(2_400)
+        } else {
+            Err(SensorFault::Crc)
+        };
+        assert_eq!(
+            rig.tick_with(reading),
+            Tick {
+                duty: 0,
+                event: None
+            }
+        );
+    }
+    assert_eq!(rig.sm.state(), State::Fault);
+    assert!(!rig.sm.needs_search());
+}
+
+#[test]
+fn bridged_sensor_errors_reset_and_count_as_gaps() {
+    let mut rig = rig_in(State::Excite);
+    // 4 errors, a good reading, 4 errors: no fault.
+    for _ in 0..2 {
+        for _ in 0..4 {
+            rig.tick_with(Err(SensorFault::Nack));
+        }
+        rig.tick();
+    }
+    assert_eq!(rig.sm.state(), State::Excite);
+    // 3 more gaps (11 > 10) spoil the record.
+    for _ in 0..3 {
+        rig.tick_with(Err(SensorFault::Crc));
+    }
+    assert_eq!(rig.events.last().unwrap(), "REJECT gaps=11 attempt=1/3");
+    assert_eq!(rig.sm.state(), State::Settle);
+}
+
+#[test]
+fn flow_out_of_range_stops_the_pump_in_the_same_tick() {
+    for state in [
+        State::Settle,
+        State::Excite,
+        State::Search,
+        State::Validate,
+        State::Run,
+    ] {
+        for (counts, text) in [(30_001i16, "250.008"), (-30_001, "-250.008")] {
+            let mut rig = rig_in(state);
+            // At the limit is fine.
+            let t = rig.tick_with(Ok(if counts > 0 { 30_000 } else { -30_000 }));
+            assert!(
+                t.duty > 0
+                    && t.event
+                        .as_ref()
+                        .is_none_or(|e| !matches!(e, Event::Fault(_)))
+            );
+            let t = rig.tick_with(Ok(counts));
+            assert_eq!(t.duty, 0, "{state:?}");
+            assert_eq!(line(&t.event.unwrap()), format!("FAULT range flow={text}"));
+            assert_latched(&mut rig);
+        }
+    }
+}
+
+#[test]
+fn a_stalled_pump_is_stopped_after_half_a_second() {
+    let cfg = Config {
+        run_duty: 5_000,
+        ..Config::default()
+    };
+    let mut rig = Rig::new(cfg, None, Plant::reference());
+    rig.run_to(State::Run);
+    for _ in 0..100 {
+        rig.tick();
+    }
+    rig.plant.stuck = Some(10); // 0.083 slm: the rotor is blocked.
+    for k in 1..50 {
+        let t = rig.tick();
+        assert_eq!(t.duty, 5_000, "tick {k}");
+    }
+    let t = rig.tick();
+    assert_eq!(t.duty, 0);
+    assert_eq!(line(&t.event.unwrap()), "FAULT stall duty=50.00 flow=0.083");
+    assert_latched(&mut rig);
+}
+
+#[test]
+fn low_flow_below_the_stall_duty_is_not_a_stall() {
+    let mut rig = rig_in(State::Run); // 30 % run duty
+    rig.plant.stuck = Some(0);
+    for _ in 0..500 {
+        assert_eq!(rig.tick().duty, 3_000);
+    }
+    assert_eq!(rig.sm.state(), State::Run);
+}
+
+#[test]
+fn a_stall_during_the_excitation_is_detected() {
+    let mut rig = rig_in(State::Excite);
+    rig.plant.stuck = Some(0);
+    rig.run_until(3_000, |r| r.sm.state() == State::Fault);
+    let last = rig.events.last().unwrap();
+    assert!(last.starts_with("FAULT stall duty="), "{last}");
+    assert_eq!(rig.duty, 0);
+}
+
+#[test]
+fn a_fault_while_the_search_is_out_makes_its_result_stale() {
+    let mut rig = Rig::new(Config::default(), None, Plant::reference());
+    let mut job = None;
+    for _ in 0..20_000 {
+        let y = rig.plant.step(rig.duty);
+        rig.duty = rig.sm.tick(Ok(y)).duty;
+        if rig.sm.needs_search() {
+            job = rig.sm.take_search();
+            break;
+        }
+    }
+    let job = job.unwrap();
+    assert_eq!(job.samples(), 3000);
+    assert_eq!(rig.sm.state(), State::Search);
+    assert!(!rig.sm.needs_search());
+    // The timer keeps ticking at the base duty while the main loop searches.
+    for _ in 0..10 {
+        assert_eq!(rig.tick().duty, 3_000);
+    }
+    let outcome = job.run(|| {});
+    assert!(outcome.result().is_ok());
+    let t = rig.tick_with(Ok(31_000));
+    assert_eq!(t.duty, 0);
+    assert_eq!(rig.sm.finish_search(outcome), None);
+    assert_eq!(rig.sm.state(), State::Fault);
+}
+
+#[test]
+fn the_split_search_gives_the_same_result_as_the_blocking_one() {
+    let mut a = Rig::new(Config::default(), None, Plant::reference());
+    a.run_to(State::Run);
+    let mut b = Rig::new(Config::default(), None, Plant::reference());
+    for _ in 0..20_000 {
+        let y = b.plant.step(b.duty);
+        b.duty = b.sm.tick(Ok(y)).duty;
+        if let Some(job) = b.sm.take_search() {
+            let e = b.sm.finish_search(job.run(|| {})).unwrap();
+            assert!(line(&e).starts_with("ID p=1 q=1 d=3"));
+        }
+        if b.sm.state() == State::Run {
+            break;
+        }
+    }
+    assert_eq!(a.sm.model(), b.sm.model());
+    assert_eq!(a.sm.persist_bytes(), b.sm.persist_bytes());
+}
+
+#[test]
+fn a_stored_model_skips_identification() {
+    let mut first = Rig::new(Config::default(), None, Plant::reference());
+    first.run_to(State::Run);
+    let bytes = first.sm.persist_bytes().unwrap();
+    let model = *first.sm.model().unwrap();
+
+    let mut rig = Rig::new(Config::default(), Some(&bytes), Plant::reference());
+    rig.run_to(State::Run);
+    assert_eq!(rig.ticks, 200, "settle only");
+    assert_eq!(rig.events.len(), 1, "{:#?}", rig.events);
+    assert!(rig.events[0].starts_with("LOADED p=1 q=1 d=3 off=1 theta=0.9"));
+    assert_eq!(rig.sm.model(), Some(&model));
+    assert_eq!(rig.sm.fit(), first.sm.fit());
+    for _ in 0..300 {
+        assert_eq!(rig.tick().duty, 3_000);
+    }
+    assert!(rig.events[1].starts_with("RES rms="), "{:#?}", rig.events);
+    assert!(field(&rig.events[2], "rms") < 0.02, "{:#?}", rig.events);
+    // A re-identification request identifies anew.
+    rig.sm.request_reidentification();
+    rig.run_to(State::Run);
+    assert!(rig.has_event("EXCITE A-Multistep n=3000 u0=30.00 y0="));
+    assert!(rig.has_event("ACCEPT"));
+}
+
+#[test]
+fn corrupt_stored_bytes_are_reported_and_identification_runs() {
+    let model = ArxModel::new(&[0.9], &[10.0], 3, Offset::Intercept, -1.0).unwrap();
+    let good = persist::encode(&model, 99.5);
+    let mut cases: Vec<(Vec<u8>, &str)> = Vec::new();
+    for byte in 0..RECORD_LEN {
+        for bit in 0..8 {
+            let mut bad = good.to_vec();
+            bad[byte] ^= 1 << bit;
+            let reason = match byte {
+                0..=3 => "magic",
+                4 => "version",
+                _ => "crc",
+            };
+            cases.push((bad, reason));
+        }
+    }
+    cases.push((good[..RECORD_LEN - 1].to_vec(), "length"));
+    cases.push((Vec::new(), "length"));
+    cases.push((vec![0xFF; RECORD_LEN], "magic"));
+    let mut old = good;
+    old[4] = 0;
+    let crc = persist::crc32(&old[..RECORD_LEN - 4]);
+    old[RECORD_LEN - 4..].copy_from_slice(&crc.to_le_bytes());
+    cases.push((old.to_vec(), "version"));
+
+    for (bytes, reason) in &cases {
+        let mut sm = SelfIdentification::new(Config::default(), Some(bytes));
+        assert!(sm.model().is_none());
+        let t = sm.tick(Ok(0));
+        assert_eq!(line(&t.event.unwrap()), format!("STORED-REJECTED {reason}"));
+        for _ in 0..198 {
+            assert_eq!(sm.tick(Ok(2_400)).event, None);
+        }
+        let t = sm.tick(Ok(2_400));
+        assert_eq!(sm.state(), State::Excite, "{reason}");
+        assert!(matches!(t.event, Some(Event::Excite { attempt: 1, .. })));
+    }
+    // The good record loads.
+    let mut sm = SelfIdentification::new(Config::default(), Some(&good));
+    assert_eq!(sm.model(), Some(&model));
+    assert_eq!(sm.tick(Ok(0)).event, None);
+    let _ = PersistError::Crc;
+}
+
+#[test]
+fn drift_is_raised_after_k_seconds_above_the_limit() {
+    let mut rig = rig_in(State::Run);
+    for _ in 0..500 {
+        rig.tick();
+    }
+    assert!(!rig.sm.drift());
+    let before = rig.events.len();
+    // The pump loses 60 % of its gain (e.g. a leak upstream of the sensor): 8 slm instead
+    // of 20 at 30 %.
+    rig.plant.b = 4.0;
+    rig.plant.c = -0.4;
+    for _ in 0..600 {
+        assert_eq!(rig.tick().duty, 3_000);
+    }
+    let after: Vec<&String> = rig.events[before..].iter().collect();
+    let drift = after.iter().position(|e| e.starts_with("DRIFT")).unwrap();
+    assert!(after[drift].ends_with("s=3 reid=0"), "{after:#?}");
+    assert_eq!(after.iter().filter(|e| e.starts_with("DRIFT")).count(), 1);
+    assert!(rig.sm.drift());
+    assert_eq!(rig.sm.state(), State::Run);
+}
+
+#[test]
+fn drift_can_trigger_reidentification() {
+    let mut cfg = Config::default();
+    cfg.monitor.reidentify = true;
+    let mut rig = Rig::new(cfg, None, Plant::reference());
+    rig.run_to(State::Run);
+    let old = *rig.sm.model().unwrap();
+    rig.plant.b = 4.0;
+    rig.plant.c = -0.4;
+    rig.run_until(2_000, |r| r.has_event("DRIFT"));
+    assert!(rig.events.last().unwrap().ends_with("s=3 reid=1"));
+    assert_eq!(rig.sm.state(), State::Settle);
+    assert!(rig.sm.drift());
+    // The old model stays until the new one is accepted.
+    assert_eq!(rig.sm.model(), Some(&old));
+    rig.run_to(State::Run);
+    let new = rig.sm.model().unwrap();
+    assert!((new.static_gain() - 40.0).abs() < 0.2, "{new:?}");
+    assert!(!rig.sm.drift());
+}
+
+#[test]
+fn run_duty_setter() {
+    let mut rig = rig_in(State::Run);
+    rig.sm.set_run_duty(6_000);
+    assert_eq!(rig.tick().duty, 6_000);
+    rig.sm.set_run_duty(12_000);
+    assert_eq!(rig.sm.run_duty(), 10_000);
+    assert_eq!(rig.tick().duty, 10_000);
+}
+
+#[test]
+fn event_lines_are_as_documented() {
+    let model =
+        ArxModel::new(&[0.935, -0.125], &[6.5, 0.25], 3, Offset::Intercept, -0.125).unwrap();
+    let cases: Vec<(Event, &str)> = vec![
+        (
+            Event::StoredRejected(PersistError::Crc),
+            "STORED-REJECTED crc",
+        ),
+        (
+            Event::Loaded { model, fit: 87.25 },
+            "LOADED p=2 q=2 d=3 off=1 theta=0.935000,-0.125000 phi=6.500000,0.250000 c=-0.125000 fit=87.3",
+        ),
+        (
+            Event::Excite {
+                record: Record::AMultistep,
+                samples: 3000,
+                u0: 3_000,
+                y0: 2_287,
+                attempt: 1,
+                attempts: 3,
+            },
+            "EXCITE A-Multistep n=3000 u0=30.00 y0=19.058 attempt=1/3",
+        ),
+        (
+            Event::Identified {
+                model,
+                stats: SearchStats {
+                    score: -1234.5,
+                    candidates: 252,
+                    evaluated: 14,
+                    skipped: 0,
+                    iterations: 200,
+                    samples: 3000,
+                },
+            },
+            "ID p=2 q=2 d=3 off=1 theta=0.935000,-0.125000 phi=6.500000,0.250000 c=-0.125000 score=-1234.5 eval=14/252 skip=0 iters=200",
+        ),
+        (
+            Event::Validate {
+                record: Record::BMultistep,
+                samples: 3000,
+            },
+            "VALIDATE B-Multistep n=3000",
+        ),
+        (
+            Event::Accepted {
+                fit: 90.875,
+                rmse: 3.25,
+                one_step: 2.0625,
+                samples: 2994,
+            },
+            "ACCEPT fit=90.9 rmse=3.250 one=2.063 n=2994 persist",
+        ),
+        (
+            Event::Rejected {
+                reason: RejectReason::Fit {
+                    fit: 42.125,
+                    min: 70.0,
+                },
+                attempt: 1,
+                attempts: 3,
+            },
+            "REJECT fit=42.1<70.0 attempt=1/3",
+        ),
+        (
+            Event::Rejected {
+                reason: RejectReason::NotExcited { rms: 0.0125 },
+                attempt: 2,
+                attempts: 3,
+            },
+            "REJECT not-excited rms=0.013 attempt=2/3",
+        ),
+        (
+            Event::Rejected {
+                reason: RejectReason::Search(ridge_core::Error::NoCandidate),
+                attempt: 3,
+                attempts: 3,
+            },
+            "REJECT search=no-candidate attempt=3/3",
+        ),
+        (
+            Event::Rejected {
+                reason: RejectReason::NonFinite,
+                attempt: 1,
+                attempts: 1,
+            },
+            "REJECT nonfinite attempt=1/1",
+        ),
+        (
+            Event::Rejected {
+                reason: RejectReason::SensorGaps { gaps: 11 },
+                attempt: 1,
+                attempts: 3,
+            },
+            "REJECT gaps=11 attempt=1/3",
+        ),
+        (
+            Event::Residual {
+                rms: 0.8125,
+                mean: -0.0125,
+                flow: 50.125,
+                samples: 100,
+            },
+            "RES rms=0.813 mean=-0.013 flow=50.125 n=100",
+        ),
+        (
+            Event::Drift {
+                rms: 3.25,
+                mean: -3.0,
+                flow: 35.375,
+                seconds: 3,
+                reidentify: false,
+            },
+            "DRIFT rms=3.250 mean=-3.000 flow=35.375 s=3 reid=0",
+        ),
+        (
+            Event::Fault(FaultReason::Sensor {
+                error: SensorFault::Crc,
+                count: 5,
+            }),
+            "FAULT sensor=crc n=5",
+        ),
+        (
+            Event::Fault(FaultReason::FlowRange { counts: -31_245 }),
+            "FAULT range flow=-260.375",
+        ),
+        (
+            Event::Fault(FaultReason::Stall {
+                duty: 4_500,
+                counts: 15,
+            }),
+            "FAULT stall duty=45.00 flow=0.125",
+        ),
+        (
+            Event::Fault(FaultReason::Unidentified { attempts: 3 }),
+            "FAULT unidentified attempts=3",
+        ),
+    ];
+    for (event, text) in cases {
+        assert_eq!(line(&event), text);
+        assert_eq!(event.persist(), text.starts_with("ACCEPT"));
+    }
+}
+
+#[test]
+fn sensor_fault_from_driver_errors() {
+    use ridge_pump_firmware::sfm3300::Error;
+    assert_eq!(SensorFault::from(Error::<()>::NotReady), SensorFault::Nack);
+    assert_eq!(SensorFault::from(Error::<()>::Crc), SensorFault::Crc);
+    assert_eq!(SensorFault::from(Error::I2c(())), SensorFault::Bus);
+}
+
+#[test]
+fn host_search_on_the_same_record_agrees() {
+    // The state machine's f32 result against ridge-core's f64 search on its own record.
+    let mut rig = Rig::new(Config::default(), None, Plant::reference());
+    rig.run_to(State::Run);
+    let y0 = i32::from(settled_y0(&rig.log, 0));
+    let mut gram = IntGram::new();
+    for &(u, y, state) in &rig.log {
+        if state == State::Excite {
+            gram.push(i32::from(u) - 3000, i32::from(y) - y0).unwrap();
+        }
+    }
+    let sel = Search::<f64>::default()
+        .run(&gram.normal::<f64>(Scale::SFM3300_DUTY_10K).unwrap(), None)
+        .unwrap();
+    let m64 = sel.fit.model();
+    let m32 = rig.sm.model().unwrap();
+    assert_eq!(m64.structure(), m32.structure());
+    assert!((m64.theta()[0] - f64::from(m32.theta()[0])).abs() < 1e-4);
+    assert!((m64.phi()[0] - f64::from(m32.phi()[0])).abs() < 1e-3 * m64.phi()[0].abs());
+}
