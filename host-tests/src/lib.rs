@@ -2,3 +2,4 @@
 
 pub mod identify;
 pub mod sim;
+pub mod simavr;

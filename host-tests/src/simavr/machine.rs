@@ -1,0 +1,557 @@
+//! A thin, safe wrapper over simavr (`simavr-ffi`, the simavr that `avr-tester` builds from
+//! source, with its TWI fixes) that exposes what `avr-tester` keeps private: the cycle counter,
+//! data space (I/O registers, SRAM), EEPROM, interrupt and pin events with cycle stamps.
+//!
+//! Everything runs on the calling thread: simavr calls back into the notification functions
+//! below from inside [`Machine::step`], and they only touch state owned by the [`Machine`].
+
+use std::cell::{Cell, RefCell};
+use std::collections::HashMap;
+use std::ffi::{c_void, CString};
+use std::path::Path;
+use std::ptr::NonNull;
+use std::rc::Rc;
+
+use avr_tester::{TwiPacket, TwiSlave};
+use simavr_ffi as ffi;
+
+/// `AVR_IOCTL_DEF(a, b, c, d)` of simavr's `sim_io.h`.
+const fn ioctl(a: u8, b: u8, c: u8, d: u8) -> u32 {
+    u32::from_be_bytes([a, b, c, d])
+}
+
+extern "C" {
+    fn free(p: *mut c_void);
+}
+
+/// Why a run stopped before its target cycle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Halt {
+    /// The core reached its target cycle (still running).
+    Reached,
+    /// The program ended (`cpu_Done`: e.g. `cli; sleep`).
+    Done,
+    /// simavr detected an invalid instruction or similar.
+    Crashed,
+}
+
+/// A byte sent by the firmware on a UART, with the cycle at which simavr delivered it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UartByte {
+    /// Core cycle.
+    pub cycle: u64,
+    /// The byte.
+    pub byte: u8,
+}
+
+/// A logic-level change of a watched output pin.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PinEdge {
+    /// Core cycle.
+    pub cycle: u64,
+    /// New level.
+    pub high: bool,
+}
+
+/// Interrupt entry (`running = true`) or return (`false`) of a watched vector.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct IrqEvent {
+    /// Core cycle.
+    pub cycle: u64,
+    /// Entered (true) or left (false).
+    pub running: bool,
+    /// On entry: the interrupted program counter (bytes), read from the return address just
+    /// pushed (3 bytes on cores with more than 128 KB of flash, 2 otherwise). 0 on return.
+    pub ret_pc: u32,
+}
+
+/// Callback state: a pointer to the core (to read its cycle counter) plus a sink.
+struct Hook<T> {
+    avr: *mut ffi::avr_t,
+    sink: Rc<RefCell<T>>,
+}
+
+impl<T> Hook<T> {
+    fn cycle(&self) -> u64 {
+        // SAFETY: `avr` outlives every hook (hooks are freed in `Machine::drop` after the core
+        // has stopped running); reading a plain field.
+        unsafe { (*self.avr).cycle }
+    }
+}
+
+struct TwiHook {
+    avr: *mut ffi::avr_t,
+    input: *mut ffi::avr_irq_t,
+    clock: Rc<Cell<u64>>,
+    slave: Box<dyn TwiSlave>,
+}
+
+/// Decodes simavr's `avr_twi_msg_irq_t` (bitfields `unused:8, msg:8, addr:8, data:8`).
+pub fn twi_decode(v: u32) -> TwiPacket {
+    let [_, msg, addr, data] = v.to_le_bytes();
+    TwiPacket { msg, addr, data }
+}
+
+/// Encodes a [`TwiPacket`] as simavr's `avr_twi_msg_irq_t`.
+pub fn twi_encode(p: &TwiPacket) -> u32 {
+    u32::from_le_bytes([0, p.msg, p.addr, p.data])
+}
+
+unsafe extern "C" fn on_uart(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
+    // SAFETY: `param` is the `Hook<Vec<UartByte>>` registered in `Machine::new`.
+    let hook = unsafe { &*(param as *const Hook<Vec<UartByte>>) };
+    let cycle = hook.cycle();
+    hook.sink.borrow_mut().push(UartByte {
+        cycle,
+        byte: value as u8,
+    });
+}
+
+unsafe extern "C" fn on_pin(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
+    // SAFETY: `param` is a `Hook<Vec<PinEdge>>` registered in `Machine::watch_pin`.
+    let hook = unsafe { &*(param as *const Hook<Vec<PinEdge>>) };
+    let cycle = hook.cycle();
+    let high = value != 0;
+    let mut v = hook.sink.borrow_mut();
+    if v.last().is_none_or(|e| e.high != high) {
+        v.push(PinEdge { cycle, high });
+    }
+}
+
+unsafe extern "C" fn on_irq_running(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
+    // SAFETY: `param` is a `Hook<Vec<IrqEvent>>` registered in `Machine::watch_vector`.
+    let hook = unsafe { &*(param as *const Hook<Vec<IrqEvent>>) };
+    let cycle = hook.cycle();
+    let running = value != 0;
+    let mut ret_pc = 0;
+    if running {
+        // SAFETY: live core; the stack bytes above SP are inside `data` (SP ≤ RAMEND).
+        unsafe {
+            let avr = &*hook.avr;
+            let sp = usize::from(u16::from_le_bytes([
+                *avr.data.add(0x5D),
+                *avr.data.add(0x5E),
+            ]));
+            let n = usize::from(avr.address_size);
+            let top = usize::from(avr.ramend);
+            let mut words: u32 = 0;
+            for i in 1..=n {
+                if sp + i <= top {
+                    words = (words << 8) | u32::from(*avr.data.add(sp + i));
+                }
+            }
+            ret_pc = words * 2;
+        }
+    }
+    hook.sink.borrow_mut().push(IrqEvent {
+        cycle,
+        running,
+        ret_pc,
+    });
+}
+
+unsafe extern "C" fn on_twi(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
+    // SAFETY: `param` is the `TwiHook` registered in `Machine::attach_twi`; simavr does not
+    // re-enter this callback while the slave runs (the answer goes to the *input* IRQ).
+    let hook = unsafe { &mut *(param as *mut TwiHook) };
+    // SAFETY: plain field read of the live core that is calling us.
+    hook.clock.set(unsafe { (*hook.avr).cycle });
+    if let Some(answer) = hook.slave.recv(twi_decode(value)) {
+        // SAFETY: `input` is the TWI input IRQ of the same core.
+        unsafe { ffi::avr_raise_irq(hook.input, twi_encode(&answer)) };
+    }
+}
+
+/// simavr's raw run loop calls `avr->sleep` while the core sleeps, which paces the host to real
+/// time (`usleep`). The harness wants simulated time only.
+unsafe extern "C" fn no_sleep(_avr: *mut ffi::avr_t, _how_long: ffi::avr_cycle_count_t) {}
+
+/// An ELF symbol (name, address as simavr reports it: data symbols at `0x800000 + addr`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Symbol {
+    /// Name.
+    pub name: String,
+    /// Address.
+    pub addr: u32,
+    /// Size in bytes.
+    pub size: u32,
+}
+
+/// One simulated AVR with a loaded firmware.
+pub struct Machine {
+    avr: NonNull<ffi::avr_t>,
+    uart0: Rc<RefCell<Vec<UartByte>>>,
+    symbols: Vec<Symbol>,
+    sleep_cycles: u64,
+    /// Owned callback states (freed on drop).
+    frees: Vec<Box<dyn FnOnce()>>,
+    pins: HashMap<(char, u8), Rc<RefCell<Vec<PinEdge>>>>,
+}
+
+impl std::fmt::Debug for Machine {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Machine")
+            .field("cycle", &self.cycle())
+            .finish()
+    }
+}
+
+impl Machine {
+    /// Creates core `mcu` (e.g. `"atmega2560"`) at `frequency` Hz and loads the ELF at `elf`.
+    pub fn new(mcu: &str, frequency: u32, elf: &Path) -> Result<Self, String> {
+        let c_mcu = CString::new(mcu).map_err(|e| e.to_string())?;
+        let c_path = CString::new(elf.to_string_lossy().as_bytes()).map_err(|e| e.to_string())?;
+        if !elf.is_file() {
+            return Err(format!("no such firmware: {}", elf.display()));
+        }
+        // SAFETY: plain C constructors; every pointer is checked before use.
+        unsafe {
+            let avr = NonNull::new(ffi::avr_make_mcu_by_name(c_mcu.as_ptr()))
+                .ok_or_else(|| format!("simavr does not know the MCU {mcu}"))?;
+            let rc = ffi::avr_init(avr.as_ptr());
+            if rc != 0 {
+                return Err(format!("avr_init failed ({rc})"));
+            }
+            let fw: *mut ffi::elf_firmware_t =
+                Box::into_raw(Box::new(std::mem::zeroed::<ffi::elf_firmware_t>()));
+            let rc = ffi::elf_read_firmware(c_path.as_ptr(), fw);
+            if rc != 0 {
+                drop(Box::from_raw(fw));
+                return Err(format!("simavr could not read {} ({rc})", elf.display()));
+            }
+            let mut symbols = Vec::new();
+            for i in 0..(*fw).symbolcount as usize {
+                let s = *(*fw).symbol.add(i);
+                if s.is_null() {
+                    continue;
+                }
+                let name = std::ffi::CStr::from_ptr((*s).symbol.as_ptr())
+                    .to_string_lossy()
+                    .into_owned();
+                symbols.push(Symbol {
+                    name,
+                    addr: (*s).addr,
+                    size: (*s).size,
+                });
+            }
+            ffi::avr_load_firmware(avr.as_ptr(), fw);
+            // The firmware struct and its symbol table stay referenced by simavr's trace data:
+            // leak them (a few KB per machine).
+            (*avr.as_ptr()).frequency = frequency;
+            (*avr.as_ptr()).sleep = Some(no_sleep);
+
+            let mut m = Machine {
+                avr,
+                uart0: Rc::new(RefCell::new(Vec::new())),
+                symbols,
+                sleep_cycles: 0,
+                frees: Vec::new(),
+                pins: HashMap::new(),
+            };
+            m.hook_uart('0')?;
+            Ok(m)
+        }
+    }
+
+    fn raw(&self) -> *mut ffi::avr_t {
+        self.avr.as_ptr()
+    }
+
+    fn leak<T: 'static>(&mut self, value: T) -> *mut T {
+        let p = Box::into_raw(Box::new(value));
+        let addr = p as usize;
+        self.frees.push(Box::new(move || {
+            // SAFETY: `addr` came from `Box::into_raw` above and is freed once, after the core
+            // is terminated.
+            drop(unsafe { Box::from_raw(addr as *mut T) });
+        }));
+        p
+    }
+
+    unsafe fn hook_uart(&mut self, id: char) -> Result<(), String> {
+        let avr = self.raw();
+        let mut flags: u32 = 0;
+        // SAFETY: UART flags ioctls take a `uint32_t *`.
+        unsafe {
+            if ffi::avr_ioctl(
+                avr,
+                ioctl(b'u', b'a', b'g', id as u8),
+                (&mut flags as *mut u32).cast(),
+            ) != 0
+            {
+                return Err(format!("no UART{id}"));
+            }
+            flags &= !ffi::AVR_UART_FLAG_STDIO;
+            ffi::avr_ioctl(
+                avr,
+                ioctl(b'u', b'a', b's', id as u8),
+                (&mut flags as *mut u32).cast(),
+            );
+            let irq = ffi::avr_io_getirq(
+                avr,
+                ioctl(b'u', b'a', b'r', id as u8),
+                ffi::UART_IRQ_OUTPUT as _,
+            );
+            if irq.is_null() {
+                return Err(format!("no UART{id} output IRQ"));
+            }
+            let hook = self.leak(Hook {
+                avr,
+                sink: self.uart0.clone(),
+            });
+            ffi::avr_irq_register_notify(irq, Some(on_uart), hook.cast());
+        }
+        Ok(())
+    }
+
+    /// Attaches a TWI (I2C) slave to TWI0; it sees every packet. `clock` is set to the core
+    /// cycle just before each packet is handed to the slave (slaves have no clock of their
+    /// own in `avr_tester`'s [`TwiSlave`] interface).
+    pub fn attach_twi(
+        &mut self,
+        slave: Box<dyn TwiSlave>,
+        clock: Rc<Cell<u64>>,
+    ) -> Result<(), String> {
+        let avr = self.raw();
+        let ctl = ioctl(b't', b'w', b'i', 0);
+        // SAFETY: IRQ look-ups on a valid core; the hook outlives the core's use of it.
+        unsafe {
+            let input = ffi::avr_io_getirq(avr, ctl, ffi::TWI_IRQ_INPUT as _);
+            let output = ffi::avr_io_getirq(avr, ctl, ffi::TWI_IRQ_OUTPUT as _);
+            if input.is_null() || output.is_null() {
+                return Err("no TWI0".into());
+            }
+            let hook = self.leak(TwiHook {
+                avr,
+                input,
+                clock,
+                slave,
+            });
+            ffi::avr_irq_register_notify(output, Some(on_twi), hook.cast());
+        }
+        Ok(())
+    }
+
+    /// Records every level change of output pin `port``bit` (e.g. `('B', 7)`) from now on.
+    pub fn watch_pin(&mut self, port: char, bit: u8) -> Rc<RefCell<Vec<PinEdge>>> {
+        if let Some(s) = self.pins.get(&(port, bit)) {
+            return s.clone();
+        }
+        let sink = Rc::new(RefCell::new(Vec::new()));
+        let avr = self.raw();
+        // SAFETY: as in `attach_twi`.
+        unsafe {
+            let irq = ffi::avr_io_getirq(avr, ioctl(b'i', b'o', b'g', port as u8), bit.into());
+            if !irq.is_null() {
+                let hook = self.leak(Hook {
+                    avr,
+                    sink: sink.clone(),
+                });
+                ffi::avr_irq_register_notify(irq, Some(on_pin), hook.cast());
+            }
+        }
+        self.pins.insert((port, bit), sink.clone());
+        sink
+    }
+
+    /// Records entries into and returns from interrupt vector `vector` (e.g. 17 =
+    /// `TIMER1_COMPA` on the ATmega2560) from now on.
+    pub fn watch_vector(&mut self, vector: u8) -> Rc<RefCell<Vec<IrqEvent>>> {
+        let sink = Rc::new(RefCell::new(Vec::new()));
+        let avr = self.raw();
+        // SAFETY: as in `attach_twi`.
+        unsafe {
+            let irq = ffi::avr_get_interrupt_irq(avr, vector);
+            if !irq.is_null() {
+                let hook = self.leak(Hook {
+                    avr,
+                    sink: sink.clone(),
+                });
+                ffi::avr_irq_register_notify(
+                    irq.add(ffi::AVR_INT_IRQ_RUNNING as usize),
+                    Some(on_irq_running),
+                    hook.cast(),
+                );
+            }
+        }
+        sink
+    }
+
+    /// Current core cycle.
+    pub fn cycle(&self) -> u64 {
+        // SAFETY: plain field read of a live core.
+        unsafe { (*self.raw()).cycle }
+    }
+
+    /// Clock frequency, Hz.
+    pub fn frequency(&self) -> u32 {
+        // SAFETY: plain field read of a live core.
+        unsafe { (*self.raw()).frequency }
+    }
+
+    /// Program counter (bytes).
+    pub fn pc(&self) -> u32 {
+        // SAFETY: plain field read of a live core.
+        unsafe { (*self.raw()).pc }
+    }
+
+    /// Cycles spent in SLEEP so far.
+    pub fn sleep_cycles(&self) -> u64 {
+        self.sleep_cycles
+    }
+
+    /// Runs one instruction (or one sleep interval).
+    pub fn step(&mut self) -> Halt {
+        let before = self.cycle();
+        // SAFETY: running a live core; callbacks only touch state owned by `self`.
+        let state = unsafe { ffi::avr_run(self.raw()) } as u32;
+        let after = self.cycle();
+        match state {
+            ffi::cpu_Done | ffi::cpu_Stopped => Halt::Done,
+            ffi::cpu_Crashed => Halt::Crashed,
+            ffi::cpu_Sleeping => {
+                self.sleep_cycles += after - before;
+                Halt::Reached
+            }
+            _ => Halt::Reached,
+        }
+    }
+
+    /// Runs until the core cycle reaches `cycle` (or the program stops).
+    pub fn run_until(&mut self, cycle: u64) -> Halt {
+        while self.cycle() < cycle {
+            match self.step() {
+                Halt::Reached => {}
+                h => return h,
+            }
+        }
+        Halt::Reached
+    }
+
+    /// One byte of data space (registers, I/O, SRAM): `addr` as in the datasheet's data map.
+    pub fn data(&self, addr: u16) -> u8 {
+        // SAFETY: `data` is `ramend + 1` bytes; bounds are checked.
+        unsafe {
+            let avr = &*self.raw();
+            if addr > avr.ramend {
+                return 0;
+            }
+            *avr.data.add(addr.into())
+        }
+    }
+
+    /// Little-endian 16-bit word at `addr` (low byte first, as AVR 16-bit registers).
+    pub fn data16(&self, addr: u16) -> u16 {
+        u16::from_le_bytes([self.data(addr), self.data(addr + 1)])
+    }
+
+    /// Writes one byte of SRAM (not I/O: no peripheral side effects).
+    pub fn poke(&mut self, addr: u16, v: u8) {
+        // SAFETY: bounds checked.
+        unsafe {
+            let avr = &mut *self.raw();
+            if addr <= avr.ramend {
+                *avr.data.add(addr.into()) = v;
+            }
+        }
+    }
+
+    /// Last SRAM address (`RAMEND`).
+    pub fn ramend(&self) -> u16 {
+        // SAFETY: plain field read.
+        unsafe { (*self.raw()).ramend }
+    }
+
+    /// Stack pointer.
+    pub fn sp(&self) -> u16 {
+        self.data16(0x5D)
+    }
+
+    fn eeprom_desc(&mut self) -> Option<ffi::avr_eeprom_desc_t> {
+        // SAFETY: plain field read.
+        let size = unsafe { (*self.raw()).e2end } + 1;
+        let mut d = ffi::avr_eeprom_desc_t {
+            ee: std::ptr::null_mut(),
+            offset: 0,
+            size,
+        };
+        // SAFETY: EEPROM_GET with a null `ee` points `ee` at simavr's own EEPROM buffer.
+        let rc = unsafe {
+            ffi::avr_ioctl(
+                self.raw(),
+                ioctl(b'e', b'e', b'g', b'p'),
+                (&mut d as *mut ffi::avr_eeprom_desc_t).cast(),
+            )
+        };
+        (rc >= 0 && !d.ee.is_null()).then_some(d)
+    }
+
+    /// A copy of the whole EEPROM (4 KB on the ATmega2560).
+    pub fn eeprom(&mut self) -> Vec<u8> {
+        match self.eeprom_desc() {
+            // SAFETY: simavr owns `size` bytes at `ee`.
+            Some(d) => unsafe { std::slice::from_raw_parts(d.ee, d.size as usize).to_vec() },
+            None => Vec::new(),
+        }
+    }
+
+    /// Overwrites EEPROM from byte `offset` with `bytes` (as a programmer would).
+    pub fn set_eeprom(&mut self, offset: u16, bytes: &[u8]) -> Result<(), String> {
+        let Some(full) = self.eeprom_desc() else {
+            return Err("no EEPROM".into());
+        };
+        if usize::from(offset) + bytes.len() > full.size as usize {
+            return Err("EEPROM write out of range".into());
+        }
+        let mut buf = bytes.to_vec();
+        let mut d = ffi::avr_eeprom_desc_t {
+            ee: buf.as_mut_ptr(),
+            offset,
+            size: bytes.len() as u32,
+        };
+        // SAFETY: EEPROM_SET copies `size` bytes from `ee` to `offset`.
+        unsafe {
+            ffi::avr_ioctl(
+                self.raw(),
+                ioctl(b'e', b'e', b's', b'p'),
+                (&mut d as *mut ffi::avr_eeprom_desc_t).cast(),
+            );
+        }
+        Ok(())
+    }
+
+    /// Everything UART0 has sent so far.
+    pub fn uart0(&self) -> Rc<RefCell<Vec<UartByte>>> {
+        self.uart0.clone()
+    }
+
+    /// The ELF's symbols.
+    pub fn symbols(&self) -> &[Symbol] {
+        &self.symbols
+    }
+
+    /// Address of symbol `name`, if present.
+    pub fn symbol(&self, name: &str) -> Option<&Symbol> {
+        self.symbols.iter().find(|s| s.name == name)
+    }
+
+    /// Resets the core as a power cycle would (SRAM kept as simavr keeps it; EEPROM kept).
+    pub fn reset(&mut self) {
+        // SAFETY: `avr_reset` on a live core.
+        unsafe { ffi::avr_reset(self.raw()) }
+    }
+}
+
+impl Drop for Machine {
+    fn drop(&mut self) {
+        // SAFETY: terminate, then free the core allocated by `avr_make_mcu_by_name`, then the
+        // callback states it pointed to.
+        unsafe {
+            ffi::avr_terminate(self.raw());
+            free(self.raw().cast());
+        }
+        for f in self.frees.drain(..) {
+            f();
+        }
+    }
+}

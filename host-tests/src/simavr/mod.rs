@@ -1,0 +1,22 @@
+//! simavr harness: runs the release ELF of the ATmega2560 firmware in simavr at 16 MHz, closed
+//! loop with a simulated SFM3300 on TWI address 0x40 and the blower model, driven by the PWM
+//! duty the firmware programs; captures and parses the UART report lines; measures tick times,
+//! CPU load, missed ticks and the search time from the cycle counter.
+//!
+//! - [`machine`]: safe wrapper over simavr (`simavr-ffi`, the simavr that `avr-tester` 0.6
+//!   builds from source with its TWI fixes): cycle counter, data space, EEPROM, IRQ hooks.
+//! - [`sensor`]: the SFM3300 as an `avr_tester::TwiSlave`, with fault injection.
+//! - [`pwm`]: duty from the 16-bit timer registers.
+//! - [`rig`]: the closed loop and the timing meter.
+//! - [`report`]: report-line parsing.
+//! - [`firmware`]: locating/building the ELF and its section sizes.
+//! - [`session`]: a whole power-up identification run and its figures (what `simavr-run`
+//!   prints and the tests check).
+
+pub mod firmware;
+pub mod machine;
+pub mod pwm;
+pub mod report;
+pub mod rig;
+pub mod sensor;
+pub mod session;

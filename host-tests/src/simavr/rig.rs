@@ -1,0 +1,540 @@
+//! The closed loop: firmware in simavr ⇄ simulated SFM3300 on TWI ⇄ blower model driven by the
+//! PWM the firmware actually programs.
+//!
+//! Every 0.5 ms of simulated time (the SFM3300's update period) the rig reads the PWM duty from
+//! the timer registers ([`pwm`](super::pwm)), steps the blower model by 0.5 ms with it and
+//! hands the new flow to the sensor. The blower is `sim::Pump` with its 100 Hz parameters
+//! sub-stepped 20× (time constants are exact under zero-order hold; the transport delay is
+//! kept in time, 20 sub-steps per 10 ms sample).
+//!
+//! Timing is measured from the core's cycle counter, with no help from the firmware:
+//! - **tick start**: entry into the tick interrupt (TIMER3_COMPA, vector 32, by default);
+//! - **tick end**: the tick ISR's return, and — for boards that do the tick's work in the main
+//!   loop after the ISR released it — the first instruction back in the main loop's idle
+//!   wait. The idle loop is learned from the addresses the tick ISR interrupts (the most
+//!   frequent one and its neighbours within 16 bytes), so no marker pin is needed;
+//! - a tick is **missed** when the ISR finds the main loop outside its idle wait (the previous
+//!   tick's work was still running).
+
+use std::cell::{Cell, RefCell};
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::rc::Rc;
+
+use super::machine::{Halt, IrqEvent, Machine, UartByte};
+use super::pwm::{self, Channel};
+use super::report::{Line, LineSplitter};
+use super::sensor::{Fault, SensorState, Sfm3300Slave};
+use crate::sim::{Pump, PumpParams, Sfm3300, Sfm3300Params};
+
+/// Plant sub-steps per 10 ms sample (0.5 ms each: the SFM3300 update period).
+pub const SUBSTEPS: usize = 20;
+/// ATmega2560 vector number of TIMER3_COMPA (the board's 100 Hz tick).
+pub const TIMER3_COMPA: u8 = 32;
+
+/// Rig settings.
+#[derive(Clone, Debug)]
+pub struct RigConfig {
+    /// Firmware ELF.
+    pub elf: PathBuf,
+    /// Core clock, Hz.
+    pub frequency: u32,
+    /// Blower (100 Hz parameters; the rig sub-steps it).
+    pub pump: PumpParams,
+    /// Sensor error model.
+    pub sensor: Sfm3300Params,
+    /// Sensor noise seed.
+    pub seed: u64,
+    /// PWM channel driving the blower; `None`: the first 16-bit channel seen driving a pin.
+    pub pwm: Option<Channel>,
+    /// Interrupt vector of the tick; `None`: no tick timing.
+    pub tick_vector: Option<u8>,
+    /// EEPROM contents to program before reset (offset, bytes).
+    pub eeprom: Vec<(u16, Vec<u8>)>,
+}
+
+impl RigConfig {
+    /// ATmega2560 at 16 MHz, default pump and sensor, seed 1, OC4A (the board's pump PWM),
+    /// TIMER3_COMPA tick.
+    pub fn new(elf: impl Into<PathBuf>) -> Self {
+        Self {
+            elf: elf.into(),
+            frequency: 16_000_000,
+            pump: PumpParams::default(),
+            sensor: Sfm3300Params::default(),
+            seed: 1,
+            pwm: Some(Channel {
+                timer: 4,
+                channel: 'A',
+            }),
+            tick_vector: Some(TIMER3_COMPA),
+            eeprom: Vec::new(),
+        }
+    }
+}
+
+/// A PWM change seen at a plant step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DutyChange {
+    /// Core cycle of the plant step that saw it (≤ 0.5 ms after the write).
+    pub cycle: u64,
+    /// Duty fraction 0..1 on the pin.
+    pub fraction: f64,
+    /// Compare register (0 when disconnected).
+    pub ocr: u16,
+    /// Timer TOP.
+    pub top: u16,
+    /// Compare output connected to the pin.
+    pub connected: bool,
+}
+
+/// One 10 ms plant sample (every 20th sub-step), for plots.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlantSample {
+    /// Core cycle.
+    pub cycle: u64,
+    /// Duty on the pin, 0..1.
+    pub duty: f64,
+    /// True flow, slm.
+    pub flow: f64,
+}
+
+/// Timing of one tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TickTiming {
+    /// ISR entry cycle.
+    pub start: u64,
+    /// Cycles from ISR entry to the end of the tick's work (ISR return, or back in the idle
+    /// wait when the main loop does the work).
+    pub busy: u64,
+    /// The ISR found the main loop outside its idle wait (previous tick still running, or a
+    /// blocking job such as the search).
+    pub interrupted_busy: bool,
+}
+
+#[derive(Debug, Default)]
+struct TickMeter {
+    vector: Option<u8>,
+    events: Option<Rc<RefCell<Vec<IrqEvent>>>>,
+    seen: usize,
+    ret_pcs: Vec<u32>,
+    idle: Option<(u32, u32)>,
+    /// Open tick: (start, isr_end, waiting for the idle loop).
+    open: Option<(u64, Option<u64>, bool)>,
+    ticks: Vec<TickTiming>,
+    idle_cycles: u64,
+    last_cycle: u64,
+}
+
+/// Learn the idle loop from this many tick-ISR entries.
+const LEARN_TICKS: usize = 64;
+
+impl TickMeter {
+    fn is_idle(&self, pc: u32) -> bool {
+        self.idle.is_some_and(|(a, b)| (a..=b).contains(&pc))
+    }
+
+    fn learn(&mut self) {
+        let mut count: HashMap<u32, usize> = HashMap::new();
+        for &p in &self.ret_pcs {
+            *count.entry(p).or_default() += 1;
+        }
+        let Some((&mode, _)) = count.iter().max_by_key(|(p, n)| (**n, u32::MAX - **p)) else {
+            return;
+        };
+        let near: Vec<u32> = count
+            .keys()
+            .copied()
+            .filter(|p| p.abs_diff(mode) <= 16)
+            .collect();
+        let lo = near.iter().copied().min().unwrap_or(mode);
+        let hi = near.iter().copied().max().unwrap_or(mode);
+        self.idle = Some((lo, hi));
+    }
+
+    fn close(&mut self, end: u64) {
+        if let Some((start, _, _)) = self.open.take() {
+            let interrupted_busy = false;
+            self.ticks.push(TickTiming {
+                start,
+                busy: end - start,
+                interrupted_busy,
+            });
+        }
+    }
+
+    /// Called after every instruction.
+    fn after_step(&mut self, cycle: u64, pc: u32) {
+        let idle_now = self.is_idle(pc);
+        if idle_now {
+            self.idle_cycles += cycle - self.last_cycle;
+        }
+        self.last_cycle = cycle;
+        if let Some(ev) = &self.events {
+            let n = ev.borrow().len();
+            if n != self.seen {
+                let new: Vec<IrqEvent> = ev.borrow()[self.seen..].to_vec();
+                self.seen = n;
+                for e in new {
+                    self.on_event(e);
+                }
+            }
+        }
+        if let Some((_, Some(_), true)) = self.open {
+            if idle_now {
+                self.close(cycle);
+            }
+        }
+    }
+
+    fn on_event(&mut self, e: IrqEvent) {
+        if e.running {
+            if self.idle.is_none() {
+                self.ret_pcs.push(e.ret_pc);
+                if self.ret_pcs.len() >= LEARN_TICKS {
+                    self.learn();
+                }
+                return;
+            }
+            let was_idle = self.is_idle(e.ret_pc);
+            if let Some((start, _, _)) = self.open.take() {
+                // The previous tick never got back to idle before this one fired.
+                self.ticks.push(TickTiming {
+                    start,
+                    busy: e.cycle - start,
+                    interrupted_busy: true,
+                });
+            }
+            self.open = Some((e.cycle, None, was_idle));
+            if !was_idle {
+                if let Some(t) = self.ticks.last_mut() {
+                    t.interrupted_busy = true;
+                }
+            }
+        } else if let Some((start, None, wait)) = self.open {
+            if wait {
+                self.open = Some((start, Some(e.cycle), true));
+            } else {
+                self.open = Some((start, Some(e.cycle), false));
+                self.close(e.cycle);
+            }
+        }
+    }
+}
+
+/// Scheduled change during a run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Action {
+    /// Set the sensor fault.
+    Sensor(Fault),
+    /// Block or free the rotor.
+    Stall(bool),
+}
+
+/// The closed-loop rig.
+pub struct Rig {
+    /// The simulated MCU.
+    pub machine: Machine,
+    /// The simulated sensor's shared state.
+    pub sensor: Rc<RefCell<SensorState>>,
+    /// The blower (sub-stepped at 0.5 ms).
+    pub pump: Pump,
+    cfg: RigConfig,
+    channel: Option<Channel>,
+    uart: Rc<RefCell<Vec<UartByte>>>,
+    uart_seen: usize,
+    splitter: LineSplitter,
+    line_start: Option<u64>,
+    /// Complete UART lines so far.
+    pub lines: Vec<Line>,
+    /// Cycle at which each line's first byte was sent (same index as `lines`).
+    pub line_starts: Vec<u64>,
+    /// PWM changes (one entry per change seen at a plant step).
+    pub duty_log: Vec<DutyChange>,
+    /// 10 ms plant samples.
+    pub plant_log: Vec<PlantSample>,
+    next_step: u64,
+    step_cycles: u64,
+    substep: usize,
+    schedule: Vec<(u64, Action)>,
+    ticks: TickMeter,
+    halted: Option<Halt>,
+}
+
+impl std::fmt::Debug for Rig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Rig")
+            .field("cycle", &self.machine.cycle())
+            .field("lines", &self.lines.len())
+            .finish()
+    }
+}
+
+impl Rig {
+    /// Loads the firmware, attaches sensor and pump, programs the EEPROM; the core is at reset.
+    pub fn new(cfg: RigConfig) -> Result<Self, String> {
+        let mut machine = Machine::new("atmega2560", cfg.frequency, &cfg.elf)?;
+        for (off, bytes) in &cfg.eeprom {
+            machine.set_eeprom(*off, bytes)?;
+        }
+        let clock = Rc::new(Cell::new(0));
+        let sensor = Rc::new(RefCell::new(SensorState::new(
+            Sfm3300::new(cfg.sensor.clone(), cfg.seed),
+            cfg.frequency,
+            clock.clone(),
+        )));
+        machine.attach_twi(
+            Box::new(Sfm3300Slave {
+                state: sensor.clone(),
+            }),
+            clock,
+        )?;
+        let mut p = cfg.pump.clone();
+        p.ts_s /= SUBSTEPS as f64;
+        p.delay_samples *= SUBSTEPS;
+        let pump = Pump::new(p);
+        let ticks = TickMeter {
+            vector: cfg.tick_vector,
+            events: cfg.tick_vector.map(|v| machine.watch_vector(v)),
+            ..TickMeter::default()
+        };
+        let step_cycles = u64::from(cfg.frequency) / 2_000;
+        Ok(Self {
+            uart: machine.uart0(),
+            machine,
+            sensor,
+            pump,
+            channel: cfg.pwm,
+            cfg,
+            uart_seen: 0,
+            splitter: LineSplitter::default(),
+            line_start: None,
+            lines: Vec::new(),
+            line_starts: Vec::new(),
+            duty_log: Vec::new(),
+            plant_log: Vec::new(),
+            next_step: step_cycles,
+            step_cycles,
+            substep: 0,
+            schedule: Vec::new(),
+            ticks,
+            halted: None,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &RigConfig {
+        &self.cfg
+    }
+
+    /// Seconds → cycles.
+    pub fn cycles(&self, seconds: f64) -> u64 {
+        (seconds * f64::from(self.cfg.frequency)).round() as u64
+    }
+
+    /// Simulated time so far, seconds.
+    pub fn time_s(&self) -> f64 {
+        self.machine.cycle() as f64 / f64::from(self.cfg.frequency)
+    }
+
+    /// Schedules `action` at simulated time `at_s` (seconds since reset).
+    pub fn schedule(&mut self, at_s: f64, action: Action) {
+        let c = self.cycles(at_s);
+        self.schedule.push((c, action));
+        self.schedule.sort_by_key(|(c, _)| *c);
+    }
+
+    /// Applies `action` now.
+    pub fn apply(&mut self, action: Action) {
+        match action {
+            Action::Sensor(f) => self.sensor.borrow_mut().fault = f,
+            Action::Stall(s) => self.pump.set_stalled(s),
+        }
+    }
+
+    /// Duty on the blower's pin now (0..1) and the raw registers.
+    pub fn duty_now(&mut self) -> DutyChange {
+        let m = &self.machine;
+        if self.channel.is_none() {
+            self.channel = Channel::find_active(m);
+        }
+        let cycle = m.cycle();
+        let Some(ch) = self.channel else {
+            return DutyChange {
+                cycle,
+                fraction: 0.0,
+                ocr: 0,
+                top: 0,
+                connected: false,
+            };
+        };
+        match ch.duty(m) {
+            Some(d) => DutyChange {
+                cycle,
+                fraction: d.fraction,
+                ocr: d.ocr,
+                top: d.top,
+                connected: true,
+            },
+            None => {
+                // Disconnected: the pin drives its PORT bit if it is an output.
+                let (port, bit) = ch.pin();
+                let ddr = pwm::ddr_addr(port).map_or(0, |a| m.data(a));
+                let portv = pwm::ddr_addr(port).map_or(0, |a| m.data(a + 1));
+                let high = ddr & portv & (1 << bit) != 0;
+                DutyChange {
+                    cycle,
+                    fraction: if high { 1.0 } else { 0.0 },
+                    ocr: 0,
+                    top: 0,
+                    connected: false,
+                }
+            }
+        }
+    }
+
+    fn plant_step(&mut self) {
+        while let Some(&(c, a)) = self.schedule.first() {
+            if c > self.machine.cycle() {
+                break;
+            }
+            self.schedule.remove(0);
+            self.apply(a);
+        }
+        let d = self.duty_now();
+        let changed = self.duty_log.last().is_none_or(|l| {
+            l.ocr != d.ocr
+                || l.top != d.top
+                || l.connected != d.connected
+                || l.fraction != d.fraction
+        });
+        if changed {
+            self.duty_log.push(d);
+        }
+        let flow = self.pump.step(d.fraction);
+        self.sensor.borrow_mut().flow_slm = flow;
+        self.substep += 1;
+        if self.substep % SUBSTEPS == 0 {
+            self.plant_log.push(PlantSample {
+                cycle: d.cycle,
+                duty: d.fraction,
+                flow,
+            });
+        }
+    }
+
+    fn drain_uart(&mut self) -> usize {
+        let n = self.uart.borrow().len();
+        if n == self.uart_seen {
+            return 0;
+        }
+        let bytes: Vec<UartByte> = self.uart.borrow()[self.uart_seen..].to_vec();
+        self.uart_seen = n;
+        let mut lines = 0;
+        for b in bytes {
+            if self.line_start.is_none() && b.byte != b'\n' && b.byte != b'\r' {
+                self.line_start = Some(b.cycle);
+            }
+            if let Some(l) = self.splitter.push(b.cycle, b.byte) {
+                self.line_starts
+                    .push(self.line_start.take().unwrap_or(b.cycle));
+                self.lines.push(l);
+                lines += 1;
+            }
+        }
+        lines
+    }
+
+    /// Runs until simulated time `until_s` (seconds since reset), or until `stop` returns true
+    /// for a new line (checked at line ends). Returns how the run ended.
+    pub fn run_until(&mut self, until_s: f64, mut stop: impl FnMut(&Line) -> bool) -> RunEnd {
+        let target = self.cycles(until_s);
+        if let Some(h) = self.halted {
+            return RunEnd::Halted(h);
+        }
+        while self.machine.cycle() < target {
+            let chunk_end = self.next_step.min(target);
+            while self.machine.cycle() < chunk_end {
+                let h = self.machine.step();
+                self.ticks
+                    .after_step(self.machine.cycle(), self.machine.pc());
+                if h != Halt::Reached {
+                    self.halted = Some(h);
+                    self.drain_uart();
+                    return RunEnd::Halted(h);
+                }
+            }
+            if self.machine.cycle() >= self.next_step {
+                self.next_step += self.step_cycles;
+                self.plant_step();
+            }
+            let new = self.drain_uart();
+            if new > 0 {
+                let first = self.lines.len() - new;
+                for i in first..self.lines.len() {
+                    if stop(&self.lines[i]) {
+                        return RunEnd::Line(i);
+                    }
+                }
+            }
+        }
+        RunEnd::Time
+    }
+
+    /// Runs for `seconds` more of simulated time.
+    pub fn run_for(&mut self, seconds: f64) -> RunEnd {
+        let t = self.time_s() + seconds;
+        self.run_until(t, |_| false)
+    }
+
+    /// Tick timings measured so far (empty until the idle loop has been learned, i.e. the first
+    /// 64 ticks).
+    pub fn ticks(&self) -> &[TickTiming] {
+        &self.ticks.ticks
+    }
+
+    /// Learned idle-wait address range (bytes), if any.
+    pub fn idle_range(&self) -> Option<(u32, u32)> {
+        self.ticks.idle
+    }
+
+    /// Cycles spent in the idle wait so far.
+    pub fn idle_cycles(&self) -> u64 {
+        self.ticks.idle_cycles
+    }
+
+    /// The tick vector watched.
+    pub fn tick_vector(&self) -> Option<u8> {
+        self.ticks.vector
+    }
+
+    /// Lines whose keyword is `kw`, with their index.
+    pub fn find_lines<'a>(&'a self, kw: &'a str) -> impl Iterator<Item = (usize, &'a Line)> + 'a {
+        self.lines
+            .iter()
+            .enumerate()
+            .filter(move |(_, l)| l.text.split_whitespace().next() == Some(kw))
+    }
+
+    /// Whether the core stopped (crash or exit).
+    pub fn halted(&self) -> Option<Halt> {
+        self.halted
+    }
+
+    /// Duty change in effect at `cycle` (the last one logged at or before it).
+    pub fn duty_at(&self, cycle: u64) -> Option<&DutyChange> {
+        let i = self.duty_log.partition_point(|d| d.cycle <= cycle);
+        i.checked_sub(1).map(|i| &self.duty_log[i])
+    }
+}
+
+/// How [`Rig::run_until`] ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RunEnd {
+    /// Reached the time limit.
+    Time,
+    /// The stop predicate accepted line `n`.
+    Line(usize),
+    /// The core crashed or stopped.
+    Halted(Halt),
+}
