@@ -182,8 +182,24 @@ impl<T: Real> Search<T> {
         Ok((vs, vls))
     }
 
-    fn score(&self, c: &Candidate<T>, val: Option<&Normal<T>>) -> Result<(Fit<T>, T)> {
-        let fit = self.method.fit_with(&c.system, &c.ls)?;
+    fn score(
+        &self,
+        c: &Candidate<T>,
+        val: Option<&Normal<T>>,
+        progress: &mut impl FnMut(),
+    ) -> Result<(Fit<T>, T)> {
+        let fit = match &self.method {
+            // Ridge-M is the long one: report progress after every iterate.
+            Method::RidgeM(m) => {
+                let (w, used) = m.iterate(&c.system, |_, _| progress())?;
+                Fit::new(c.system.layout, w, &c.ls, used)
+            }
+            other => {
+                let fit = other.fit_with(&c.system, &c.ls);
+                progress();
+                fit?
+            }
+        };
         let s = c.system.structure();
         let score = match (self.criterion, val) {
             (Criterion::Validation, Some(v)) => {
@@ -206,6 +222,19 @@ impl<T: Real> Search<T> {
     /// configuration, [`Error::NoCandidate`] when no candidate could be fitted (e.g. the
     /// record is too short for all of them or does not excite any).
     pub fn run(&self, est: &Normal<T>, val: Option<&Normal<T>>) -> Result<Selection<T>> {
+        self.run_with_progress(est, val, &mut || {})
+    }
+
+    /// [`Search::run`], calling `progress()` after every candidate bound, every Ridge-M
+    /// iterate and every other estimator fit, so that no stretch between two calls is
+    /// longer than one factorisation or one iterate (≤ 13 × 13): firmware feeds its
+    /// watchdog there. The result is identical to [`Search::run`].
+    pub fn run_with_progress(
+        &self,
+        est: &Normal<T>,
+        val: Option<&Normal<T>>,
+        progress: &mut impl FnMut(),
+    ) -> Result<Selection<T>> {
         self.check(val)?;
         let candidates = self.grid.len();
         let mut best: Option<(Fit<T>, T)> = None;
@@ -232,6 +261,7 @@ impl<T: Real> Search<T> {
                     }
                     Err(_) => skipped += 1,
                 }
+                progress();
             }
             // Phase 2: ascending bounds until no bound can beat the best.
             loop {
@@ -266,7 +296,7 @@ impl<T: Real> Search<T> {
                     continue;
                 };
                 evaluated += 1;
-                match self.score(&c, val) {
+                match self.score(&c, val, progress) {
                     Ok((fit, score)) => consider(fit, score, &mut best),
                     Err(_) => skipped += 1,
                 }
@@ -278,7 +308,7 @@ impl<T: Real> Search<T> {
                     continue;
                 };
                 evaluated += 1;
-                match self.score(&c, val) {
+                match self.score(&c, val, progress) {
                     Ok((fit, score)) => consider(fit, score, &mut best),
                     Err(_) => skipped += 1,
                 }
@@ -305,7 +335,7 @@ impl<T: Real> Search<T> {
         self.check(val)?;
         for s in self.grid.iter() {
             if let Ok(c) = self.prepare(s, est, val) {
-                if let Ok((fit, score)) = self.score(&c, val) {
+                if let Ok((fit, score)) = self.score(&c, val, &mut || {}) {
                     visit(s, &fit, score);
                 }
             }

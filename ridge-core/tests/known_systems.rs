@@ -275,3 +275,24 @@ fn single_structure_grid_and_ols_match_dense_reference() {
     assert!((sel.fit.rss - rss).abs() < 1e-9 * rss);
     let _ = Ols;
 }
+
+#[test]
+fn progress_hook_is_called_between_bounded_steps_and_changes_nothing() {
+    let (u, y) = record(&PLANTS[1], 0.05, 800);
+    let normal = gram(&u, &y);
+    for prune in [true, false] {
+        let s = Search::<f64> {
+            prune,
+            ..Search::default()
+        };
+        let mut calls = 0u32;
+        let with = s
+            .run_with_progress(&normal, None, &mut || calls += 1)
+            .unwrap();
+        assert_eq!(with, s.run(&normal, None).unwrap());
+        // One call per bound (pruned) and one per Ridge-M iterate of every evaluated candidate.
+        let bounds = if prune { 252 } else { 0 };
+        assert!(calls >= bounds + with.fit.iterations * u32::from(with.evaluated.min(1)));
+        assert!(calls >= u32::from(with.evaluated), "{calls}");
+    }
+}
