@@ -242,7 +242,84 @@ pub enum Event {
     Fault(FaultReason),
 }
 
+/// A report line that always fits in [`LINE_MAX`] bytes (an `ID` line with 12 coefficients of
+/// magnitude below 10⁴ is about 210 bytes).
+pub const LINE_MAX: usize = 256;
+
+/// A fixed-capacity ASCII line buffer implementing [`uWrite`], e.g. to format an event once
+/// and send it over a UART, or to compare lines in host tests. Writing past the capacity
+/// keeps what fits and returns an error.
+#[derive(Clone)]
+pub struct Line<const N: usize> {
+    buf: [u8; N],
+    len: usize,
+    truncated: bool,
+}
+
+impl<const N: usize> Default for Line<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> Line<N> {
+    /// An empty line.
+    pub const fn new() -> Self {
+        Line {
+            buf: [0; N],
+            len: 0,
+            truncated: false,
+        }
+    }
+
+    /// The text written so far.
+    pub fn as_str(&self) -> &str {
+        self.buf
+            .get(..self.len)
+            .and_then(|b| core::str::from_utf8(b).ok())
+            .unwrap_or("")
+    }
+
+    /// Whether a write did not fit.
+    pub fn is_truncated(&self) -> bool {
+        self.truncated
+    }
+}
+
+impl<const N: usize> uWrite for Line<N> {
+    type Error = ();
+    fn write_str(&mut self, s: &str) -> Result<(), ()> {
+        let room = N.saturating_sub(self.len);
+        // Report text is ASCII, so any byte boundary is a character boundary; cut at one
+        // anyway so that `as_str` stays valid for any input.
+        let mut take = s.len().min(room);
+        while take > 0 && !s.is_char_boundary(take) {
+            take -= 1;
+        }
+        let end = self.len.saturating_add(take);
+        if let (Some(dst), Some(src)) = (self.buf.get_mut(self.len..end), s.as_bytes().get(..take))
+        {
+            dst.copy_from_slice(src);
+            self.len = end;
+        }
+        if take < s.len() {
+            self.truncated = true;
+            return Err(());
+        }
+        Ok(())
+    }
+}
+
 impl Event {
+    /// The event's report line (see the [module docs](self)) in a `N`-byte buffer;
+    /// [`LINE_MAX`] always suffices.
+    pub fn line<const N: usize>(&self) -> Line<N> {
+        let mut l = Line::new();
+        // A truncated line is still returned (and flagged).
+        let _ = ufmt::uwrite!(l, "{}", self);
+        l
+    }
+
     /// `true` when the board must write
     /// [`persist_bytes`](crate::selfid::SelfIdentification::persist_bytes) to non-volatile
     /// memory ([`Event::Accepted`]).
