@@ -22,7 +22,7 @@ use ridge_core::{
 };
 pub use ridge_core::{Offset, Result};
 
-use crate::sim::{record, Log, PumpParams, Record};
+use crate::sim::{record, Log, PumpParams, Record, Sfm3300Params};
 
 /// Default noise seed of `paper-tables`.
 pub const DEFAULT_SEED: u64 = 20_250_601;
@@ -607,11 +607,16 @@ pub struct RecordStats {
     pub y_std: f64,
     /// Flow range, slm.
     pub y_range: (f64, f64),
+    /// RMS of the simulated sensor's noise standard deviation over the record
+    /// (`Sfm3300Params::default().noise_std` at the measured flows), slm: the floor of any
+    /// one-step RMSE.
+    pub noise_rms: f64,
 }
 
 /// Summarises a log.
 pub fn record_stats(r: Record, log: &Log) -> RecordStats {
     let n = log.len().max(1) as f64;
+    let sensor = Sfm3300Params::default();
     let mean = log.y.iter().sum::<f64>() / n;
     let var = log.y.iter().map(|y| (y - mean).powi(2)).sum::<f64>() / n;
     let range = |v: &[f64]| {
@@ -628,6 +633,13 @@ pub fn record_stats(r: Record, log: &Log) -> RecordStats {
         y_mean: mean,
         y_std: var.sqrt(),
         y_range: range(&log.y),
+        noise_rms: (log
+            .y
+            .iter()
+            .map(|&y| sensor.noise_std(y).powi(2))
+            .sum::<f64>()
+            / n)
+            .sqrt(),
     }
 }
 
@@ -1139,13 +1151,13 @@ pub fn render_markdown(r: &Report) -> String {
     let _ = writeln!(out, "### Records\n");
     let _ = writeln!(
         out,
-        "| Record | N | duty range | duty changes | flow mean (slm) | flow std (slm) | flow range (slm) |"
+        "| Record | N | duty range | duty changes | flow mean (slm) | flow std (slm) | flow range (slm) | sensor noise RMS (slm) |"
     );
-    let _ = writeln!(out, "|---|---:|:---:|---:|---:|---:|:---:|");
+    let _ = writeln!(out, "|---|---:|:---:|---:|---:|---:|:---:|---:|");
     for x in &r.records {
         let _ = writeln!(
             out,
-            "| {} | {} | {:.2}–{:.2} | {} | {:.2} | {:.2} | {:.2}–{:.2} |",
+            "| {} | {} | {:.2}–{:.2} | {} | {:.2} | {:.2} | {:.2}–{:.2} | {:.2} |",
             x.record.name(),
             x.samples,
             x.u_range.0,
@@ -1154,13 +1166,16 @@ pub fn render_markdown(r: &Report) -> String {
             x.y_mean,
             x.y_std,
             x.y_range.0,
-            x.y_range.1
+            x.y_range.1,
+            x.noise_rms
         );
     }
     let _ = writeln!(
         out,
         "\n\"duty changes\": samples with u_t ≠ u_(t−1), the only samples at which delays d and \
-         d+1 give different regressors.\n"
+         d+1 give different regressors. On a ramp the difference u_(t−d) − u_(t−d−1) is the \
+         constant slope almost everywhere, which a neighbouring input lag absorbs: ramps carry \
+         almost no information about d.\n"
     );
     let _ = writeln!(out, "### Structures picked by the Ridge-M search\n");
     let _ = writeln!(
