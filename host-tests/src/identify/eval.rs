@@ -218,17 +218,19 @@ pub fn criterion_value(
 /// `max_points / 2` equal buckets (a min/max envelope, so spikes stay visible).
 #[derive(Debug, Clone, Default)]
 pub struct Envelope {
-    /// `(sample index, value)` in index order.
-    pub points: Vec<(f64, f64)>,
+    /// One entry per bucket in index order: `(first sample index, min, max)`; without
+    /// decimation every bucket is one sample and `min == max`.
+    pub buckets: Vec<(f64, f64, f64)>,
     current: Option<Bucket>,
 }
 
-/// The open bucket of an [`Envelope`]: its id and its `(index, value)` extremes.
+/// The open bucket of an [`Envelope`].
 #[derive(Debug, Clone, Copy)]
 struct Bucket {
     id: u64,
-    lo: (u64, f64),
-    hi: (u64, f64),
+    first: u64,
+    lo: f64,
+    hi: f64,
 }
 
 impl Envelope {
@@ -239,40 +241,45 @@ impl Envelope {
         let b = i / bucket.max(1);
         match &mut self.current {
             Some(c) if c.id == b => {
-                if v < c.lo.1 {
-                    c.lo = (i, v);
-                }
-                if v > c.hi.1 {
-                    c.hi = (i, v);
-                }
+                c.lo = c.lo.min(v);
+                c.hi = c.hi.max(v);
             }
             _ => {
                 self.flush();
                 self.current = Some(Bucket {
                     id: b,
-                    lo: (i, v),
-                    hi: (i, v),
+                    first: i,
+                    lo: v,
+                    hi: v,
                 });
             }
         }
     }
 
     fn flush(&mut self) {
-        if let Some(Bucket { lo, hi, .. }) = self.current.take() {
-            let (a, b) = if lo.0 <= hi.0 { (lo, hi) } else { (hi, lo) };
-            self.points.push((a.0 as f64, a.1));
-            if b.0 != a.0 {
-                self.points.push((b.0 as f64, b.1));
-            }
+        if let Some(c) = self.current.take() {
+            self.buckets.push((c.first as f64, c.lo, c.hi));
         }
     }
 
     /// Smallest and largest value, if any.
     pub fn range(&self) -> Option<(f64, f64)> {
-        self.points.iter().fold(None, |acc, &(_, v)| match acc {
-            None => Some((v, v)),
-            Some((lo, hi)) => Some((lo.min(v), hi.max(v))),
-        })
+        self.buckets
+            .iter()
+            .fold(None, |acc, &(_, lo, hi)| match acc {
+                None => Some((lo, hi)),
+                Some((a, b)) => Some((a.min(lo), b.max(hi))),
+            })
+    }
+
+    /// The lower outline `(index, min)`: the signal itself when not decimated.
+    pub fn lower(&self) -> Vec<(f64, f64)> {
+        self.buckets.iter().map(|&(x, lo, _)| (x, lo)).collect()
+    }
+
+    /// The upper outline `(index, max)`.
+    pub fn upper(&self) -> Vec<(f64, f64)> {
+        self.buckets.iter().map(|&(x, _, hi)| (x, hi)).collect()
     }
 }
 
@@ -343,24 +350,32 @@ mod tests {
         let n = 1_000_000u64;
         let mut t = Trace::new(n, 2000);
         for i in 0..n {
-            let y = if i == 123_457 { 50.0 } else { (i % 100) as f64 };
+            let y = if i == 123_457 {
+                500.0
+            } else {
+                (i % 100) as f64
+            };
             t.push(i, y, Some((y, y)));
         }
         t.finish();
         assert!(t.decimated());
-        assert!(
-            t.measured.points.len() <= 2002,
-            "{}",
-            t.measured.points.len()
+        let b = &t.measured.buckets;
+        assert!(b.len() <= 1001, "{}", b.len());
+        // The one-sample spike survives decimation, and so do the extremes.
+        assert_eq!(t.measured.range(), Some((0.0, 500.0)));
+        assert_eq!(
+            t.measured.upper().iter().filter(|p| p.1 == 500.0).count(),
+            1
         );
-        assert_eq!(t.measured.range(), Some((0.0, 99.0)));
+        assert!(t.measured.lower().iter().all(|p| p.1 == 0.0));
         let mut t = Trace::new(10, 2000);
         for i in 0..10 {
             t.push(i, i as f64, None);
         }
         t.finish();
-        assert_eq!(t.measured.points.len(), 10);
-        assert!(t.one_step.points.is_empty());
+        assert_eq!(t.measured.lower(), t.measured.upper());
+        assert_eq!(t.measured.buckets.len(), 10);
+        assert!(t.one_step.buckets.is_empty());
     }
 
     #[test]

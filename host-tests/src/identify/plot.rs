@@ -51,7 +51,8 @@ fn y_range(trace: &Trace) -> (f64, f64) {
 }
 
 /// Writes `panels` stacked vertically into the PNG file `path` (1200 px wide, 420 px per
-/// panel). Values outside a panel's axis range are clipped to its edge.
+/// panel). Values outside a panel's axis range are clipped to its edge. A decimated
+/// trace is drawn as two outlines per signal: the bucket minima and maxima.
 pub fn write_png(path: &Path, panels: &[Panel<'_>]) -> Result<(), IdError> {
     register_fonts();
     let err = |e: &dyn std::fmt::Display| IdError::Plot {
@@ -76,7 +77,7 @@ pub fn write_png(path: &Path, panels: &[Panel<'_>]) -> Result<(), IdError> {
         chart
             .configure_mesh()
             .x_desc(if t.decimated() {
-                "sample (min/max envelope per bucket)"
+                "sample (decimated: min and max of each bucket)"
             } else {
                 "sample"
             })
@@ -87,31 +88,49 @@ pub fn write_png(path: &Path, panels: &[Panel<'_>]) -> Result<(), IdError> {
             .light_line_style(WHITE.mix(0.0))
             .draw()
             .map_err(|e| err(&e))?;
-        let clip = |pts: &[(f64, f64)]| -> Vec<(f64, f64)> {
-            pts.iter().map(|&(x, v)| (x, v.clamp(y0, y1))).collect()
+        let clip = |pts: Vec<(f64, f64)>| -> Vec<(f64, f64)> {
+            pts.into_iter().map(|(x, v)| (x, v.clamp(y0, y1))).collect()
         };
+        // 1-pixel lines only: plotters polygonises wider strokes and produces spikes
+        // where consecutive points land on the same pixel (dense or decimated data).
         let series = [
-            (
-                "measured",
-                &t.measured,
-                RGBColor(120, 120, 120).mix(0.9),
-                4u32,
-            ),
-            (
-                "one-step ahead",
-                &t.one_step,
-                RGBColor(20, 90, 220).mix(1.0),
-                1,
-            ),
-            ("free run", &t.free_run, RGBColor(225, 50, 20).mix(0.95), 2),
+            ("measured", &t.measured, RGBColor(110, 110, 110)),
+            ("one-step ahead", &t.one_step, RGBColor(20, 90, 220)),
+            ("free run", &t.free_run, RGBColor(225, 50, 20)),
         ];
-        for (label, env, color, width) in series {
-            let style = color.stroke_width(width);
+        // About one pixel in data units: the measured line is drawn as a 5-pixel band
+        // (five 1-pixel lines) so that the one-step prediction stays visible on top of
+        // it, the free run as a 2-pixel line.
+        let px = (y1 - y0) / f64::from(area.dim_in_pixel().1.saturating_sub(90).max(1));
+        for (k, (label, env, color)) in series.into_iter().enumerate() {
+            let style = color.stroke_width(1);
+            let offsets: &[f64] = match k {
+                _ if t.decimated() => &[],
+                0 => &[-2.0, -1.0, 1.0, 2.0],
+                2 => &[1.0],
+                _ => &[],
+            };
+            {
+                for &off in offsets {
+                    let shifted = env.lower().into_iter().map(|(x, v)| (x, v + off * px));
+                    chart
+                        .draw_series(LineSeries::new(clip(shifted.collect()), style))
+                        .map_err(|e| err(&e))?;
+                }
+            }
             chart
-                .draw_series(LineSeries::new(clip(&env.points), style))
+                .draw_series(LineSeries::new(clip(env.lower()), style))
                 .map_err(|e| err(&e))?
                 .label(label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style));
+                .legend(move |(x, y)| {
+                    let h = [2, 0, 1][k];
+                    Rectangle::new([(x, y - h), (x + 24, y + h + 1)], color.filled())
+                });
+            if t.decimated() {
+                chart
+                    .draw_series(LineSeries::new(clip(env.upper()), style))
+                    .map_err(|e| err(&e))?;
+            }
         }
         chart
             .configure_series_labels()
