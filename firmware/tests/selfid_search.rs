@@ -1,5 +1,6 @@
-//! The watchdog-friendly structure search (`selfid::search_with_pet`) against ridge-core's
-//! `Search::run`: identical results, bit for bit, and bounded work between two `pet` calls.
+//! The watchdog hook of the structure search the state machine runs
+//! (`ridge_core::Search::run_with_progress`): identical results to `Search::run`, bit for bit,
+//! and bounded work between two `pet` calls (operation counts for the ATmega2560 estimate).
 
 use std::cell::Cell;
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
@@ -9,7 +10,36 @@ use ridge_core::{
     AdaptiveLasso, Criterion, Error, Grid, IntGram, Method, Normal, Offset, OrderRange, Real,
     Ridge, RidgeM, Scale, Search,
 };
-use ridge_pump_firmware::selfid::search_with_pet;
+
+/// What the tests compare of a search result.
+#[derive(Debug)]
+struct Found<T: Real> {
+    model: ridge_core::ArxModel<T>,
+    score: T,
+    rss: T,
+    iterations: u32,
+    candidates: u16,
+    evaluated: u16,
+    skipped: u16,
+}
+
+/// The search as the state machine runs it, with `pet` as the progress hook.
+fn search_with_pet<T: Real>(
+    search: &Search<T>,
+    est: &Normal<T>,
+    pet: &mut impl FnMut(),
+) -> Result<Found<T>, Error> {
+    let s = search.run_with_progress(est, None, pet)?;
+    Ok(Found {
+        model: s.fit.model(),
+        score: s.score,
+        rss: s.fit.rss,
+        iterations: s.fit.iterations,
+        candidates: s.candidates,
+        evaluated: s.evaluated,
+        skipped: s.skipped,
+    })
+}
 
 /// A record of an ARX plant with white equation noise, as deviations in integer counts
 /// (duty 1/10 000 around 30 %, flow 1/120 slm).

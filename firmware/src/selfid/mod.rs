@@ -48,10 +48,6 @@
 //! previous reading is used (counted as a gap, at most [`Config::max_gaps`] per record), in run
 //! mode the tick is not scored.
 
-mod search;
-
-pub use search::{run as search_with_pet, Found};
-
 use ridge_core::excitation::{Excitation, Record, DUTY_FULL_SCALE};
 use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Scale, Search};
 
@@ -299,7 +295,7 @@ pub struct SelfIdentification {
 }
 
 // RAM guard: 598 bytes measured on avr-none (640 on x86-64). The search itself runs on the
-// stack (see `search_with_pet`).
+// stack (ridge-core `Search::run_with_progress`).
 #[cfg(target_arch = "avr")]
 const _: () = assert!(core::mem::size_of::<SelfIdentification>() <= 640);
 
@@ -340,50 +336,53 @@ impl SearchJob {
     }
 
     /// Runs the search: the excitation check, `Gram::normal::<f32>`, then the pruned
-    /// structure search ([`search_with_pet`], identical to `Search::run`). Calls `pet` at
-    /// least once per Cholesky factorisation or Ridge-M iterate (see [`search_with_pet`]).
+    /// structure search ([`ridge_core::Search::run_with_progress`], identical to `Search::run`). Calls `pet` at
+    /// least once per Cholesky factorisation or Ridge-M iterate (see [`ridge_core::Search::run_with_progress`]).
     pub fn run(&self, mut pet: impl FnMut()) -> SearchOutcome {
-        pet();
-        let result = self.evaluate(&mut pet);
-        pet();
         SearchOutcome {
-            result,
+            result: evaluate(&self.rec, &self.search, self.min_response, &mut pet),
             generation: self.generation,
         }
     }
+}
 
-    fn evaluate(
-        &self,
-        pet: &mut impl FnMut(),
-    ) -> Result<(ArxModel<f32>, SearchStats), RejectReason> {
-        let rms = self.rec.response_rms();
-        if rms < self.min_response || rms.is_nan() {
-            return Err(RejectReason::NotExcited { rms });
-        }
-        let normal = self
-            .rec
-            .gram
-            .normal::<f32>(Scale::SFM3300_DUTY_10K)
-            .map_err(|e| match e {
-                ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
-                e => RejectReason::Search(e),
-            })?;
-        pet();
-        let found = search::run(&self.search, &normal, pet).map_err(RejectReason::Search)?;
-        let model =
-            absolute_model(&found.model, self.rec.u0, self.rec.y0).map_err(RejectReason::Search)?;
-        Ok((
-            model,
-            SearchStats {
-                score: found.score,
-                candidates: found.candidates,
-                evaluated: found.evaluated,
-                skipped: found.skipped,
-                iterations: found.iterations,
-                samples: normal.samples(),
-            },
-        ))
+/// The excitation check, `Gram::normal::<f32>`, the pruned search and the conversion to the
+/// absolute model, petting the watchdog before, between and after.
+fn evaluate(
+    rec: &Recording,
+    search: &Search<f32>,
+    min_response: f32,
+    pet: &mut impl FnMut(),
+) -> Result<(ArxModel<f32>, SearchStats), RejectReason> {
+    pet();
+    let rms = rec.response_rms();
+    if rms < min_response || rms.is_nan() {
+        return Err(RejectReason::NotExcited { rms });
     }
+    let normal = rec
+        .gram
+        .normal::<f32>(Scale::SFM3300_DUTY_10K)
+        .map_err(|e| match e {
+            ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
+            e => RejectReason::Search(e),
+        })?;
+    pet();
+    let found = search
+        .run_with_progress(&normal, None, pet)
+        .map_err(RejectReason::Search)?;
+    pet();
+    let model = absolute_model(&found.fit.model(), rec.u0, rec.y0).map_err(RejectReason::Search)?;
+    Ok((
+        model,
+        SearchStats {
+            score: found.score,
+            candidates: found.candidates,
+            evaluated: found.evaluated,
+            skipped: found.skipped,
+            iterations: found.fit.iterations,
+            samples: normal.samples(),
+        },
+    ))
 }
 
 impl SelfIdentification {
@@ -487,10 +486,17 @@ impl SelfIdentification {
     ///
     /// No tick can run meanwhile: the pump keeps the base duty and faults are not detected
     /// until the search returns. Use [`take_search`](Self::take_search) to keep ticking.
-    pub fn search(&mut self, pet: impl FnMut()) -> Option<Event> {
-        let job = self.take_search()?;
-        let outcome = job.run(pet);
-        self.finish_search(outcome)
+    pub fn search(&mut self, mut pet: impl FnMut()) -> Option<Event> {
+        // Runs on the statistics in place (no copy of the record on the stack).
+        let Phase::SearchReady { rec } = &self.phase else {
+            return None;
+        };
+        let result = evaluate(rec, &self.cfg.search, self.cfg.min_response, &mut pet);
+        self.phase = Phase::Searching;
+        self.finish_search(SearchOutcome {
+            result,
+            generation: self.generation,
+        })
     }
 
     /// Takes the due structure search out of the state machine (`None` when none is due).
