@@ -1,0 +1,326 @@
+//! ridge-id's code path ([`host_tests::identify::run`]) on the two real records of
+//! `shared/data/` (SPEC §9), checked against an independent computation: the explicit
+//! zero-padded regression matrix of eq. (6) built with nalgebra from the raw CSV rows,
+//! least squares by SVD, the Ridge-M iteration written out, and one-step / free-run
+//! predictions simulated by hand. Then sanity of the fits on the validation halves.
+//!
+//! Measured (f64, default hyper-parameters γ = 1000, β = 0.01, α = 12, 200 iterations,
+//! delay-free AIC, scores from measured initial conditions on samples m..N):
+//!
+//! | record | method | offset | structure | val one-step RMSE | val free-run RMSE | val free-run fit |
+//! |---|---|---|---|---|---|---|
+//! | cascaded-tanks | ridge-m | none      | (4,5,0) | 0.0638 | 1.374 | 34.6 % |
+//! | cascaded-tanks | ridge-m | intercept | (4,5,0) | 0.0618 | 0.951 | 54.8 % |
+//! | cascaded-tanks | ols     | none      | (4,5,0) | 0.0592 | 1.817 | 13.6 % |
+//! | cascaded-tanks | ols     | intercept | (4,5,0) | 0.0583 | 1.585 | 24.7 % |
+//! | buck-converter | ridge-m | none      | (3,4,0) | 0.1609 | 2.535 | −94.5 % |
+//! | buck-converter | ridge-m | intercept | (5,6,0) | 0.2615 | 0.811 | 37.6 % |
+//! | buck-converter | ols     | none      | (2,3,0) | 0.1706 | 3.646 | −179.4 % |
+//! | buck-converter | ols     | intercept | (2,3,0) | 0.1578 | 0.589 | 54.9 % |
+//!
+//! SPEC §6 reference figures: cascaded-tanks Ridge-M free-run RMSE 0.95 with intercept
+//! (1.37 without), SysIdentPy 0.646 (one-step 0.052); buck converter OLS free-run RMSE
+//! 0.59 with intercept (3.67 without). The thresholds below sit a little outside the
+//! measured values (so a regression that loses a few percent of fit fails) and are
+//! checked against these references.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use host_tests::identify::{run, Figures, MethodName, Options, Report};
+use nalgebra::{DMatrix, DVector};
+use ridge_core::{Offset, Structure};
+
+fn data(record: &str, half: &str) -> PathBuf {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/data")
+        .join(record)
+        .join(format!("{half}.csv"));
+    assert!(
+        p.exists(),
+        "{} not found: the tests expect shared/ next to the repository",
+        p.display()
+    );
+    p
+}
+
+const RECORDS: [&str; 2] = ["cascaded-tanks", "buck-converter"];
+
+/// Independent CSV reading: split on commas, find `u` and `y` by header name.
+fn raw(path: &Path) -> (Vec<f64>, Vec<f64>) {
+    let text = fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').map(str::trim).collect();
+    let iu = header.iter().position(|c| *c == "u").unwrap();
+    let iy = header.iter().position(|c| *c == "y").unwrap();
+    let (mut u, mut y) = (Vec::new(), Vec::new());
+    for l in lines.filter(|l| !l.trim().is_empty()) {
+        let cells: Vec<&str> = l.split(',').collect();
+        u.push(cells[iu].trim().parse().unwrap());
+        y.push(cells[iy].trim().parse().unwrap());
+    }
+    (u, y)
+}
+
+/// The regression of eq. (6): row t = [y_{t-1} … y_{t-p}, u_{t-d} … u_{t-d-q+1}, (1)],
+/// zero before the record; target y_t; t = 0..N.
+fn regression(u: &[f64], y: &[f64], s: Structure, offset: Offset) -> (DMatrix<f64>, DVector<f64>) {
+    let (p, q, d) = (usize::from(s.p), usize::from(s.q), usize::from(s.d));
+    let n = y.len();
+    let k = p + q + offset.params();
+    let at = |v: &[f64], t: usize, lag: usize| if t >= lag { v[t - lag] } else { 0.0 };
+    let x = DMatrix::from_fn(n, k, |t, c| {
+        if c < p {
+            at(y, t, c + 1)
+        } else if c < p + q {
+            at(u, t, d + (c - p))
+        } else {
+            1.0
+        }
+    });
+    (x, DVector::from_column_slice(y))
+}
+
+/// The report's model as a vector in the column order of [`regression`].
+fn coefficients(r: &Report) -> DVector<f64> {
+    let m = &r.model;
+    let mut w: Vec<f64> = m.theta().iter().chain(m.phi()).copied().collect();
+    if m.offset() == Offset::Intercept {
+        w.push(m.intercept());
+    }
+    DVector::from_vec(w)
+}
+
+fn least_squares(x: &DMatrix<f64>, y: &DVector<f64>) -> DVector<f64> {
+    x.clone().svd(true, true).solve(y, 1e-14).unwrap()
+}
+
+/// Ridge-M written out (SPEC §3): A = XᵀX + γD, w_{k+1} = A⁻¹(Xᵀy + γDv_k),
+/// v_{k+1} = βv_k + (1−β)w_{k+1}, from v_0 = w_0 = 0, stop when ‖w_{k+1} − w_k‖ < ε.
+/// D is the identity except at the (unregularised) intercept.
+fn ridge_m(
+    x: &DMatrix<f64>,
+    y: &DVector<f64>,
+    intercept: Option<usize>,
+    (gamma, beta, tol, max_iter): (f64, f64, f64, u32),
+) -> (DVector<f64>, u32) {
+    let k = x.ncols();
+    let mut dmat = DMatrix::<f64>::identity(k, k);
+    if let Some(i) = intercept {
+        dmat[(i, i)] = 0.0;
+    }
+    let a = x.transpose() * x + &dmat * gamma;
+    let chol = a.cholesky().unwrap();
+    let xty = x.transpose() * y;
+    let mut v = DVector::zeros(k);
+    let mut w_prev = DVector::zeros(k);
+    for it in 1..=max_iter {
+        let w = chol.solve(&(&xty + &dmat * &v * gamma));
+        v = &v * beta + &w * (1.0 - beta);
+        if (&w - &w_prev).norm() < tol {
+            return (w, it);
+        }
+        w_prev = w;
+    }
+    (w_prev, max_iter)
+}
+
+fn options(record: &str, method: MethodName, offset: Offset) -> Options {
+    let mut o = Options::new(data(record, "estimation"));
+    o.validate = Some(data(record, "validation"));
+    o.method = method;
+    o.offset = offset;
+    o
+}
+
+fn rel(a: &DVector<f64>, b: &DVector<f64>) -> f64 {
+    (a - b).norm() / b.norm()
+}
+
+#[test]
+fn ols_matches_explicit_least_squares() {
+    for record in RECORDS {
+        let (u, y) = raw(&data(record, "estimation"));
+        for offset in [Offset::None, Offset::Intercept] {
+            // The structure the search picks, plus two fixed ones (one with a delay).
+            let searched = run(&options(record, MethodName::Ols, offset)).unwrap();
+            let fixed = [
+                searched.model.structure(),
+                Structure::new(6, 6, 0).unwrap(),
+                Structure::new(2, 3, 4).unwrap(),
+            ];
+            for s in fixed {
+                let mut o = options(record, MethodName::Ols, offset);
+                o.structure = Some(s);
+                let r = run(&o).unwrap();
+                let (x, yv) = regression(&u, &y, s, offset);
+                let w_ref = least_squares(&x, &yv);
+                let w = coefficients(&r);
+                let e = rel(&w, &w_ref);
+                eprintln!("ols {record} {s:?} {offset:?}: relative coefficient error {e:.1e}");
+                assert!(e < 1e-6, "{record} {s:?} {offset:?}: relative error {e:e}");
+                let rss_ref = (&yv - &x * &w_ref).norm_squared();
+                assert!(
+                    ((r.rss - rss_ref) / rss_ref).abs() < 1e-8,
+                    "{record} {s:?}: rss {} vs {rss_ref}",
+                    r.rss
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn ridge_m_matches_the_explicit_iteration_and_residuals() {
+    for record in RECORDS {
+        let (u, y) = raw(&data(record, "estimation"));
+        for offset in [Offset::None, Offset::Intercept] {
+            let o = options(record, MethodName::RidgeM, offset);
+            let r = run(&o).unwrap();
+            let s = r.model.structure();
+            let (x, yv) = regression(&u, &y, s, offset);
+            let intercept = (offset == Offset::Intercept).then_some(x.ncols() - 1);
+            let (w_ref, it_ref) = ridge_m(&x, &yv, intercept, (o.gamma, o.beta, o.tol, o.max_iter));
+            let w = coefficients(&r);
+            assert_eq!(r.iterations, it_ref, "{record} {offset:?}");
+            let e = rel(&w, &w_ref);
+            eprintln!("ridge-m {record} {s:?} {offset:?}: relative coefficient error {e:.1e}");
+            assert!(e < 1e-6, "{record} {offset:?}: relative error {e:e}");
+            // The RSS the core computes from the statistics equals the explicit residuals
+            // of the reported coefficients.
+            let rss = (&yv - &x * &w).norm_squared();
+            assert!(
+                ((r.rss - rss) / rss).abs() < 1e-9,
+                "{record} {offset:?}: {} vs {rss}",
+                r.rss
+            );
+            // Ridge-M stops short of least squares (200 iterations): its RSS is above.
+            let rss_ols = (&yv - &x * least_squares(&x, &yv)).norm_squared();
+            assert!(r.rss > rss_ols, "{record} {offset:?}");
+        }
+    }
+}
+
+/// One-step and free-run predictions simulated by hand from the CSV rows, seeded with
+/// the first m measured samples, scored on m..N.
+fn explicit_scores(r: &Report, path: &Path) -> Figures {
+    let (u, y) = raw(path);
+    let m = &r.model;
+    let s = m.structure();
+    let d = usize::from(s.d);
+    let seed = s.seed_len();
+    let predict = |hist: &[f64], t: usize| {
+        let mut v = m.intercept();
+        for (i, th) in m.theta().iter().enumerate() {
+            v += th * hist[t - 1 - i];
+        }
+        for (j, ph) in m.phi().iter().enumerate() {
+            v += ph * u[t - d - j];
+        }
+        v
+    };
+    let mut free = y[..seed].to_vec();
+    let (mut e1, mut ef) = (Vec::new(), Vec::new());
+    for t in seed..y.len() {
+        e1.push(y[t] - predict(&y, t));
+        let yf = predict(&free, t);
+        free.push(yf);
+        ef.push(y[t] - yf);
+    }
+    let scored = &y[seed..];
+    let mean = scored.iter().sum::<f64>() / scored.len() as f64;
+    let spread = scored
+        .iter()
+        .map(|v| (v - mean).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let norm = |e: &[f64]| e.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let rmse = |e: &[f64]| norm(e) / (e.len() as f64).sqrt();
+    Figures {
+        n: e1.len() as u32,
+        rmse_one_step: rmse(&e1),
+        rmse_free_run: rmse(&ef),
+        fit_one_step: 100.0 * (1.0 - norm(&e1) / spread),
+        fit_free_run: 100.0 * (1.0 - norm(&ef) / spread),
+    }
+}
+
+#[test]
+fn scores_match_explicit_simulation() {
+    for record in RECORDS {
+        for method in [MethodName::RidgeM, MethodName::Ols] {
+            for offset in [Offset::None, Offset::Intercept] {
+                let r = run(&options(record, method, offset)).unwrap();
+                let pairs = [
+                    (
+                        r.estimation,
+                        explicit_scores(&r, &data(record, "estimation")),
+                    ),
+                    (
+                        r.validation.unwrap(),
+                        explicit_scores(&r, &data(record, "validation")),
+                    ),
+                ];
+                for (got, want) in pairs {
+                    assert_eq!(got.n, want.n);
+                    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.abs().max(1.0);
+                    assert!(
+                        close(got.rmse_one_step, want.rmse_one_step)
+                            && close(got.rmse_free_run, want.rmse_free_run)
+                            && close(got.fit_one_step, want.fit_one_step)
+                            && close(got.fit_free_run, want.fit_free_run),
+                        "{record} {method} {offset:?}: {got:?} vs {want:?}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+fn validation(record: &str, method: MethodName, offset: Offset) -> (Structure, Figures) {
+    let r = run(&options(record, method, offset)).unwrap();
+    (r.model.structure(), r.validation.unwrap())
+}
+
+#[test]
+fn cascaded_tanks_validation_fits_are_sane() {
+    let rec = "cascaded-tanks";
+    // Ridge-M with intercept: SPEC §6 quotes free-run RMSE 0.95; measured 0.951, fit 54.8 %.
+    let (s, v) = validation(rec, MethodName::RidgeM, Offset::Intercept);
+    assert_eq!(
+        s,
+        Structure::new(4, 5, 0).unwrap(),
+        "SPEC §4: 200 iterations pick (4,5,0)"
+    );
+    assert!(v.rmse_free_run < 1.0, "{v:?}");
+    assert!(v.fit_free_run > 50.0, "{v:?}");
+    // One-step: SysIdentPy 0.052 with an 18-regressor FROLS model; measured 0.062.
+    assert!(v.rmse_one_step < 0.07, "{v:?}");
+    // Without the intercept: SPEC 1.37, measured 1.374 / 34.6 %.
+    let (_, v0) = validation(rec, MethodName::RidgeM, Offset::None);
+    assert!(v0.rmse_free_run < 1.45 && v0.fit_free_run > 30.0, "{v0:?}");
+    assert!(v.rmse_free_run < 0.75 * v0.rmse_free_run);
+    // Least squares predicts one step better but simulates worse (measured 1.585 with
+    // intercept): the iteration count is what regularises Ridge-M (SPEC §3).
+    let (_, vo) = validation(rec, MethodName::Ols, Offset::Intercept);
+    assert!(vo.rmse_one_step < v.rmse_one_step, "{vo:?}");
+    assert!(vo.rmse_free_run > v.rmse_free_run, "{vo:?}");
+    assert!(vo.fit_free_run > 20.0, "{vo:?}");
+}
+
+#[test]
+fn buck_converter_validation_fits_are_sane() {
+    let rec = "buck-converter";
+    // OLS with intercept: SPEC §6 quotes free-run RMSE 0.59; measured 0.5885, fit 54.9 %.
+    let (_, v) = validation(rec, MethodName::Ols, Offset::Intercept);
+    assert!(v.rmse_free_run < 0.65, "{v:?}");
+    assert!(v.fit_free_run > 50.0, "{v:?}");
+    assert!(v.rmse_one_step < 0.17, "{v:?}");
+    // Without an intercept the output's 14–16 V level cannot be reached from zero duty
+    // offset: SPEC 3.67, measured 3.646 (fit −179 %). The intercept is worth 6×.
+    let (_, v0) = validation(rec, MethodName::Ols, Offset::None);
+    assert!(v0.rmse_free_run > 5.0 * v.rmse_free_run, "{v0:?}");
+    // Ridge-M with intercept: measured 0.811 / 37.6 % (5,6,0).
+    let (_, vr) = validation(rec, MethodName::RidgeM, Offset::Intercept);
+    assert!(vr.rmse_free_run < 0.9 && vr.fit_free_run > 30.0, "{vr:?}");
+}
