@@ -65,7 +65,7 @@ pub enum CriterionArg {
     Aic,
     /// BIC: N ln(RSS/N) + ln(N) (p+q).
     Bic,
-    /// Loss on the --validate record.
+    /// One-step (equation-error) loss on the --validate record, no penalty.
     Validation,
 }
 
@@ -129,10 +129,10 @@ pub struct IdentifyArgs {
     /// Ridge-M stopping tolerance on ‖w_{k+1} − w_k‖.
     #[arg(long, value_name = "E", default_value_t = 1e-6)]
     pub tol: f64,
-    /// RLS forgetting factor lambda, in (0, 1].
+    /// RLS forgetting factor lambda, in (0, 1] (--method rls only).
     #[arg(long, value_name = "L", default_value_t = 1.0)]
     pub lambda: f64,
-    /// RLS initial covariance P0 = delta I.
+    /// RLS initial covariance P0 = delta I (--method rls only).
     #[arg(long, value_name = "D", default_value_t = 1e3)]
     pub delta: f64,
     /// Autoregressive orders searched: a..=b or a single number.

@@ -58,19 +58,19 @@ impl RecordStats {
                 CoreError::NotExcited => {
                     let what = if self.u_range.0 == self.u_range.1 {
                         format!(
-                            "column u is constant ({}) over all {}: the input does not excite the plant",
+                            "column u is constant ({:?}) over all {}: the input does not excite the plant",
                             self.u_range.0,
                             self.describe_rows()
                         )
                     } else if self.y_range.0 == self.y_range.1 {
                         format!(
-                            "column y is constant ({}) over all {}: the output shows no response",
+                            "column y is constant ({:?}) over all {}: the output shows no response",
                             self.y_range.0,
                             self.describe_rows()
                         )
                     } else {
                         format!(
-                            "input or output varies too little to identify anything ({}; u in [{}, {}], y in [{}, {}])",
+                            "input or output varies too little to identify anything ({}; u in [{:?}, {:?}], y in [{:?}, {:?}])",
                             self.describe_rows(),
                             self.u_range.0,
                             self.u_range.1,
@@ -107,7 +107,11 @@ pub fn read_record(path: impl AsRef<Path>) -> Result<RecordStats, IdError> {
             IdError::line(
                 path,
                 s.line,
-                format!("cannot add this sample to the statistics: {e}"),
+                format!(
+                    "cannot add this sample to the statistics ({e}): u = {:?}, y = {:?}: \
+                     too large for f64 sums over this many rows",
+                    s.u, s.y
+                ),
             )
         })?;
         if stats.lines.0 == 0 {

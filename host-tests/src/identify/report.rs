@@ -274,7 +274,8 @@ impl Report {
             ),
             Criterion::Bic => "bic: N ln(RSS/N) + ln(N) (p+q)".to_string(),
             Criterion::Validation => {
-                "validation: N_v ln(RSS_v/N_v) on the validation record".to_string()
+                "validation: N_v ln(RSS_v/N_v), one-step residuals on the validation record"
+                    .to_string()
             }
         };
         let _ = writeln!(o, "  criterion   {crit}");
