@@ -324,3 +324,48 @@ fn buck_converter_validation_fits_are_sane() {
     let (_, vr) = validation(rec, MethodName::RidgeM, Offset::Intercept);
     assert!(vr.rmse_free_run < 0.9 && vr.fit_free_run > 30.0, "{vr:?}");
 }
+
+/// Core issue (reported, not fixed here): `AdaptiveLasso::default()` (λ by BIC,
+/// `max_sweeps` 20 000, `tol` 1e-9) stops on its sweep budget before coordinate descent
+/// has converged on both real records, and says so only through
+/// `Fit::iterations == max_sweeps`. Measured on cascaded-tanks (3,4,0): φ₂ = 0.231 after
+/// 20 000 sweeps against 0.451 at convergence (407 071 sweeps), θ₂ −0.137 vs −0.273,
+/// RSS 2.8775 vs 2.8322;
+/// buck converter (2,3,0): converges after 136 119 sweeps. `ridge-id --method alasso`
+/// reports `iterations: 20000` on both records. Run with `cargo test -- --ignored`.
+#[test]
+#[ignore = "core issue: AdaptiveLasso::default() stops at max_sweeps before converging"]
+fn adaptive_lasso_default_converges_on_real_records() {
+    use ridge_core::{AdaptiveLasso, Estimator};
+    for (record, s) in [
+        ("cascaded-tanks", Structure::new(3, 4, 0).unwrap()),
+        ("buck-converter", Structure::new(2, 3, 0).unwrap()),
+    ] {
+        let stats = host_tests::identify::read_record(data(record, "estimation")).unwrap();
+        let sys = stats.normal().unwrap().system(s, Offset::None).unwrap();
+        let default = AdaptiveLasso::default();
+        let fit = default.fit(&sys).unwrap();
+        let converged = AdaptiveLasso {
+            max_sweeps: 10_000_000,
+            ..default
+        }
+        .fit(&sys)
+        .unwrap();
+        let (a, b) = (fit.model(), converged.model());
+        let diff = a
+            .theta()
+            .iter()
+            .chain(a.phi())
+            .zip(b.theta().iter().chain(b.phi()))
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            fit.iterations < default.max_sweeps && diff < 1e-3,
+            "{record} {s:?}: {} sweeps (budget {}), coefficients off by {diff:.3} \
+             from the converged solution ({} sweeps)",
+            fit.iterations,
+            default.max_sweeps,
+            converged.iterations
+        );
+    }
+}
