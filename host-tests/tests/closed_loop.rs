@@ -106,7 +106,7 @@ impl Loop {
         let sum: i32 = window.iter().map(|l| i32::from(l.1)).sum();
         let y0 = (f64::from(sum) / f64::from(SETTLE_MEAN_TICKS)).round() as i32;
         let mut gram = IntGram::new();
-        for &(u, y, state) in self.log[start..]
+        for &(u, y, _) in self.log[start..]
             .iter()
             .take_while(|l| l.2 == State::Excite)
         {

@@ -21,20 +21,28 @@ pub(crate) const fn packed_len(n: usize) -> usize {
 }
 
 /// Factors the leading `n × n` block of the packed symmetric matrix `a` in place into
-/// `L` with `L Lᵀ = A`.
+/// `L` with `L Lᵀ = A`. Rows and columns before `first` must already hold their factor
+/// and the trailing block the matrix *after* their elimination (its Schur complement);
+/// `first = 0` factors the whole matrix.
 ///
 /// Rows `0..strict` must have pivots above `tol · a_ii` (relative to the original
 /// diagonal), or [`Error::NotPositiveDefinite`] is returned; rows from `strict` on (the
 /// augmented right-hand side of a least-squares problem) have their pivot clamped at
 /// zero instead, as a zero residual is legitimate there.
-pub(crate) fn factor_in_place<T: Real>(a: &mut [T], n: usize, strict: usize, tol: T) -> Result<()> {
+pub(crate) fn factor_in_place<T: Real>(
+    a: &mut [T],
+    n: usize,
+    first: usize,
+    strict: usize,
+    tol: T,
+) -> Result<()> {
     if a.len() < packed_len(n) {
         return Err(Error::InvalidStructure);
     }
-    for i in 0..n {
-        for j in 0..=i {
+    for i in first..n {
+        for j in first..=i {
             let mut s = a[packed(i, j)];
-            for k in 0..j {
+            for k in first..j {
                 s -= a[packed(i, k)] * a[packed(j, k)];
             }
             if i == j {
@@ -102,7 +110,7 @@ mod tests {
                 a[packed(i, j)] = (0..3).map(|k| m[i][k] * m[j][k]).sum();
             }
         }
-        factor_in_place(&mut a, 3, 3, 1e-12).unwrap();
+        factor_in_place(&mut a, 3, 0, 3, 1e-12).unwrap();
         for i in 0..3 {
             for j in 0..=i {
                 assert!((a[packed(i, j)] - m[i][j]).abs() < 1e-12);
@@ -129,17 +137,17 @@ mod tests {
         // Rank one: [[1,1],[1,1]].
         let mut a = [1.0f32, 1.0, 1.0];
         assert_eq!(
-            factor_in_place(&mut a, 2, 2, 1e-6),
+            factor_in_place(&mut a, 2, 0, 2, 1e-6),
             Err(Error::NotPositiveDefinite)
         );
         let mut nan = [f32::NAN, 0.0, 1.0];
         assert_eq!(
-            factor_in_place(&mut nan, 2, 2, 1e-6),
+            factor_in_place(&mut nan, 2, 0, 2, 1e-6),
             Err(Error::NotPositiveDefinite)
         );
         // A zero last pivot is allowed on the augmented row.
         let mut aug = [1.0f64, 1.0, 1.0];
-        factor_in_place(&mut aug, 2, 1, 1e-12).unwrap();
+        factor_in_place(&mut aug, 2, 0, 1, 1e-12).unwrap();
         assert_eq!(aug[2], 0.0);
     }
 }

@@ -111,7 +111,8 @@ impl<T: Real> Estimator<T> for Ridge<T> {
 ///     y2 = y1;
 ///     y1 = y;
 /// }
-/// let sys = g.normal::<f64>(Scale::UNIT)?.system(Structure::new(2, 1, 0)?, Offset::None)?;
+/// let normal = g.normal::<f64>(Scale::UNIT)?;
+/// let sys = normal.system(Structure::new(2, 1, 0)?, Offset::None)?;
 /// let fit = RidgeM { max_iter: 5000, ..RidgeM::default() }.fit(&sys)?;
 /// let m = fit.model();
 /// assert!((m.theta()[0] - 1.2).abs() < 1e-3 && (m.phi()[0] - 0.5).abs() < 1e-3);

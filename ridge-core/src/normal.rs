@@ -118,7 +118,7 @@ impl<T: Real> Normal<T> {
     ///
     /// Errors: [`Error::InvalidStructure`] outside the maxima, [`Error::TooShort`] when
     /// the record has fewer than `m + n + 1` samples (`m` seed samples, `n` parameters).
-    pub fn system(&self, structure: Structure, offset: Offset) -> Result<System<T>> {
+    pub fn system(&self, structure: Structure, offset: Offset) -> Result<System<'_, T>> {
         structure.check()?;
         let layout = Layout::new(structure, offset);
         let n = layout.len;
@@ -129,31 +129,19 @@ impl<T: Real> Normal<T> {
                 have: self.n,
             });
         }
-        let mut sys = System {
-            layout,
-            samples: self.n,
-            s11: self.s11,
-            y_rounding: self.y_rounding,
-            r: [T::ZERO; PARAMS_MAX],
-            schur: [T::ZERO; packed_len(PARAMS_MAX)],
-        };
-        // Rest = params 1..n, then the target: n entries.
-        let mut rest = [0usize; PARAMS_MAX];
+        // Rest = params 1..n, then the target: n entries, as positions in OTHERS.
+        let mut rest = [0u8; PARAMS_MAX];
         for (slot, c) in rest.iter_mut().zip(layout.cols[1..n].iter()) {
-            *slot = others_index(*c);
+            *slot = others_index(*c) as u8;
         }
-        rest[n - 1] = others_index(Col::Y(0));
-        for a in 0..n {
-            sys.r[a] = self.r[rest[a]];
-            for b in 0..=a {
-                sys.schur[packed(a, b)] = self.schur_at(rest[a], rest[b]);
-            }
-        }
-        Ok(sys)
+        rest[n - 1] = others_index(Col::Y(0)) as u8;
+        Ok(System {
+            normal: self,
+            layout,
+            rest,
+        })
     }
-}
 
-impl<T: Real> Normal<T> {
     /// Residual sum of squares `‖y − Xw‖²` of `model` on this record (one-step-ahead
     /// errors of eq. 6 with zero history), in output units squared: how a second `Gram`
     /// of a validation record scores an identified model without the data.
@@ -226,23 +214,36 @@ pub enum Regressor {
     Constant,
 }
 
-/// The normal equations of one structure on one record (see [`Normal::system`]).
-#[derive(Debug, Clone, PartialEq)]
-pub struct System<T: Real> {
+/// The normal equations of one structure on one record (see [`Normal::system`]): a
+/// view into the record's [`Normal`] (no copy: 30 bytes plus a reference, which keeps
+/// the search's stack small on an 8-bit MCU).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct System<'a, T: Real> {
+    normal: &'a Normal<T>,
     pub(crate) layout: Layout,
-    samples: u32,
-    s11: T,
-    y_rounding: T,
-    /// `Σ c_t y_{t-1}` for params `1..n` and the target (index `n − 1`).
-    r: [T; PARAMS_MAX],
-    /// Exact Schur complements of params `1..n` and the target, packed.
-    schur: [T; packed_len(PARAMS_MAX)],
+    /// Positions in [`OTHERS`] of params `1..n` and the target (index `n − 1`).
+    rest: [u8; PARAMS_MAX],
 }
 
-impl<T: Real> System<T> {
+impl<T: Real> System<'_, T> {
+    /// `Σ c_t y_{t-1}` of rest entry `a`.
+    fn r(&self, a: usize) -> T {
+        self.normal
+            .r
+            .get(usize::from(self.rest[a]))
+            .copied()
+            .unwrap_or(T::ZERO)
+    }
+
+    /// Exact Schur complement of rest entries `a`, `b`.
+    fn schur(&self, a: usize, b: usize) -> T {
+        self.normal
+            .schur_at(usize::from(self.rest[a]), usize::from(self.rest[b]))
+    }
+
     /// Samples `N` of the record.
     pub fn samples(&self) -> u32 {
-        self.samples
+        self.normal.n
     }
 
     /// Number of coefficients `n = p + q (+ 1)`.
@@ -288,12 +289,11 @@ impl<T: Real> System<T> {
             return T::ZERO;
         }
         match (i, j) {
-            (0, 0) => self.s11,
-            (0, k) | (k, 0) => self.r[k - 1],
+            (0, 0) => self.normal.s11,
+            (0, k) | (k, 0) => self.r(k - 1),
             (a, b) => {
                 let (a, b) = (a - 1, b - 1);
-                let (hi, lo) = if a >= b { (a, b) } else { (b, a) };
-                self.schur[packed(hi, lo)] + self.r[a] * self.r[b] / self.s11
+                self.schur(a, b) + self.r(a) * self.r(b) / self.normal.s11
             }
         }
     }
@@ -306,50 +306,52 @@ impl<T: Real> System<T> {
     /// [`Error::NotPositiveDefinite`] when the regressors are (numerically) linearly
     /// dependent on this record.
     pub fn factor(&self, gamma: T) -> Result<Factor<T>> {
+        let mut f = Factor::empty();
+        self.factor_into(gamma, &mut f)?;
+        Ok(f)
+    }
+
+    /// [`System::factor`] into existing storage (no 420-byte temporary on the stack).
+    /// On error `out` holds no usable factor.
+    pub fn factor_into(&self, gamma: T, out: &mut Factor<T>) -> Result<()> {
         if !gamma.is_finite() || gamma < T::ZERO {
             return Err(Error::InvalidParameter);
         }
         let n = self.layout.len;
-        let a11 = self.s11 + gamma;
+        let s11 = self.normal.s11;
+        let a11 = s11 + gamma;
         if a11 <= T::ZERO || !a11.is_finite() {
             return Err(Error::NotPositiveDefinite);
         }
         let l00 = a11.sqrt();
-        // Rank-one term left by eliminating the regularised pivot:
-        // r rᵀ (1/s11 − 1/(s11 + γ)) = r rᵀ γ / (s11 (s11 + γ)).
-        let c = gamma / (self.s11 * a11);
-        let mut rest = [T::ZERO; packed_len(PARAMS_MAX)];
+        // Eliminating the regularised pivot y_{t-1} leaves, for the other columns,
+        // Schur + γD + r rᵀ (1/s11 − 1/(s11 + γ)) = Schur + γD + r rᵀ γ / (s11 (s11 + γ)):
+        // the trailing block is formed from the exact Schur complements, column 0 of L
+        // directly, and Cholesky continues from row 1.
+        let c = gamma / (s11 * a11);
         let intercept = self.layout.intercept();
-        for a in 0..n {
-            for b in 0..=a {
-                let mut v = self.schur[packed(a, b)] + c * self.r[a] * self.r[b];
-                // Params 1..n are rest indices 0..n-1; the target (n-1) is never
-                // regularised, nor is the intercept.
-                if a == b && a + 1 < n && intercept != Some(a + 1) {
+        out.n = n;
+        out.l[0] = l00;
+        for i in 1..=n {
+            let ri = self.r(i - 1);
+            out.l[packed(i, 0)] = ri / l00;
+            for j in 1..=i {
+                let mut v = self.schur(i - 1, j - 1) + c * ri * self.r(j - 1);
+                // The target (row n) is never regularised, nor is the intercept.
+                if i == j && i < n && intercept != Some(i) {
                     v += gamma;
                 }
-                rest[packed(a, b)] = v;
+                out.l[packed(i, j)] = v;
             }
         }
         let tol = T::from_u32(4 * PARAMS_MAX as u32) * T::EPSILON;
-        factor_in_place(&mut rest, n, n - 1, tol)?;
-        let mut l = [T::ZERO; packed_len(PARAMS_MAX + 1)];
-        l[0] = l00;
-        for i in 1..=n {
-            l[packed(i, 0)] = self.r[i - 1] / l00;
-            for j in 1..=i {
-                l[packed(i, j)] = rest[packed(i - 1, j - 1)];
-            }
-        }
-        let schur_tt = self.schur[packed(n - 1, n - 1)];
+        factor_in_place(&mut out.l, n + 1, 1, n, tol)?;
+        let schur_tt = self.schur(n - 1, n - 1);
         // Below this, a residual is rounding noise: Cholesky's backward error on the
         // target row plus the rounding of the statistics themselves.
-        let floor = T::from_u32(4 * n as u32) * T::EPSILON * schur_tt + self.y_rounding;
-        Ok(Factor {
-            n,
-            l,
-            rss_floor: if floor > T::ZERO { floor } else { T::ZERO },
-        })
+        let floor = T::from_u32(4 * n as u32) * T::EPSILON * schur_tt + self.normal.y_rounding;
+        out.rss_floor = if floor > T::ZERO { floor } else { T::ZERO };
+        Ok(())
     }
 }
 
@@ -363,6 +365,15 @@ pub struct Factor<T: Real> {
 }
 
 impl<T: Real> Factor<T> {
+    /// Storage for a factor, to be filled by [`System::factor_into`].
+    pub fn empty() -> Self {
+        Factor {
+            n: 0,
+            l: [T::ZERO; packed_len(PARAMS_MAX + 1)],
+            rss_floor: T::ZERO,
+        }
+    }
+
     /// Number of coefficients.
     pub fn params(&self) -> usize {
         self.n

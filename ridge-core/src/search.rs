@@ -120,15 +120,6 @@ impl<T: Real> Selection<T> {
     }
 }
 
-/// One candidate's estimation system, least-squares factor and criterion bound. The
-/// validation system (if any) is rebuilt when scored rather than kept, to halve the
-/// stack on an 8-bit MCU.
-struct Candidate<T: Real> {
-    system: System<T>,
-    ls: Factor<T>,
-    bound: T,
-}
-
 impl<T: Real> Search<T> {
     fn check(&self, validation: Option<&Normal<T>>) -> Result<()> {
         self.grid.check()?;
@@ -154,17 +145,23 @@ impl<T: Real> Search<T> {
         }
     }
 
-    fn prepare(
+    /// Forms candidate `s`: its system (a view into `est`), its least-squares factor in
+    /// `ls` (caller-owned storage, reused across candidates to keep the stack small on
+    /// an 8-bit MCU) and the criterion of the least-squares RSS, a lower bound of its
+    /// score.
+    fn prepare<'n>(
         &self,
         s: Structure,
-        est: &Normal<T>,
+        est: &'n Normal<T>,
         val: Option<&Normal<T>>,
-    ) -> Result<Candidate<T>> {
+        ls: &mut Factor<T>,
+    ) -> Result<(System<'n, T>, T)> {
         let system = est.system(s, self.offset)?;
-        let ls = system.factor(T::ZERO)?;
+        system.factor_into(T::ZERO, ls)?;
         let bound = match (self.criterion, val) {
             (Criterion::Validation, Some(v)) => {
-                let (vs, vls) = self.validation_factor(s, v)?;
+                let vs = v.system(s, self.offset)?;
+                let vls = vs.factor(T::ZERO)?;
                 self.criterion(vls.rss_min(), vs.samples(), s)
             }
             _ => self.criterion(ls.rss_min(), system.samples(), s),
@@ -173,40 +170,36 @@ impl<T: Real> Search<T> {
         if !(bound.is_finite() || bound < T::ZERO) {
             return Err(Error::NonFinite);
         }
-        Ok(Candidate { system, ls, bound })
-    }
-
-    fn validation_factor(&self, s: Structure, val: &Normal<T>) -> Result<(System<T>, Factor<T>)> {
-        let vs = val.system(s, self.offset)?;
-        let vls = vs.factor(T::ZERO)?;
-        Ok((vs, vls))
+        Ok((system, bound))
     }
 
     fn score(
         &self,
-        c: &Candidate<T>,
+        system: &System<'_, T>,
+        ls: &Factor<T>,
         val: Option<&Normal<T>>,
         progress: &mut impl FnMut(),
     ) -> Result<(Fit<T>, T)> {
         let fit = match &self.method {
             // Ridge-M is the long one: report progress after every iterate.
             Method::RidgeM(m) => {
-                let (w, used) = m.iterate(&c.system, |_, _| progress())?;
-                Fit::new(c.system.layout, w, &c.ls, used)
+                let (w, used) = m.iterate(system, |_, _| progress())?;
+                Fit::new(system.layout, w, ls, used)
             }
             other => {
-                let fit = other.fit_with(&c.system, &c.ls);
+                let fit = other.fit_with(system, ls);
                 progress();
                 fit?
             }
         };
-        let s = c.system.structure();
+        let s = system.structure();
         let score = match (self.criterion, val) {
             (Criterion::Validation, Some(v)) => {
-                let (vs, vls) = self.validation_factor(s, v)?;
+                let vs = v.system(s, self.offset)?;
+                let vls = vs.factor(T::ZERO)?;
                 self.criterion(vls.rss(&fit.w[..vs.params()]), vs.samples(), s)
             }
-            _ => self.criterion(fit.rss, c.system.samples(), s),
+            _ => self.criterion(fit.rss, system.samples(), s),
         };
         if score.is_finite() || score < T::ZERO {
             Ok((fit, score))
@@ -249,15 +242,16 @@ impl<T: Real> Search<T> {
                 *best = Some((fit, score));
             }
         };
+        let mut ls = Factor::empty();
         if self.prune {
-            // Phase 1: bounds. state 0 = unusable, 1 = pending, 2 = done.
+            // Phase 1: bounds of every usable candidate, which are then pending.
             let mut bound = [T::ZERO; GRID_MAX];
-            let mut state = [0u8; GRID_MAX];
+            let mut pending = Bits::default();
             for (i, s) in self.grid.iter().enumerate().take(GRID_MAX) {
-                match self.prepare(s, est, val) {
-                    Ok(c) => {
-                        bound[i] = c.bound;
-                        state[i] = 1;
+                match self.prepare(s, est, val, &mut ls) {
+                    Ok((_, b)) => {
+                        bound[i] = b;
+                        pending.set(i, true);
                     }
                     Err(_) => skipped += 1,
                 }
@@ -267,7 +261,7 @@ impl<T: Real> Search<T> {
             loop {
                 let mut next: Option<usize> = None;
                 for i in 0..candidates.min(GRID_MAX) {
-                    if state[i] != 1 {
+                    if !pending.get(i) {
                         continue;
                     }
                     next = match next {
@@ -284,31 +278,31 @@ impl<T: Real> Search<T> {
                     };
                 }
                 let Some(i) = next else { break };
-                state[i] = 2;
+                pending.set(i, false);
                 let Some(s) = self.grid.get(i) else { break };
                 if let Some((_, bs)) = &best {
                     if bound[i] > *bs {
                         break;
                     }
                 }
-                let Ok(c) = self.prepare(s, est, val) else {
+                let Ok((system, _)) = self.prepare(s, est, val, &mut ls) else {
                     skipped += 1;
                     continue;
                 };
                 evaluated += 1;
-                match self.score(&c, val, progress) {
+                match self.score(&system, &ls, val, progress) {
                     Ok((fit, score)) => consider(fit, score, &mut best),
                     Err(_) => skipped += 1,
                 }
             }
         } else {
             for s in self.grid.iter() {
-                let Ok(c) = self.prepare(s, est, val) else {
+                let Ok((system, _)) = self.prepare(s, est, val, &mut ls) else {
                     skipped += 1;
                     continue;
                 };
                 evaluated += 1;
-                match self.score(&c, val, progress) {
+                match self.score(&system, &ls, val, progress) {
                     Ok((fit, score)) => consider(fit, score, &mut best),
                     Err(_) => skipped += 1,
                 }
@@ -333,9 +327,10 @@ impl<T: Real> Search<T> {
         mut visit: impl FnMut(Structure, &Fit<T>, T),
     ) -> Result<()> {
         self.check(val)?;
+        let mut ls = Factor::empty();
         for s in self.grid.iter() {
-            if let Ok(c) = self.prepare(s, est, val) {
-                if let Ok((fit, score)) = self.score(&c, val, &mut || {}) {
+            if let Ok((system, _)) = self.prepare(s, est, val, &mut ls) {
+                if let Ok((fit, score)) = self.score(&system, &ls, val, &mut || {}) {
                     visit(s, &fit, score);
                 }
             }
@@ -356,4 +351,23 @@ fn better<T: Real>(sa: T, a: Structure, sb: T, b: Structure) -> bool {
     let ka = u16::from(a.p) + u16::from(a.q);
     let kb = u16::from(b.p) + u16::from(b.q);
     (ka, core::cmp::Reverse(a.d), a.p) < (kb, core::cmp::Reverse(b.d), b.p)
+}
+
+/// A set of candidate indices, 32 bytes for the 252 of the default grid.
+#[derive(Default)]
+struct Bits([u32; GRID_MAX.div_ceil(32)]);
+
+impl Bits {
+    fn get(&self, i: usize) -> bool {
+        self.0.get(i / 32).is_some_and(|w| w & (1 << (i % 32)) != 0)
+    }
+    fn set(&mut self, i: usize, on: bool) {
+        if let Some(w) = self.0.get_mut(i / 32) {
+            if on {
+                *w |= 1 << (i % 32);
+            } else {
+                *w &= !(1 << (i % 32));
+            }
+        }
+    }
 }

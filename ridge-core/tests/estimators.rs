@@ -39,7 +39,8 @@ fn max_diff(a: &[f64], b: &[f64]) -> f64 {
 #[test]
 fn ridge_is_the_first_ridge_m_iterate_and_matches_dense_solve() {
     let (u, y) = plant_record(1, 2000, 0.3);
-    let sys = normal(&u, &y)
+    let nrm = normal(&u, &y);
+    let sys = nrm
         .system(Structure::new(3, 3, 1).unwrap(), Offset::None)
         .unwrap();
     for gamma in [1.0, 1000.0, 1e5] {
@@ -68,7 +69,8 @@ fn ridge_is_the_first_ridge_m_iterate_and_matches_dense_solve() {
 #[test]
 fn ridge_m_converges_to_least_squares() {
     let (u, y) = plant_record(2, 2000, 0.3);
-    let sys = normal(&u, &y)
+    let nrm = normal(&u, &y);
+    let sys = nrm
         .system(Structure::new(2, 2, 2).unwrap(), Offset::None)
         .unwrap();
     let ols = ridge_reference(&sys, &u, &y, 0.0);
@@ -102,7 +104,8 @@ fn ridge_m_converges_to_least_squares() {
 #[test]
 fn ridge_m_iterates_and_stopping_rule_follow_eq_12() {
     let (u, y) = plant_record(3, 1500, 0.3);
-    let sys = normal(&u, &y)
+    let nrm = normal(&u, &y);
+    let sys = nrm
         .system(Structure::new(2, 3, 1).unwrap(), Offset::None)
         .unwrap();
     let n = sys.params();
@@ -168,7 +171,8 @@ fn ridge_m_iterates_and_stopping_rule_follow_eq_12() {
 #[test]
 fn ridge_m_rejects_bad_hyper_parameters() {
     let (u, y) = plant_record(4, 500, 0.3);
-    let sys = normal(&u, &y)
+    let nrm = normal(&u, &y);
+    let sys = nrm
         .system(Structure::new(1, 1, 0).unwrap(), Offset::None)
         .unwrap();
     for bad in [
@@ -211,7 +215,8 @@ fn rls_without_forgetting_converges_to_least_squares() {
     let (u, y) = plant_record(5, 3000, 0.3);
     let s = Structure::new(2, 2, 2).unwrap();
     for offset in [Offset::None, Offset::Intercept] {
-        let sys = normal(&u, &y).system(s, offset).unwrap();
+        let nrm = normal(&u, &y);
+        let sys = nrm.system(s, offset).unwrap();
         let ols = ridge_reference(&sys, &u, &y, 0.0);
         let mut rls = Rls::new(s, offset, 1.0, 1e8).unwrap();
         for (&a, &b) in u.iter().zip(&y) {
@@ -261,7 +266,8 @@ fn adaptive_lasso_zeroes_irrelevant_lags() {
     let mut rng = Rng::new(9);
     let u = multilevel(&mut rng, 3000, -1.0, 1.0, 6);
     let y = simulate(&[0.7], &[1.0, 0.5], 0, 0.0, &u, 0.05, 10);
-    let sys = normal(&u, &y)
+    let nrm = normal(&u, &y);
+    let sys = nrm
         .system(Structure::new(4, 5, 0).unwrap(), Offset::None)
         .unwrap();
     let fit = AdaptiveLasso::<f64>::default().fit(&sys).unwrap();
