@@ -1,0 +1,145 @@
+//! ridge-pump firmware image for the Arduino Mega 2560 (ATmega2560, 16 MHz).
+//!
+//! Build: `scripts/build-boards` (nightly, `--target avr-none -Zbuild-std=core`). Pins, fuses and
+//! flashing: `docs/boards.md`.
+//!
+//! Boot: read and clear the reset cause, set up UART, PWM (pump stopped), TWI, the 100 Hz timer,
+//! read the stored record from EEPROM, start the state machine, enable interrupts, arm the
+//! watchdog, print `BOOT ...`, then run the shared loop (`board::app`).
+//!
+//! On the host this file compiles to a stub (`cargo build --all-features` stays a host build).
+#![cfg_attr(target_arch = "avr", no_std, no_main)]
+#![cfg_attr(target_arch = "avr", feature(abi_avr_interrupt, asm_experimental_arch))]
+
+#[cfg(target_arch = "avr")]
+#[path = "../board/mod.rs"]
+mod board;
+
+#[cfg(not(target_arch = "avr"))]
+fn main() {
+    eprintln!("atmega2560 is a board image: build it with scripts/build-boards");
+    std::process::exit(2);
+}
+
+#[cfg(target_arch = "avr")]
+mod image {
+    use super::board::app::{App, Board};
+    use super::board::avr::{eeprom, pwm, stack, timer, twi, usart, watchdog};
+    use avr_device::atmega2560 as pac;
+    use core::mem::MaybeUninit;
+    use core::ptr::addr_of_mut;
+    use ridge_pump_firmware::persist::RECORD_LEN;
+    use ridge_pump_firmware::pump::Pump;
+    use ridge_pump_firmware::selfid::{Config, SelfIdentification};
+    use ridge_pump_firmware::sfm3300::Sfm3300;
+    use ufmt::uwriteln;
+
+    /// I2C clock. The SFM3300 allows 400 kHz; 100 kHz leaves margin for the Mega's 10 kΩ
+    /// pull-ups and a sensor cable, and one 3-byte read still takes only ~0.4 ms.
+    const I2C_HZ: u32 = 100_000;
+
+    struct Mega {
+        ticker: timer::Ticker,
+        watchdog: watchdog::Watchdog,
+        eeprom: eeprom::Eeprom<RECORD_LEN>,
+    }
+
+    impl Board for Mega {
+        const TICK_DURING_SEARCH: bool = false;
+        fn poll_tick(&mut self) -> Option<u16> {
+            self.ticker.poll()
+        }
+        fn pet(&mut self) {
+            self.watchdog.pet();
+        }
+        fn save(&mut self, record: &[u8]) {
+            self.eeprom.save(record);
+        }
+        fn poll_store(&mut self) -> Option<bool> {
+            self.eeprom.poll()
+        }
+        fn stack(&self) -> Option<(u16, u16)> {
+            Some(stack::usage())
+        }
+    }
+
+    type MegaApp = App<twi::Twi, pwm::Pwm4A, usart::Usart0>;
+
+    /// The loop state and the board parts live in statics, not in `main`'s frame: `main` never
+    /// returns, so every local of it (and every copy made while moving the ~0.7 KB state
+    /// machine around) would occupy stack for good. As statics they count as static RAM, which
+    /// `build-boards` checks.
+    static mut APP: MaybeUninit<MegaApp> = MaybeUninit::uninit();
+    static mut BOARD: MaybeUninit<Mega> = MaybeUninit::uninit();
+
+    #[avr_device::entry]
+    fn main() -> ! {
+        // SAFETY: `main` runs once, and these are the only references ever made to the statics.
+        let (app, board) = unsafe { (&mut *addr_of_mut!(APP), &mut *addr_of_mut!(BOARD)) };
+        let (app, board) = init(app, board);
+        app.run(board)
+    }
+
+    /// Sets everything up and moves it into the statics (this frame is gone afterwards).
+    #[inline(never)]
+    fn init<'a>(
+        app: &'a mut MaybeUninit<MegaApp>,
+        board: &'a mut MaybeUninit<Mega>,
+    ) -> (&'a mut MegaApp, &'a mut Mega) {
+        let dp = pac::Peripherals::take().unwrap();
+        let reset_cause = watchdog::take_reset_cause(&dp.CPU);
+
+        let mut out = usart::Usart0::new(dp.USART0);
+        let pump = match Pump::new(pwm::Pwm4A::new(dp.TC4, &dp.PORTH)) {
+            Ok(pump) => pump,
+            Err(e) => match e {},
+        };
+        let sensor = Sfm3300::new(twi::Twi::new(dp.TWI, dp.PORTD, I2C_HZ));
+        let mut eeprom = eeprom::Eeprom::<RECORD_LEN>::new(dp.EEPROM);
+        let stored = eeprom.load();
+        let sid = SelfIdentification::new(Config::default(), stored.as_ref().map(|r| &r[..]));
+
+        let ticker = timer::Ticker::new(dp.TC3);
+        // SAFETY: all interrupt handlers (Timer3 compare, USART0 UDRE) only use state that is
+        // initialised statically.
+        unsafe { avr_device::interrupt::enable() };
+        let watchdog = watchdog::Watchdog::start(dp.WDT);
+
+        uwriteln!(
+            out,
+            "BOOT board=atmega2560 reset={} record={}",
+            reset_cause,
+            if stored.is_some() { "stored" } else { "none" }
+        )
+        .ok();
+        let app = app.write(App::new(sensor, pump, out, sid));
+        let board = board.write(Mega {
+            ticker,
+            watchdog,
+            eeprom,
+        });
+        (app, board)
+    }
+
+    /// Panic: pump off first (PWM compare register to 0 and the pin driven low, written
+    /// directly), interrupts off, a `PANIC` line sent by polling, then spin until the watchdog
+    /// (0.5 s) resets the MCU.
+    ///
+    /// Resetting is deliberate: the loop's state cannot be trusted after a panic, and a fresh
+    /// start (which reports `BOOT ... reset=8`, WDRF, unless the bootloader cleared MCUSR)
+    /// restores service with the pump stopped until the state machine commands it again. During
+    /// the reset the AVR's pins float: the pump driver input needs a pull-down (docs/boards.md).
+    /// Neither message nor location is printed: the message would pull `core::fmt` into the
+    /// image, and using the location keeps every panic's file name in .data (~1 KB of SRAM:
+    /// constants live in RAM on AVR).
+    #[panic_handler]
+    fn panic(_info: &core::panic::PanicInfo) -> ! {
+        avr_device::interrupt::disable();
+        // SAFETY: interrupts are off and nothing runs after this handler.
+        unsafe { pwm::force_off() };
+        uwriteln!(usart::Polled, "\nPANIC").ok();
+        loop {
+            core::hint::spin_loop();
+        }
+    }
+}

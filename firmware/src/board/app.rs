@@ -1,0 +1,236 @@
+//! The 100 Hz main loop shared by both boards: wait for the tick, pet the watchdog, read the
+//! SFM3300 (I2C in the main loop, never in an interrupt), step the self-identification state
+//! machine ([`ridge_pump_firmware::selfid`]), apply its duty to the pump, print its events,
+//! persist its record when an event asks for it, and run the structure search when it is due.
+//!
+//! The search runs in one of two ways ([`Board::TICK_DURING_SEARCH`]):
+//! - ticking (STM32F411): as a `SearchJob` whose `pet` closure also keeps the loop going: at
+//!   every pet it pets the watchdog and, if a 10 ms boundary has passed, reads the sensor and
+//!   calls `tick` (the state machine holds the base duty and keeps detecting faults). Those
+//!   ticks come as late as the longest stretch between two pets (one factorisation);
+//! - blocking (ATmega2560, for stack): `SelfIdentification::search`, petting the watchdog only;
+//!   the PWM holds the base duty and the ticks meanwhile are lost.
+//!
+//! Either way the search's ticks are counted on the `SEARCH` line, not in `MISSED`.
+//!
+//! Report lines written here (`\n`-terminated ASCII), besides the state machine's events (see
+//! [`ridge_pump_firmware::event`]):
+//!
+//! | line | when |
+//! |---|---|
+//! | `SENSOR ready tries=<n>` / `SENSOR start failed` | at start: continuous measurement started (retried every tick for 1 s) |
+//! | `MISSED late=<n> lost=<n>` | at most once a second, when a total changed: `late` = loop passes that came back after the next tick had already fired, `lost` = ticks skipped entirely (no sample) |
+//! | `SEARCH ticks=<n> lost=<n>` | after a search: ticks handled and ticks skipped while it ran |
+//! | `STACK used=<bytes> free=<bytes>` | after each search (boards that measure the stack) |
+//! | `PERSIST saved` / `PERSIST failed` | a record write finished |
+//! | `PUMP error` | the PWM channel refused a duty: the pump is stopped |
+
+use embedded_hal::i2c::I2c;
+use embedded_hal::pwm::SetDutyCycle;
+use ridge_pump_firmware::event::{Event, SensorFault};
+use ridge_pump_firmware::pump::Pump;
+use ridge_pump_firmware::selfid::SelfIdentification;
+use ridge_pump_firmware::sfm3300::Sfm3300;
+use ufmt::{uWrite, uwriteln};
+
+/// Ticks over which [`App::start`] retries *start continuous measurement* (1 s: covers the
+/// sensor's power-up time when the MCU starts faster than the sensor).
+pub const START_TICKS: u8 = 100;
+
+/// Read attempts per sample: NACKed reads are retried at once, ~90 µs each at 100 kHz, so 8
+/// attempts bridge the sensor's 0.5 ms update time (needed right after the discarded first
+/// frame).
+pub const READ_ATTEMPTS: u8 = 8;
+
+/// Ticks per `MISSED` summary check (1 s).
+const SUMMARY_TICKS: u8 = 100;
+
+/// What the loop needs from a board besides sensor, pump and UART.
+pub trait Board {
+    /// Whether the loop keeps ticking (sensor, state machine, pump, events) from the search's
+    /// `pet` calls, through [`SelfIdentification::take_search`]. That costs a copy of the
+    /// estimation statistics and the tick's stack on top of the search's deepest frame, which
+    /// the ATmega2560's 8 KB do not have; without it the blocking
+    /// [`SelfIdentification::search`] runs and the PWM holds the base duty meanwhile.
+    const TICK_DURING_SEARCH: bool;
+    /// Non-blocking: the number of 10 ms tick boundaries that passed since the last call that
+    /// returned `Some` (≥ 1), or `None` if none did.
+    fn poll_tick(&mut self) -> Option<u16>;
+    /// Restarts the watchdog's timeout.
+    fn pet(&mut self);
+    /// Stores `record` (the board may finish the write later, see [`poll_store`]).
+    ///
+    /// [`poll_store`]: Board::poll_store
+    fn save(&mut self, record: &[u8]);
+    /// Advances a pending write; `Some(ok)` once when a write finished.
+    fn poll_store(&mut self) -> Option<bool>;
+    /// Stack high-water mark `(used, free)` in bytes, if the board measures it.
+    fn stack(&self) -> Option<(u16, u16)>;
+}
+
+/// Loop state: peripherals, the state machine and counters.
+pub struct App<I, P, W> {
+    sensor: Sfm3300<I>,
+    pump: Pump<P>,
+    out: W,
+    sid: SelfIdentification,
+    late: u16,
+    lost: u16,
+    reported: (u16, u16),
+    summary_in: u8,
+}
+
+impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
+    /// Puts the parts together; nothing is sent yet.
+    pub fn new(mut sensor: Sfm3300<I>, pump: Pump<P>, out: W, sid: SelfIdentification) -> Self {
+        sensor.set_read_attempts(READ_ATTEMPTS);
+        App {
+            sensor,
+            pump,
+            out,
+            sid,
+            late: 0,
+            lost: 0,
+            reported: (0, 0),
+            summary_in: SUMMARY_TICKS,
+        }
+    }
+
+    /// Starts continuous measurement, retrying once per tick for up to [`START_TICKS`] ticks
+    /// (the state machine is not ticked meanwhile: the pump stays stopped). A sensor that never
+    /// answers is left to the state machine, which reports the fault on its first ticks.
+    pub fn start(&mut self, board: &mut impl Board) {
+        for tries in 1..=START_TICKS {
+            wait_tick(board);
+            board.pet();
+            if self.sensor.start_continuous().is_ok() {
+                uwriteln!(self.out, "SENSOR ready tries={}", tries).ok();
+                return;
+            }
+        }
+        uwriteln!(self.out, "SENSOR start failed").ok();
+    }
+
+    /// Runs the loop forever.
+    pub fn run(&mut self, board: &mut impl Board) -> ! {
+        self.start(board);
+        loop {
+            self.step(board);
+        }
+    }
+
+    /// One pass: wait for the tick, then do that tick's work (and the search if due).
+    #[inline(never)]
+    pub fn step(&mut self, board: &mut impl Board) {
+        let (elapsed, late) = wait_tick(board);
+        board.pet();
+        if late {
+            self.late = self.late.saturating_add(1);
+        }
+        self.lost = self.lost.saturating_add(elapsed - 1);
+        self.tick(board);
+        self.summary();
+        if self.sid.needs_search() {
+            self.search(board);
+        }
+    }
+
+    /// One tick's work: sensor, state machine, pump, event, persistence. Never inlined: it is
+    /// called from the loop and from inside the search's pet closure, and one copy is enough.
+    #[inline(never)]
+    fn tick(&mut self, board: &mut impl Board) {
+        let flow = self.sensor.read_counts().map_err(SensorFault::from);
+        let tick = self.sid.tick(flow);
+        if self.pump.set(tick.duty).is_err() {
+            self.pump.stop().ok();
+            uwriteln!(self.out, "PUMP error").ok();
+        }
+        if let Some(event) = tick.event {
+            self.report(board, &event);
+        }
+        if let Some(ok) = board.poll_store() {
+            let line = if ok {
+                "PERSIST saved"
+            } else {
+                "PERSIST failed"
+            };
+            uwriteln!(self.out, "{}", line).ok();
+        }
+    }
+
+    /// Prints an event and persists the record if the event asks for it.
+    #[inline(never)]
+    fn report(&mut self, board: &mut impl Board, event: &Event) {
+        uwriteln!(self.out, "{}", event).ok();
+        if event.persist() {
+            if let Some(record) = self.sid.persist_bytes() {
+                board.save(&record);
+            }
+        }
+    }
+
+    /// Runs the search, ticking from its `pet` calls.
+    ///
+    /// Never inlined: the search's locals (the job with its statistics, the normal equations,
+    /// the candidate systems: several KB on the ATmega2560) must only be on the stack while it
+    /// runs, not in the frame of the endless loop.
+    #[inline(never)]
+    fn search<B: Board>(&mut self, board: &mut B) {
+        let (mut ticks, mut lost) = (0u16, 0u16);
+        let event = if B::TICK_DURING_SEARCH {
+            let Some(job) = self.sid.take_search() else {
+                return;
+            };
+            let outcome = job.run(|| {
+                board.pet();
+                if let Some(elapsed) = board.poll_tick() {
+                    ticks = ticks.saturating_add(1);
+                    lost = lost.saturating_add(elapsed - 1);
+                    self.tick(board);
+                }
+            });
+            self.sid.finish_search(outcome)
+        } else {
+            // No ticks meanwhile: the PWM holds the base duty the state machine set.
+            self.sid.search(|| board.pet())
+        };
+        if let Some(event) = event {
+            self.report(board, &event);
+        }
+        // Catch up with the boundary that passed last (the ones before it are lost), so that
+        // the next pass of the loop does not count as late.
+        if let Some(elapsed) = board.poll_tick() {
+            ticks = ticks.saturating_add(1);
+            lost = lost.saturating_add(elapsed - 1);
+            self.tick(board);
+        }
+        uwriteln!(self.out, "SEARCH ticks={} lost={}", ticks, lost).ok();
+        if let Some((used, free)) = board.stack() {
+            uwriteln!(self.out, "STACK used={} free={}", used, free).ok();
+        }
+    }
+
+    /// Prints `MISSED` once a second when the totals changed.
+    fn summary(&mut self) {
+        self.summary_in -= 1;
+        if self.summary_in == 0 {
+            self.summary_in = SUMMARY_TICKS;
+            if (self.late, self.lost) != self.reported {
+                self.reported = (self.late, self.lost);
+                uwriteln!(self.out, "MISSED late={} lost={}", self.late, self.lost).ok();
+            }
+        }
+    }
+}
+
+/// Waits for the next tick boundary: `(boundaries passed, already passed on entry)`.
+fn wait_tick(board: &mut impl Board) -> (u16, bool) {
+    if let Some(elapsed) = board.poll_tick() {
+        return (elapsed, true);
+    }
+    loop {
+        if let Some(elapsed) = board.poll_tick() {
+            return (elapsed, false);
+        }
+    }
+}
