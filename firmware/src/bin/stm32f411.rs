@@ -1,0 +1,137 @@
+//! ridge-pump firmware image for the STM32F411 "Black Pill" (STM32F411CEU6, 25 MHz HSE,
+//! 100 MHz system clock).
+//!
+//! Build: `scripts/build-boards` (stable, `--target thumbv7em-none-eabihf`, linked with the root
+//! `memory.x`). Pins and flashing: `docs/boards.md`.
+//!
+//! On the host this file compiles to a stub (`cargo build --all-features` stays a host build).
+#![cfg_attr(all(target_arch = "arm", target_os = "none"), no_std, no_main)]
+
+#[cfg(all(target_arch = "arm", target_os = "none"))]
+#[path = "../board/mod.rs"]
+mod board;
+
+#[cfg(not(all(target_arch = "arm", target_os = "none")))]
+fn main() {
+    eprintln!("stm32f411 is a board image: build it with scripts/build-boards");
+    std::process::exit(2);
+}
+
+#[cfg(all(target_arch = "arm", target_os = "none"))]
+mod image {
+    use super::board::app::{App, Board};
+    use super::board::stm32f411::{self as bp, FlashStore, Ticker, Uart, WATCHDOG_MS};
+    use cortex_m_rt::entry;
+    use ridge_pump_firmware::persist::RECORD_LEN;
+    use ridge_pump_firmware::pump::Pump;
+    use ridge_pump_firmware::selfid::{Config, SelfIdentification};
+    use ridge_pump_firmware::sfm3300::Sfm3300;
+    use stm32f4xx_hal::i2c::{I2c, Mode};
+    use stm32f4xx_hal::pac;
+    use stm32f4xx_hal::prelude::*;
+    use stm32f4xx_hal::rcc::Config as ClockConfig;
+    use stm32f4xx_hal::watchdog::IndependentWatchdog;
+    use ufmt::uwriteln;
+
+    struct BlackPill {
+        ticker: Ticker,
+        watchdog: IndependentWatchdog,
+        store: FlashStore<RECORD_LEN>,
+    }
+
+    impl Board for BlackPill {
+        const TICK_DURING_SEARCH: bool = true;
+        fn poll_tick(&mut self) -> Option<u16> {
+            self.ticker.poll()
+        }
+        fn pet(&mut self) {
+            self.watchdog.feed();
+        }
+        fn save(&mut self, record: &[u8]) {
+            self.store.save(record, &mut self.watchdog);
+        }
+        fn poll_store(&mut self) -> Option<bool> {
+            self.store.take_result()
+        }
+        fn stack(&self) -> Option<(u16, u16)> {
+            None
+        }
+    }
+
+    #[entry]
+    fn main() -> ! {
+        let dp = pac::Peripherals::take().unwrap();
+        // Reset cause (RCC_CSR bits 31..24: LPWR, WWDG, IWDG, SFT, POR, PIN, BOR), then clear.
+        let reset_cause = (dp.RCC.csr().read().bits() >> 24) as u8;
+        dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
+
+        let mut rcc = dp.RCC.freeze(ClockConfig::hse(25.MHz()).sysclk(100.MHz()));
+        let gpioa = dp.GPIOA.split(&mut rcc);
+        let gpiob = dp.GPIOB.split(&mut rcc);
+
+        // Pump PWM first, so the pin is driven low (duty 0) as early as possible.
+        let (_pwm, (ch1, ..)) = dp.TIM3.pwm_hz(20.kHz(), &mut rcc);
+        let mut ch1 = ch1.with(gpioa.pa6);
+        ch1.set_duty(0);
+        ch1.enable();
+        let pump = match Pump::new(ch1) {
+            Ok(pump) => pump,
+            Err(e) => match e {},
+        };
+
+        let tx: stm32f4xx_hal::serial::Tx<pac::USART1, u8> =
+            dp.USART1.tx(gpioa.pa9, 115_200.bps(), &mut rcc).unwrap();
+        let mut out = Uart::new(tx);
+
+        let i2c = I2c::new(
+            dp.I2C1,
+            (gpiob.pb6, gpiob.pb7),
+            Mode::standard(100.kHz()),
+            &mut rcc,
+        );
+        let sensor = Sfm3300::new(i2c);
+
+        let store = FlashStore::<RECORD_LEN>::new(dp.FLASH);
+        let stored = store.load();
+        let sid = SelfIdentification::new(Config::default(), stored.as_ref().map(|r| &r[..]));
+
+        let ticker = Ticker::new(dp.TIM5.counter(&mut rcc));
+        let mut watchdog = IndependentWatchdog::new(dp.IWDG);
+        watchdog.stop_on_debug(&dp.DBGMCU, true);
+        watchdog.start(WATCHDOG_MS.millis());
+
+        uwriteln!(
+            out,
+            "BOOT board=stm32f411 reset={} record={}",
+            reset_cause,
+            match (store.available(), stored.is_some()) {
+                (false, _) => "unavailable",
+                (true, true) => "stored",
+                (true, false) => "none",
+            }
+        )
+        .ok();
+        let mut app = App::new(sensor, pump, out, sid);
+        let mut board = BlackPill {
+            ticker,
+            watchdog,
+            store,
+        };
+        app.run(&mut board)
+    }
+
+    /// Panic: pump off first (TIM3 CCR1 = 0, written directly), interrupts off, a polled `PANIC`
+    /// line, then spin until the IWDG (0.5 s) resets the MCU; the next boot reports
+    /// `reset=` with the IWDG bit (0x20) set. See the ATmega2560 image for the reasoning.
+    #[panic_handler]
+    fn panic(_info: &core::panic::PanicInfo) -> ! {
+        cortex_m::interrupt::disable();
+        bp::force_pump_off();
+        for &byte in b"\nPANIC\n" {
+            bp::send_polled(byte);
+        }
+        loop {
+            core::hint::spin_loop();
+        }
+    }
+}

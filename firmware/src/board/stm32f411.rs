@@ -1,0 +1,267 @@
+//! STM32F411 "Black Pill" (STM32F411CEU6, 25 MHz HSE, 512 KB flash) glue on stm32f4xx-hal.
+//!
+//! | function | peripheral | pin |
+//! |---|---|---|
+//! | SFM3300 | I2C1, 100 kHz | PB6 SCL, PB7 SDA (5 V tolerant; external pull-ups) |
+//! | pump PWM | TIM3 CH1, 20 kHz | PA6 |
+//! | reports | USART1 TX 115200 8N1 (TXE interrupt + queue) | PA9 (RX PA10 unused) |
+//! | tick | TIM5, free-running 10 kHz counter, polled | — |
+//! | watchdog | IWDG, 0.5 s | — |
+//! | record | flash sector 7 (0x0806_0000, 128 KB), append-only slots | — |
+//!
+//! The tick is a free-running 32-bit TIM5 count rather than an interrupt: it keeps counting
+//! while the CPU is stalled by a flash erase, so lost ticks are counted exactly.
+
+use core::convert::Infallible;
+
+use stm32f4xx_hal::flash::FlashExt;
+use stm32f4xx_hal::pac::{self, interrupt, FLASH, TIM5, USART1};
+use stm32f4xx_hal::timer::Counter;
+use stm32f4xx_hal::watchdog::IndependentWatchdog;
+
+use super::ring::Ring;
+
+/// Frequency of the TIM5 tick counter.
+pub const COUNTER_HZ: u32 = 10_000;
+/// Counter ticks per 10 ms loop tick.
+const PERIOD: u32 = COUNTER_HZ / 100;
+
+/// Loop ticks from a free-running TIM5.
+pub struct Ticker {
+    timer: Counter<TIM5, COUNTER_HZ>,
+    /// Counter value of the last tick boundary handled.
+    last: u32,
+}
+
+impl Ticker {
+    /// Starts TIM5 counting at [`COUNTER_HZ`], wrapping after 2³² − 1 counts (≈ 119 h).
+    pub fn new(mut timer: Counter<TIM5, COUNTER_HZ>) -> Self {
+        // ARR = u32::MAX − 1: the largest the HAL allows; the one-count irregularity at the wrap
+        // (every 119 h) shifts one tick by 0.1 ms.
+        timer
+            .start(fugit::TimerDurationU32::from_ticks(u32::MAX))
+            .ok();
+        let last = timer.now().ticks();
+        Ticker { timer, last }
+    }
+
+    fn now(&self) -> u32 {
+        self.timer.now().ticks()
+    }
+
+    /// Non-blocking: the 10 ms boundaries passed since the last call that returned `Some`
+    /// (saturated to 65535), or `None`.
+    pub fn poll(&mut self) -> Option<u16> {
+        let since = self.now().wrapping_sub(self.last);
+        if since < PERIOD {
+            return None;
+        }
+        let elapsed = since / PERIOD;
+        self.last = self.last.wrapping_add(elapsed * PERIOD);
+        Some(u16::try_from(elapsed).unwrap_or(u16::MAX))
+    }
+}
+
+/// Transmit queue, drained by the USART1 interrupt.
+static TX: Ring<256> = Ring::new();
+
+/// USART1 transmitter (`ufmt::uWrite`) over a queue. The HAL's `Tx` has configured the
+/// peripheral (baud, pins) and is kept so nothing else can take it.
+pub struct Uart<T> {
+    _tx: T,
+}
+
+impl<T> Uart<T> {
+    /// Takes the configured transmitter and unmasks the USART1 interrupt.
+    pub fn new(tx: T) -> Self {
+        // SAFETY: the handler only uses the queue and USART1's DR/CR1.TXEIE.
+        unsafe { cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1) };
+        Uart { _tx: tx }
+    }
+
+    fn write_byte(&mut self, byte: u8) {
+        while !TX.push(byte) {
+            if cortex_m::register::primask::read().is_inactive() {
+                continue; // the interrupt drains the queue
+            }
+            // Interrupts are masked: nobody else drains the queue.
+            if let Some(old) = TX.pop() {
+                send_polled(old);
+            }
+        }
+        cortex_m::interrupt::free(|_| {
+            // SAFETY: read-modify-write of CR1 inside a critical section.
+            let usart = unsafe { &*USART1::ptr() };
+            usart.cr1().modify(|_, w| w.txeie().set_bit());
+        });
+    }
+}
+
+impl<T> ufmt::uWrite for Uart<T> {
+    type Error = Infallible;
+
+    fn write_str(&mut self, s: &str) -> Result<(), Infallible> {
+        for &byte in s.as_bytes() {
+            self.write_byte(byte);
+        }
+        Ok(())
+    }
+}
+
+/// Sends one byte on USART1 by polling TXE (bounded), e.g. from the panic handler.
+pub fn send_polled(byte: u8) {
+    // SAFETY: DR/SR accesses only; used where the queue's interrupt cannot run.
+    let usart = unsafe { &*USART1::ptr() };
+    for _ in 0..100_000u32 {
+        if usart.sr().read().txe().bit_is_set() {
+            usart.dr().write(|w| unsafe { w.bits(u16::from(byte)) });
+            return;
+        }
+    }
+}
+
+#[interrupt]
+fn USART1() {
+    // SAFETY: the main loop only sets TXEIE, inside a critical section.
+    let usart = unsafe { &*USART1::ptr() };
+    if usart.sr().read().txe().bit_is_set() {
+        match TX.pop() {
+            Some(byte) => {
+                usart.dr().write(|w| unsafe { w.bits(u16::from(byte)) });
+            }
+            None => {
+                usart.cr1().modify(|_, w| w.txeie().clear_bit());
+            }
+        }
+    }
+}
+
+/// Pump off without the PWM adapter, for the panic handler: TIM3 CCR1 = 0 (PWM mode 1: output
+/// constantly low).
+pub fn force_pump_off() {
+    // SAFETY: a single register write; the panic handler runs with interrupts disabled and
+    // never returns to the owner of TIM3.
+    let tim3 = unsafe { &*pac::TIM3::ptr() };
+    tim3.ccr1().write(|w| unsafe { w.bits(0) });
+}
+
+/// Flash sector used for the record.
+pub const SECTOR: u8 = 7;
+/// Offset of sector 7 from the start of flash (sectors 0–3: 16 KB, 4: 64 KB, 5–7: 128 KB).
+pub const SECTOR_OFFSET: usize = 0x6_0000;
+/// Size of sector 7.
+pub const SECTOR_SIZE: usize = 0x2_0000;
+/// Slot header: magic, then the record length (little-endian `u16`).
+const MAGIC: [u8; 2] = *b"RP";
+/// Watchdog timeout while a sector erase (typ. 2 s, max 4 s at 8-bit parallelism) stalls the
+/// CPU.
+const ERASE_WATCHDOG_MS: u32 = 8_000;
+/// Normal watchdog timeout.
+pub const WATCHDOG_MS: u32 = 500;
+
+/// The record store in flash sector 7: an append-only log of slots of `SLOT` bytes (4-byte
+/// header + `N` record bytes, padded to 16). A save programs the record into the next erased
+/// slot, then its header as the commit mark, so a reset mid-save leaves the previous record the
+/// newest valid one. The sector is erased only when it is full (after `128 KB / SLOT` saves);
+/// the watchdog timeout is raised for the erase, during which the CPU stalls (the PWM keeps
+/// running in hardware; the tick counter counts on).
+pub struct FlashStore<const N: usize> {
+    flash: FLASH,
+    /// `None` if the chip has no sector 7 (a 256 KB part): persistence is off.
+    next_free: Option<usize>,
+    result: Option<bool>,
+}
+
+impl<const N: usize> FlashStore<N> {
+    const SLOT: usize = (4 + N).div_ceil(16) * 16;
+    const SLOTS: usize = SECTOR_SIZE / Self::SLOT;
+
+    /// Scans sector 7 for the first erased slot.
+    pub fn new(flash: FLASH) -> Self {
+        let mut store = FlashStore {
+            flash,
+            next_free: None,
+            result: None,
+        };
+        if store.flash.len() >= SECTOR_OFFSET + SECTOR_SIZE {
+            store.next_free = Some(
+                (0..Self::SLOTS)
+                    .find(|&i| store.slot(i).iter().all(|&b| b == 0xFF))
+                    .unwrap_or(Self::SLOTS),
+            );
+        }
+        store
+    }
+
+    /// Whether the chip has sector 7 (persistence available).
+    pub fn available(&self) -> bool {
+        self.next_free.is_some()
+    }
+
+    fn slot(&self, index: usize) -> &[u8] {
+        let start = SECTOR_OFFSET + index * Self::SLOT;
+        &self.flash.read()[start..start + Self::SLOT]
+    }
+
+    fn header() -> [u8; 4] {
+        let len = (N as u16).to_le_bytes();
+        [MAGIC[0], MAGIC[1], len[0], len[1]]
+    }
+
+    /// The newest committed record.
+    pub fn load(&self) -> Option<[u8; N]> {
+        let used = self.next_free?;
+        (0..used).rev().find_map(|i| {
+            let slot = self.slot(i);
+            (slot[..4] == Self::header()).then(|| {
+                let mut record = [0u8; N];
+                record.copy_from_slice(&slot[4..4 + N]);
+                record
+            })
+        })
+    }
+
+    /// Saves `record` (blocking: ~16 µs per byte, plus a sector erase of up to 4 s when the log is
+    /// full). Nothing is written if the newest record is already equal.
+    pub fn save(&mut self, record: &[u8], watchdog: &mut IndependentWatchdog) {
+        if record.len() != N || !self.available() {
+            return;
+        }
+        if self.load().is_some_and(|newest| newest[..] == *record) {
+            return;
+        }
+        self.result = Some(self.append(record, watchdog).is_ok());
+    }
+
+    fn append(&mut self, record: &[u8], watchdog: &mut IndependentWatchdog) -> Result<(), ()> {
+        let mut index = self.next_free.unwrap_or(Self::SLOTS);
+        if index >= Self::SLOTS {
+            watchdog.start(fugit::MillisDurationU32::millis(ERASE_WATCHDOG_MS));
+            let erased = self.flash.unlocked().erase(SECTOR);
+            watchdog.start(fugit::MillisDurationU32::millis(WATCHDOG_MS));
+            erased.map_err(drop)?;
+            index = 0;
+        }
+        // Used from here on, even if programming fails part-way (the slot is no longer erased).
+        self.next_free = Some(index + 1);
+        let start = SECTOR_OFFSET + index * Self::SLOT;
+        {
+            let mut unlocked = self.flash.unlocked();
+            unlocked.program(start + 4, record.iter()).map_err(drop)?;
+            unlocked
+                .program(start, Self::header().iter())
+                .map_err(drop)?;
+        }
+        let slot = self.slot(index);
+        if slot[..4] == Self::header() && slot[4..4 + N] == *record {
+            Ok(())
+        } else {
+            Err(())
+        }
+    }
+
+    /// The result of the last save, once.
+    pub fn take_result(&mut self) -> Option<bool> {
+        self.result.take()
+    }
+}
