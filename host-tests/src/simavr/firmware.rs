@@ -33,34 +33,27 @@ pub fn default_elf() -> PathBuf {
     target_dir().join("avr-none/release/atmega2560.elf")
 }
 
-/// Builds the image: `scripts/build-boards atmega2560` when present, else the cargo command of
-/// `firmware/Cargo.toml`. Output goes to stderr. Environment that would leak the calling cargo's
+/// Builds the image with the ATmega2560 step of `scripts/build-boards` (nightly,
+/// `--target avr-none -Zbuild-std=core`; the script also builds the STM32 image and checks the
+/// size budgets). Output goes to stderr. Environment that would leak the calling cargo's
 /// settings into the nightly cross build (RUSTFLAGS, RUSTC, …) is removed.
 pub fn build() -> Result<PathBuf, String> {
     let root = workspace_root();
-    let script = root.join("scripts/build-boards");
-    let mut cmd = if script.is_file() {
-        let mut c = Command::new("bash");
-        c.arg(&script).arg("atmega2560");
-        c
-    } else {
-        let mut c = Command::new("cargo");
-        c.args([
-            "+nightly",
-            "build",
-            "-p",
-            "ridge-pump-firmware",
-            "--bin",
-            "atmega2560",
-            "--features",
-            "board-atmega2560",
-            "--release",
-            "--target",
-            "avr-none",
-            "-Zbuild-std=core",
-        ]);
-        c
-    };
+    let mut cmd = Command::new("cargo");
+    cmd.args([
+        "+nightly",
+        "build",
+        "-p",
+        "ridge-pump-firmware",
+        "--bin",
+        "atmega2560",
+        "--features",
+        "board-atmega2560",
+        "--release",
+        "--target",
+        "avr-none",
+        "-Zbuild-std=core",
+    ]);
     cmd.current_dir(&root);
     for v in [
         "RUSTFLAGS",

@@ -68,6 +68,7 @@ pub struct IrqEvent {
 /// Callback state: a pointer to the core (to read its cycle counter) plus a sink.
 struct Hook<T> {
     avr: *mut ffi::avr_t,
+    base: Rc<Cell<u64>>,
     sink: Rc<RefCell<T>>,
 }
 
@@ -75,12 +76,13 @@ impl<T> Hook<T> {
     fn cycle(&self) -> u64 {
         // SAFETY: `avr` outlives every hook (hooks are freed in `Machine::drop` after the core
         // has stopped running); reading a plain field.
-        unsafe { (*self.avr).cycle }
+        self.base.get() + unsafe { (*self.avr).cycle }
     }
 }
 
 struct TwiHook {
     avr: *mut ffi::avr_t,
+    base: Rc<Cell<u64>>,
     input: *mut ffi::avr_irq_t,
     clock: Rc<Cell<u64>>,
     slave: Box<dyn TwiSlave>,
@@ -155,7 +157,8 @@ unsafe extern "C" fn on_twi(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c
     // re-enter this callback while the slave runs (the answer goes to the *input* IRQ).
     let hook = unsafe { &mut *(param as *mut TwiHook) };
     // SAFETY: plain field read of the live core that is calling us.
-    hook.clock.set(unsafe { (*hook.avr).cycle });
+    hook.clock
+        .set(hook.base.get() + unsafe { (*hook.avr).cycle });
     if let Some(answer) = hook.slave.recv(twi_decode(value)) {
         // SAFETY: `input` is the TWI input IRQ of the same core.
         unsafe { ffi::avr_raise_irq(hook.input, twi_encode(&answer)) };
@@ -180,6 +183,10 @@ pub struct Symbol {
 /// One simulated AVR with a loaded firmware.
 pub struct Machine {
     avr: NonNull<ffi::avr_t>,
+    /// simavr restarts `avr->cycle` at 0 on every reset (watchdog, `avr_reset`): cycles before
+    /// the last reset, so that [`Machine::cycle`] is monotonic.
+    base: Rc<Cell<u64>>,
+    resets: Vec<u64>,
     uart0: Rc<RefCell<Vec<UartByte>>>,
     symbols: Vec<Symbol>,
     sleep_cycles: u64,
@@ -242,6 +249,8 @@ impl Machine {
 
             let mut m = Machine {
                 avr,
+                base: Rc::new(Cell::new(0)),
+                resets: Vec::new(),
                 uart0: Rc::new(RefCell::new(Vec::new())),
                 symbols,
                 sleep_cycles: 0,
@@ -297,6 +306,7 @@ impl Machine {
             }
             let hook = self.leak(Hook {
                 avr,
+                base: self.base.clone(),
                 sink: self.uart0.clone(),
             });
             ffi::avr_irq_register_notify(irq, Some(on_uart), hook.cast());
@@ -323,6 +333,7 @@ impl Machine {
             }
             let hook = self.leak(TwiHook {
                 avr,
+                base: self.base.clone(),
                 input,
                 clock,
                 slave,
@@ -345,6 +356,7 @@ impl Machine {
             if !irq.is_null() {
                 let hook = self.leak(Hook {
                     avr,
+                    base: self.base.clone(),
                     sink: sink.clone(),
                 });
                 ffi::avr_irq_register_notify(irq, Some(on_pin), hook.cast());
@@ -365,6 +377,7 @@ impl Machine {
             if !irq.is_null() {
                 let hook = self.leak(Hook {
                     avr,
+                    base: self.base.clone(),
                     sink: sink.clone(),
                 });
                 ffi::avr_irq_register_notify(
@@ -377,10 +390,19 @@ impl Machine {
         sink
     }
 
-    /// Current core cycle.
+    /// Core cycles since power-up (monotonic across resets).
     pub fn cycle(&self) -> u64 {
+        self.base.get() + self.raw_cycle()
+    }
+
+    fn raw_cycle(&self) -> u64 {
         // SAFETY: plain field read of a live core.
         unsafe { (*self.raw()).cycle }
+    }
+
+    /// Cycles (monotonic) at which the core was reset (watchdog or [`Machine::reset`]).
+    pub fn resets(&self) -> &[u64] {
+        &self.resets
     }
 
     /// Clock frequency, Hz.
@@ -402,9 +424,15 @@ impl Machine {
 
     /// Runs one instruction (or one sleep interval).
     pub fn step(&mut self) -> Halt {
+        let raw_before = self.raw_cycle();
         let before = self.cycle();
         // SAFETY: running a live core; callbacks only touch state owned by `self`.
         let state = unsafe { ffi::avr_run(self.raw()) } as u32;
+        if self.raw_cycle() < raw_before {
+            // Reset during this step: continue counting from where the core was.
+            self.base.set(self.base.get() + raw_before);
+            self.resets.push(before);
+        }
         let after = self.cycle();
         match state {
             ffi::cpu_Done | ffi::cpu_Stopped => Halt::Done,
@@ -537,8 +565,11 @@ impl Machine {
 
     /// Resets the core as a power cycle would (SRAM kept as simavr keeps it; EEPROM kept).
     pub fn reset(&mut self) {
+        let before = self.cycle();
         // SAFETY: `avr_reset` on a live core.
         unsafe { ffi::avr_reset(self.raw()) }
+        self.base.set(before - self.raw_cycle());
+        self.resets.push(before);
     }
 }
 

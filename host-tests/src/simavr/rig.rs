@@ -104,11 +104,11 @@ pub struct PlantSample {
 pub struct TickTiming {
     /// ISR entry cycle.
     pub start: u64,
-    /// Cycles from ISR entry to the end of the tick's work (ISR return, or back in the idle
-    /// wait when the main loop does the work).
+    /// Cycles from ISR entry to the end of the tick's work: back in the idle wait when the ISR
+    /// found the main loop idle; otherwise up to the ISR's return (or to the next tick's ISR).
     pub busy: u64,
-    /// The ISR found the main loop outside its idle wait (previous tick still running, or a
-    /// blocking job such as the search).
+    /// The tick did not end in the idle wait: the ISR found the main loop busy (a blocking job
+    /// such as the search, or the previous tick overrunning), or the next tick fired first.
     pub interrupted_busy: bool,
 }
 
@@ -117,59 +117,57 @@ struct TickMeter {
     vector: Option<u8>,
     events: Option<Rc<RefCell<Vec<IrqEvent>>>>,
     seen: usize,
-    ret_pcs: Vec<u32>,
-    idle: Option<(u32, u32)>,
+    /// Last program counters (ring), to learn the idle loop's instructions.
+    ring: [u32; RING],
+    ring_pos: usize,
+    /// For each learning tick: the distinct PCs executed just before the ISR fired.
+    learning: Vec<Vec<u32>>,
+    /// The idle wait's instruction addresses (sorted), once learned.
+    idle: Option<Vec<u32>>,
     /// Open tick: (start, isr_end, waiting for the idle loop).
     open: Option<(u64, Option<u64>, bool)>,
     ticks: Vec<TickTiming>,
     idle_cycles: u64,
     last_cycle: u64,
+    last_idle: bool,
 }
 
 /// Learn the idle loop from this many tick-ISR entries.
-const LEARN_TICKS: usize = 64;
+const LEARN_TICKS: usize = 32;
+/// PCs remembered before each ISR entry (the idle loop must be shorter).
+const RING: usize = 12;
 
 impl TickMeter {
     fn is_idle(&self, pc: u32) -> bool {
-        self.idle.is_some_and(|(a, b)| (a..=b).contains(&pc))
+        self.idle.as_ref().is_some_and(|v| v.contains(&pc))
     }
 
+    /// The idle loop = the PCs found right before (at least 90 % of) the learning ISR entries.
     fn learn(&mut self) {
         let mut count: HashMap<u32, usize> = HashMap::new();
-        for &p in &self.ret_pcs {
-            *count.entry(p).or_default() += 1;
+        for set in &self.learning {
+            for &p in set {
+                *count.entry(p).or_default() += 1;
+            }
         }
-        let Some((&mode, _)) = count.iter().max_by_key(|(p, n)| (**n, u32::MAX - **p)) else {
-            return;
-        };
-        let near: Vec<u32> = count
-            .keys()
-            .copied()
-            .filter(|p| p.abs_diff(mode) <= 16)
+        let need = self.learning.len() * 9 / 10;
+        let mut idle: Vec<u32> = count
+            .into_iter()
+            .filter(|&(_, n)| n >= need)
+            .map(|(p, _)| p)
             .collect();
-        let lo = near.iter().copied().min().unwrap_or(mode);
-        let hi = near.iter().copied().max().unwrap_or(mode);
-        self.idle = Some((lo, hi));
+        idle.sort_unstable();
+        self.idle = Some(idle);
     }
 
-    fn close(&mut self, end: u64) {
-        if let Some((start, _, _)) = self.open.take() {
-            let interrupted_busy = false;
-            self.ticks.push(TickTiming {
-                start,
-                busy: end - start,
-                interrupted_busy,
-            });
-        }
-    }
-
-    /// Called after every instruction.
+    /// Called after every instruction with the cycle and PC after it.
     fn after_step(&mut self, cycle: u64, pc: u32) {
-        let idle_now = self.is_idle(pc);
-        if idle_now {
+        if self.last_idle {
             self.idle_cycles += cycle - self.last_cycle;
         }
         self.last_cycle = cycle;
+        self.ring[self.ring_pos] = pc;
+        self.ring_pos = (self.ring_pos + 1) % RING;
         if let Some(ev) = &self.events {
             let n = ev.borrow().len();
             if n != self.seen {
@@ -180,9 +178,16 @@ impl TickMeter {
                 }
             }
         }
-        if let Some((_, Some(_), true)) = self.open {
+        let idle_now = self.is_idle(pc);
+        self.last_idle = idle_now;
+        if let Some((start, Some(_), true)) = self.open {
             if idle_now {
-                self.close(cycle);
+                self.open = None;
+                self.ticks.push(TickTiming {
+                    start,
+                    busy: cycle - start,
+                    interrupted_busy: false,
+                });
             }
         }
     }
@@ -190,8 +195,14 @@ impl TickMeter {
     fn on_event(&mut self, e: IrqEvent) {
         if e.running {
             if self.idle.is_none() {
-                self.ret_pcs.push(e.ret_pc);
-                if self.ret_pcs.len() >= LEARN_TICKS {
+                // The newest ring entry is the vector itself: skip it.
+                let mut set: Vec<u32> = (1..RING)
+                    .map(|k| self.ring[(self.ring_pos + RING - 1 - k) % RING])
+                    .collect();
+                set.sort_unstable();
+                set.dedup();
+                self.learning.push(set);
+                if self.learning.len() >= LEARN_TICKS {
                     self.learn();
                 }
                 return;
@@ -206,17 +217,18 @@ impl TickMeter {
                 });
             }
             self.open = Some((e.cycle, None, was_idle));
-            if !was_idle {
-                if let Some(t) = self.ticks.last_mut() {
-                    t.interrupted_busy = true;
-                }
-            }
         } else if let Some((start, None, wait)) = self.open {
             if wait {
                 self.open = Some((start, Some(e.cycle), true));
             } else {
-                self.open = Some((start, Some(e.cycle), false));
-                self.close(e.cycle);
+                // The ISR interrupted a busy main loop (the search, or an overrun): the tick
+                // itself is only the ISR.
+                self.open = None;
+                self.ticks.push(TickTiming {
+                    start,
+                    busy: e.cycle - start,
+                    interrupted_busy: true,
+                });
             }
         }
     }
@@ -493,9 +505,9 @@ impl Rig {
         &self.ticks.ticks
     }
 
-    /// Learned idle-wait address range (bytes), if any.
-    pub fn idle_range(&self) -> Option<(u32, u32)> {
-        self.ticks.idle
+    /// Learned idle-wait instruction addresses (bytes), if any.
+    pub fn idle_pcs(&self) -> Option<&[u32]> {
+        self.ticks.idle.as_deref()
     }
 
     /// Cycles spent in the idle wait so far.
@@ -514,6 +526,27 @@ impl Rig {
             .iter()
             .enumerate()
             .filter(move |(_, l)| l.text.split_whitespace().next() == Some(kw))
+    }
+
+    /// Stack high-water mark from SRAM, bytes: the firmware paints the free SRAM between
+    /// `__heap_start` (end of static data) and the stack with `0xAA` at start-up; the bytes from
+    /// RAMEND down to the lowest overwritten one were used by the stack. `None` if the ELF has
+    /// no `__heap_start` symbol.
+    pub fn stack_used(&self) -> Option<u32> {
+        let start = self.machine.symbol("__heap_start")?.addr & 0xFFFF;
+        let ramend = u32::from(self.machine.ramend());
+        let mut free = 0;
+        let mut a = start;
+        while a <= ramend && self.machine.data(a as u16) == 0xAA {
+            free += 1;
+            a += 1;
+        }
+        Some(ramend + 1 - start - free)
+    }
+
+    /// Static RAM end (`__heap_start`, data-space address), if the ELF names it.
+    pub fn heap_start(&self) -> Option<u32> {
+        Some(self.machine.symbol("__heap_start")?.addr & 0xFFFF)
     }
 
     /// Whether the core stopped (crash or exit).

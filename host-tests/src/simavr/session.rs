@@ -1,1 +1,532 @@
-//! placeholder
+//! One power-up self-identification of the firmware in the closed-loop rig, and the figures
+//! taken from it: the identified model (from the `ID` line), the firmware's validation fit
+//! (`ACCEPT`/`REJECT`), a host-side free-run fit on a fresh validation signal, the same
+//! search rerun on the host from the exact samples the firmware saw, tick timing, CPU load,
+//! missed ticks, search time, stack and image sizes.
+//!
+//! Sample convention (firmware `selfid`): at each tick the firmware reads `y_t` and pushes
+//! `(u, y_t)` with `u` the duty applied during the interval that ends with that reading, i.e.
+//! the duty it wrote in the previous tick. The rig records every frame it served and every PWM
+//! change, so the pairs are rebuilt from the rig's own logs: the duty in effect when a frame
+//! was read, mapped back to the excitation generator's duty (1/10 000) and checked against the
+//! timer count it must produce.
+
+use std::path::Path;
+use std::time::Instant;
+
+use ridge_core::excitation::{Record, DUTY_FULL_SCALE};
+use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Scale, Search};
+
+use super::firmware::{self, Sizes};
+use super::report::{Line, Report};
+use super::rig::{Rig, RigConfig, RunEnd, TickTiming, SUBSTEPS};
+use crate::identify::eval::Trace;
+use crate::identify::plot::{write_png, Panel};
+use crate::sim::sfm3300::OFFSET_RAW;
+use crate::sim::{Pump, PumpParams, Sfm3300, Sfm3300Params};
+
+/// Timer TOP + 1 of the board's pump PWM (OC4A, 20 kHz): `max_duty_cycle()`.
+pub const PWM_MAX: u32 = 800;
+/// One tick, cycles (10 ms at 16 MHz).
+pub const TICK_CYCLES: u64 = 160_000;
+
+/// Timer count (`OCR4A + 1`, 0 = off) the board writes for a duty in 1/10 000
+/// (`ridge_pump_firmware::pump::duty_to_counts`, rounded to nearest).
+pub fn duty_counts(duty: u16) -> u32 {
+    let d = u32::from(duty.min(DUTY_FULL_SCALE));
+    (d * PWM_MAX + u32::from(DUTY_FULL_SCALE) / 2) / u32::from(DUTY_FULL_SCALE)
+}
+
+/// The model of an `ID` / `LOADED` line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IdLine {
+    /// Orders and delay.
+    pub p: u8,
+    /// Input coefficients.
+    pub q: u8,
+    /// Delay.
+    pub d: u8,
+    /// Intercept present.
+    pub offset: bool,
+    /// θ.
+    pub theta: Vec<f64>,
+    /// φ.
+    pub phi: Vec<f64>,
+    /// Intercept.
+    pub c: f64,
+    /// Criterion value.
+    pub score: Option<f64>,
+    /// Candidates evaluated / in the grid.
+    pub eval: Option<(i64, i64)>,
+}
+
+impl IdLine {
+    /// Parses an `ID` or `LOADED` line.
+    pub fn parse(r: &Report) -> Option<Self> {
+        Some(Self {
+            p: r.int("p")? as u8,
+            q: r.int("q")? as u8,
+            d: r.int("d")? as u8,
+            offset: r.int("off").unwrap_or(0) != 0,
+            theta: r.list("theta")?,
+            phi: r.list("phi")?,
+            c: r.num("c").unwrap_or(0.0),
+            score: r.num("score"),
+            eval: r.ratio("eval"),
+        })
+    }
+
+    /// As a ridge-core model (physical units: slm, duty fraction).
+    pub fn model(&self) -> Option<ArxModel<f64>> {
+        let off = if self.offset {
+            Offset::Intercept
+        } else {
+            Offset::None
+        };
+        ArxModel::new(&self.theta, &self.phi, self.d, off, self.c).ok()
+    }
+}
+
+/// A record as the firmware saw it: duty (1/10 000) in effect at each read, the raw word read.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Samples {
+    /// Duties, 1/10 000.
+    pub u: Vec<u16>,
+    /// SFM3300 raw words.
+    pub raw: Vec<u16>,
+    /// Core cycle of each read.
+    pub cycle: Vec<u64>,
+    /// Operating point the firmware subtracts (`EXCITE … u0= y0=`): duty 1/10 000.
+    pub u0: u16,
+    /// Operating point flow, counts (`raw − 32768`).
+    pub y0: i16,
+}
+
+impl Samples {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.u.len()
+    }
+
+    /// Whether empty.
+    pub fn is_empty(&self) -> bool {
+        self.u.is_empty()
+    }
+}
+
+/// Tick timing summary.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Timing {
+    /// Ticks measured that ended back in the idle wait.
+    pub ticks: usize,
+    /// Worst such tick, cycles from ISR entry to idle.
+    pub worst: u64,
+    /// Mean, cycles.
+    pub mean: f64,
+    /// Ticks that found the main loop busy outside the search (overruns: missed deadlines).
+    pub missed: usize,
+    /// Ticks that fired during the (blocking) search.
+    pub during_search: usize,
+    /// CPU load outside the search: 1 − idle / elapsed, from the end of learning.
+    pub load: f64,
+    /// Search time, cycles (last excitation read → first byte of the `ID` line).
+    pub search_cycles: Option<u64>,
+    /// The firmware's own `MISSED late=.. lost=..` totals (last line), if printed.
+    pub firmware_missed: Option<(i64, i64)>,
+}
+
+/// Everything a session produced.
+#[derive(Debug)]
+pub struct Outcome {
+    /// The rig after the run (lines, logs, sensor state).
+    pub rig: Rig,
+    /// The `ID` line's model (the last one).
+    pub id: Option<IdLine>,
+    /// The `ACCEPT` line, if any.
+    pub accept: Option<Report>,
+    /// `REJECT` lines.
+    pub rejects: Vec<Report>,
+    /// `FAULT` lines with their end cycle.
+    pub faults: Vec<(u64, Report)>,
+    /// Stack used, bytes (`STACK used=`).
+    pub stack_used: Option<u32>,
+    /// Image sizes.
+    pub sizes: Sizes,
+    /// The estimation record as the firmware saw it (if it could be rebuilt).
+    pub estimation: Option<Samples>,
+    /// The validation record as the firmware saw it.
+    pub validation: Option<Samples>,
+    /// Timing.
+    pub timing: Timing,
+    /// Wall-clock time of the simulation, seconds.
+    pub wall_s: f64,
+}
+
+/// What to run.
+#[derive(Clone, Debug)]
+pub struct SessionConfig {
+    /// Rig settings (ELF, plant, seed, faults in the EEPROM …).
+    pub rig: RigConfig,
+    /// Simulated-time limit, seconds.
+    pub max_s: f64,
+    /// Keep running this long after the final line (`ACCEPT`, `FAULT`, `LOADED`).
+    pub linger_s: f64,
+}
+
+impl SessionConfig {
+    /// Default plant, seed 1, 200 s limit, 0.5 s linger.
+    pub fn new(elf: impl Into<std::path::PathBuf>) -> Self {
+        Self {
+            rig: RigConfig::new(elf),
+            max_s: 200.0,
+            linger_s: 0.5,
+        }
+    }
+}
+
+/// Keywords that end a session.
+fn is_final(l: &Line) -> bool {
+    let k = l.text.split_whitespace().next().unwrap_or("");
+    matches!(k, "ACCEPT" | "FAULT" | "LOADED" | "PANIC")
+}
+
+/// Runs one session.
+pub fn run(cfg: &SessionConfig) -> Result<Outcome, String> {
+    let sizes = firmware::sizes(&cfg.rig.elf)?;
+    let mut rig = Rig::new(cfg.rig.clone())?;
+    let t0 = Instant::now();
+    let end = rig.run_until(cfg.max_s, is_final);
+    if let RunEnd::Line(_) = end {
+        let t = (rig.time_s() + cfg.linger_s).min(cfg.max_s);
+        rig.run_until(t, |_| false);
+    }
+    let wall_s = t0.elapsed().as_secs_f64();
+    Ok(analyse(rig, sizes, wall_s))
+}
+
+/// Extracts the figures from a finished rig.
+pub fn analyse(rig: Rig, sizes: Sizes, wall_s: f64) -> Outcome {
+    let reports: Vec<(usize, Report)> = rig
+        .lines
+        .iter()
+        .enumerate()
+        .map(|(i, l)| (i, l.report()))
+        .collect();
+    let id_idx = reports.iter().rev().find(|(_, r)| r.keyword == "ID");
+    let id = id_idx.and_then(|(_, r)| IdLine::parse(r));
+    let accept = reports
+        .iter()
+        .find(|(_, r)| r.keyword == "ACCEPT")
+        .map(|(_, r)| r.clone());
+    let rejects = reports
+        .iter()
+        .filter(|(_, r)| r.keyword == "REJECT")
+        .map(|(_, r)| r.clone())
+        .collect();
+    let faults = reports
+        .iter()
+        .filter(|(_, r)| r.keyword == "FAULT")
+        .map(|(i, r)| (rig.lines[*i].cycle, r.clone()))
+        .collect();
+    let stack_used = reports
+        .iter()
+        .filter(|(_, r)| r.keyword == "STACK")
+        .filter_map(|(_, r)| r.int("used"))
+        .max()
+        .map(|v| v as u32);
+    // The estimation record: the last EXCITE before the ID line.
+    let id_line = id_idx.map(|(i, _)| *i);
+    let excite = reports
+        .iter()
+        .rfind(|(i, r)| r.keyword == "EXCITE" && id_line.is_none_or(|j| *i < j));
+    let estimation = excite.and_then(|(i, r)| rebuild(&rig, *i, r));
+    let validate = reports
+        .iter()
+        .filter(|(i, r)| r.keyword == "VALIDATE" && id_line.is_some_and(|j| *i > j))
+        .map(|(i, r)| (*i, r.clone()))
+        .next();
+    let validation = validate.and_then(|(i, r)| rebuild(&rig, i, &r));
+    let search_cycles = match (&estimation, id_line) {
+        (Some(s), Some(j)) => s
+            .cycle
+            .last()
+            .map(|c| rig.line_starts[j].saturating_sub(*c)),
+        _ => None,
+    };
+    let search_window = match (&estimation, id_line) {
+        (Some(s), Some(j)) => s
+            .cycle
+            .last()
+            .map(|c| (*c, rig.lines[j].cycle + TICK_CYCLES)),
+        _ => None,
+    };
+    let firmware_missed = reports
+        .iter()
+        .rev()
+        .find(|(_, r)| r.keyword == "MISSED")
+        .and_then(|(_, r)| Some((r.int("late")?, r.int("lost")?)));
+    let timing = timing(
+        rig.ticks(),
+        search_window,
+        &rig,
+        search_cycles,
+        firmware_missed,
+    );
+    Outcome {
+        rig,
+        id,
+        accept,
+        rejects,
+        faults,
+        stack_used,
+        sizes,
+        estimation,
+        validation,
+        timing,
+        wall_s,
+    }
+}
+
+fn timing(
+    ticks: &[TickTiming],
+    search: Option<(u64, u64)>,
+    rig: &Rig,
+    search_cycles: Option<u64>,
+    firmware_missed: Option<(i64, i64)>,
+) -> Timing {
+    let in_search = |c: u64| search.is_some_and(|(a, b)| (a..=b).contains(&c));
+    let normal: Vec<u64> = ticks
+        .iter()
+        .filter(|t| !t.interrupted_busy)
+        .map(|t| t.busy)
+        .collect();
+    let missed = ticks
+        .iter()
+        .filter(|t| t.interrupted_busy && !in_search(t.start))
+        .count();
+    let during_search = ticks
+        .iter()
+        .filter(|t| t.interrupted_busy && in_search(t.start))
+        .count();
+    let worst = normal.iter().copied().max().unwrap_or(0);
+    let mean = if normal.is_empty() {
+        0.0
+    } else {
+        normal.iter().sum::<u64>() as f64 / normal.len() as f64
+    };
+    // Load outside the search, from the first measured tick on.
+    let from = ticks.first().map_or(0, |t| t.start);
+    let elapsed = rig.machine.cycle().saturating_sub(from);
+    let search_len = search.map_or(0, |(a, b)| b.min(rig.machine.cycle()).saturating_sub(a));
+    let busy_total = elapsed.saturating_sub(rig.idle_cycles());
+    let load = if elapsed > search_len {
+        busy_total.saturating_sub(search_len) as f64 / (elapsed - search_len) as f64
+    } else {
+        0.0
+    };
+    Timing {
+        ticks: normal.len(),
+        worst,
+        mean,
+        missed,
+        during_search,
+        load,
+        search_cycles,
+        firmware_missed,
+    }
+}
+
+/// Rebuilds the record announced by line `idx` (`EXCITE <name> n=..` / `VALIDATE <name> n=..`)
+/// from the frames served and the PWM log, aligned on the generator's duty sequence.
+pub fn rebuild(rig: &Rig, idx: usize, r: &Report) -> Option<Samples> {
+    let record = r.words.iter().find_map(|w| Record::from_name(w))?;
+    let n = r
+        .int("n")
+        .map_or(record.len_samples() as usize, |v| v as usize);
+    let gen: Vec<u16> = record.generator().take(n).collect();
+    let frames = rig.sensor.borrow().served();
+    let at = rig.line_starts[idx];
+    let j0 = frames.partition_point(|(c, _)| *c < at);
+    let counts_at = |c: u64| {
+        rig.duty_at(c)
+            .map_or(0, |d| if d.connected { u32::from(d.ocr) + 1 } else { 0 })
+    };
+    for k in j0.saturating_sub(3)..=j0 + 3 {
+        if k + gen.len() > frames.len() {
+            break;
+        }
+        let ok = gen
+            .iter()
+            .enumerate()
+            .all(|(i, &g)| counts_at(frames[k + i].0) == duty_counts(g));
+        if ok {
+            let mut s = Samples {
+                u0: r.num("u0").map_or(0, |v| (v * 100.0).round() as u16),
+                y0: r.num("y0").map_or(0, |v| (v * 120.0).round() as i16),
+                ..Samples::default()
+            };
+            for (i, &g) in gen.iter().enumerate() {
+                s.u.push(g);
+                s.raw.push(frames[k + i].1);
+                s.cycle.push(frames[k + i].0);
+            }
+            return Some(s);
+        }
+    }
+    None
+}
+
+/// The firmware's search configuration (`selfid::Config::default().search`: ridge-core's
+/// default search, no offset, on deviations from the operating point), in `f64`.
+pub fn firmware_search() -> Search<f64> {
+    Search::default()
+}
+
+/// Reruns the firmware's search on the host from `samples` with exact integer statistics and
+/// `f64` normal equations (ridge-core `IntGram` + `Search<f64>` on the deviations
+/// `(u − u0, y − y0)`), and converts the result to the absolute model with an intercept as the
+/// firmware does (`selfid::absolute_model`: `c = c_dev + y0 (1 − Σθ) − u0 Σφ`).
+pub fn host_search(samples: &Samples) -> Result<IdLine, String> {
+    let mut g = IntGram::new();
+    let (u0, y0) = (i32::from(samples.u0), i32::from(samples.y0));
+    for (&u, &raw) in samples.u.iter().zip(&samples.raw) {
+        g.push(
+            i32::from(u) - u0,
+            i32::from(raw) - i32::from(OFFSET_RAW) - y0,
+        )
+        .map_err(|e| format!("{e:?}"))?;
+    }
+    let normal = g
+        .normal::<f64>(Scale::SFM3300_DUTY_10K)
+        .map_err(|e| format!("{e:?}"))?;
+    let sel = firmware_search()
+        .run(&normal, None)
+        .map_err(|e| format!("{e:?}"))?;
+    let m = sel.fit.model();
+    let s = m.structure();
+    let sum_theta: f64 = m.theta().iter().sum();
+    let sum_phi: f64 = m.phi().iter().sum();
+    let c = m.intercept() + f64::from(y0) / 120.0 * (1.0 - sum_theta)
+        - f64::from(u0) / f64::from(DUTY_FULL_SCALE) * sum_phi;
+    Ok(IdLine {
+        p: s.p,
+        q: s.q,
+        d: s.d,
+        offset: true,
+        theta: m.theta().to_vec(),
+        phi: m.phi().to_vec(),
+        c,
+        score: Some(sel.score),
+        eval: Some((i64::from(sel.evaluated), i64::from(sel.candidates))),
+    })
+}
+
+/// Largest coefficient difference between two models of the same structure, relative to
+/// `max(1, |b|)` per coefficient (θ, φ, c); `None` if the structures differ.
+pub fn coefficient_error(a: &IdLine, b: &IdLine) -> Option<f64> {
+    if (a.p, a.q, a.d) != (b.p, b.q, b.d) || a.theta.len() != b.theta.len() {
+        return None;
+    }
+    let pairs = a
+        .theta
+        .iter()
+        .zip(&b.theta)
+        .chain(a.phi.iter().zip(&b.phi))
+        .chain(std::iter::once((&a.c, &b.c)));
+    Some(
+        pairs
+            .map(|(x, y)| (x - y).abs() / y.abs().max(1.0))
+            .fold(0.0, f64::max),
+    )
+}
+
+/// Free-run and one-step scores of `model` on `samples` (physical units), with the trace for
+/// a plot.
+pub fn score(model: &ArxModel<f64>, samples: &Samples) -> (Option<f64>, Option<f64>, Trace) {
+    let mut ev = Evaluation::new(*model);
+    let mut trace = Trace::new(samples.len() as u64, 2000);
+    for (i, (&u, &raw)) in samples.u.iter().zip(&samples.raw).enumerate() {
+        let uf = f64::from(u) / f64::from(DUTY_FULL_SCALE);
+        let y = crate::sim::sfm3300::raw_to_flow(raw);
+        let p = ev.push(uf, y);
+        trace.push(i as u64, y, p);
+    }
+    trace.finish();
+    (
+        ev.free_run().map(|m| m.fit),
+        ev.one_step().map(|m| m.fit),
+        trace,
+    )
+}
+
+/// A fresh validation signal on the host, with the loop's timing: the plant sub-stepped as in
+/// the rig, the reading taken at the tick, the new duty applied `latency` sub-steps later, the
+/// sensor noise from `seed`. Starts from `base` duty held for 2 s, as the firmware settles.
+pub fn fresh_record(
+    pump: &PumpParams,
+    sensor: &Sfm3300Params,
+    seed: u64,
+    record: Record,
+    base: u16,
+    latency: usize,
+) -> Samples {
+    let mut p = pump.clone();
+    p.ts_s /= SUBSTEPS as f64;
+    p.delay_samples *= SUBSTEPS;
+    let mut pump = Pump::new(p);
+    let mut sfm = Sfm3300::new(sensor.clone(), seed);
+    let frac = |d: u16| duty_counts(d) as f64 / f64::from(PWM_MAX);
+    let latency = latency.min(SUBSTEPS);
+    let mut prev = base;
+    for _ in 0..200 * SUBSTEPS {
+        pump.step(frac(base));
+    }
+    let mut s = Samples::default();
+    for g in record.generator() {
+        for _ in 0..latency {
+            pump.step(frac(prev));
+        }
+        for _ in latency..SUBSTEPS {
+            pump.step(frac(g));
+        }
+        prev = g;
+        let raw = sfm.measure_raw(pump.flow_slm());
+        s.u.push(g);
+        s.raw.push(raw);
+        s.cycle.push(0);
+    }
+    s.u0 = base;
+    s
+}
+
+/// Median sub-steps between a read and the PWM change that follows it in the same tick, over
+/// `samples` (the duty written is seen by the plant at the next 0.5 ms step).
+pub fn write_latency(rig: &Rig, samples: &Samples) -> usize {
+    let step = TICK_CYCLES / SUBSTEPS as u64;
+    let mut lat: Vec<u64> = samples
+        .cycle
+        .iter()
+        .filter_map(|&c| {
+            let i = rig.duty_log.partition_point(|d| d.cycle <= c);
+            let d = rig.duty_log.get(i)?;
+            (d.cycle - c < TICK_CYCLES).then(|| (d.cycle - c).div_ceil(step))
+        })
+        .collect();
+    if lat.is_empty() {
+        return 1;
+    }
+    lat.sort_unstable();
+    lat[lat.len() / 2] as usize
+}
+
+/// Writes a PNG with one panel per `(title, trace)`.
+pub fn plot(path: &Path, panels: &[(String, Trace)]) -> Result<(), String> {
+    let p: Vec<Panel<'_>> = panels
+        .iter()
+        .map(|(t, tr)| Panel {
+            title: t.clone(),
+            trace: tr,
+        })
+        .collect();
+    write_png(path, &p).map_err(|e| e.to_string())
+}
