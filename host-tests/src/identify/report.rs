@@ -300,6 +300,12 @@ impl Report {
             MethodName::RidgeM if self.iterations >= h.max_iter => " (max-iter reached)",
             MethodName::RidgeM => " (converged: step below tol)",
             MethodName::Rls => " (one update per sample)",
+            MethodName::AdaptiveLasso
+                if self.iterations >= ridge_core::AdaptiveLasso::<f64>::default().max_sweeps =>
+            {
+                " (coordinate-descent sweeps: budget reached, not converged)"
+            }
+            MethodName::AdaptiveLasso => " (coordinate-descent sweeps)",
             _ => "",
         };
         let _ = writeln!(o, "  iterations  {}{iter_note}", self.iterations);
