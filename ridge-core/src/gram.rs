@@ -439,6 +439,15 @@ impl<A: Accumulator> Gram<A> {
     /// input or output is constant, [`Error::NonFinite`] for a non-finite or zero
     /// scale, [`Error::Overflow`] when a value leaves the range of `T`.
     pub fn normal<T: Real>(&self, scale: Scale) -> Result<Normal<T>> {
+        let mut out = Normal::empty();
+        self.normal_into(scale, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`Gram::normal`] into existing storage: no 840-byte (`f32`) temporary and copy on
+    /// the stack, which matters on an 8 KB MCU. On error `out` is left empty.
+    pub fn normal_into<T: Real>(&self, scale: Scale, normal: &mut Normal<T>) -> Result<()> {
+        *normal = Normal::empty();
         if !(scale.u.is_finite() && scale.y.is_finite()) || scale.u == 0.0 || scale.y == 0.0 {
             return Err(Error::NonFinite);
         }
@@ -465,9 +474,10 @@ impl<A: Accumulator> Gram<A> {
             }
         };
         let sy = T::from_f64(scale.y);
-        let mut normal = Normal::empty(self.n);
+        normal.n = self.n;
         normal.s11 = s11.to_real::<T>() * sy * sy;
-        normal.y_rounding = T::from_f64(A::rounding(self.n, self.yy[0]) * scale.y * scale.y);
+        // In T, not f64: no software doubles on the device (the integer path gives 0).
+        normal.y_rounding = T::from_f64(A::rounding(self.n, self.yy[0])) * sy * sy;
         let mut s_a1 = [A::default(); OTHERS.len()];
         for (idx, &c) in OTHERS.iter().enumerate() {
             s_a1[idx] = self.entry(c, Col::Y(1));
@@ -479,8 +489,11 @@ impl<A: Accumulator> Gram<A> {
                 normal.set_schur(a, b, schur * col_scale(ca) * col_scale(cb));
             }
         }
-        normal.check_finite()?;
-        Ok(normal)
+        if let Err(e) = normal.check_finite() {
+            *normal = Normal::empty();
+            return Err(e);
+        }
+        Ok(())
     }
 }
 

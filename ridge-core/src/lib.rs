@@ -19,7 +19,8 @@
 //! 2. [`Gram::normal`]: the statistics in physical units ([`Scale`]) with `y_{t-1}`
 //!    eliminated exactly, in the solve-time scalar `T` (`f32` or `f64`).
 //! 3. [`Normal::system`]: the normal equations of one [`Structure`] ([`Offset`] optional).
-//! 4. Estimators: [`RidgeM`], [`Ridge`], [`Ols`], [`AdaptiveLasso`] on a [`System`];
+//! 4. Estimators: [`RidgeM`], [`Ridge`], [`Ols`], `AdaptiveLasso` (cargo feature
+//!    `alasso`, on by default) on a [`System`];
 //!    [`Rls`] sample by sample.
 //! 5. [`Search`]: the structure search with the paper's criterion, delay-free AIC (the
 //!    default), BIC or validation loss, exactly pruned.
@@ -38,6 +39,7 @@ pub mod error;
 pub mod estimate;
 pub mod excitation;
 pub mod gram;
+#[cfg(feature = "alasso")]
 pub mod lasso;
 pub mod model;
 pub mod normal;
@@ -49,6 +51,7 @@ pub mod structure;
 pub use error::{Error, Result};
 pub use estimate::{Estimator, Fit, Ols, Ridge, RidgeM};
 pub use gram::{Accumulator, FloatGram, Gram, IntGram, Scale};
+#[cfg(feature = "alasso")]
 pub use lasso::{AdaptiveLasso, Lambda};
 pub use model::{ArxModel, Evaluation, Metrics, Mode, Predictor, Score};
 pub use normal::{Factor, Normal, Regressor, System};

@@ -74,9 +74,10 @@ pub struct Normal<T: Real> {
 }
 
 impl<T: Real> Normal<T> {
-    pub(crate) fn empty(n: u32) -> Self {
+    /// Empty statistics (no samples), e.g. storage for [`crate::Gram::normal_into`].
+    pub fn empty() -> Self {
         Normal {
-            n,
+            n: 0,
             s11: T::ZERO,
             r: [T::ZERO; N_OTHERS],
             schur: [T::ZERO; packed_len(N_OTHERS)],

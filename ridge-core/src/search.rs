@@ -11,6 +11,7 @@
 
 use crate::error::{Error, Result};
 use crate::estimate::{Estimator, Fit, Ols, Ridge, RidgeM};
+#[cfg(feature = "alasso")]
 use crate::lasso::AdaptiveLasso;
 use crate::normal::{Factor, Normal, System};
 use crate::real::Real;
@@ -45,7 +46,8 @@ pub enum Method<T> {
     Ridge(Ridge<T>),
     /// Ordinary least squares.
     Ols,
-    /// Adaptive LASSO.
+    /// Adaptive LASSO (cargo feature `alasso`).
+    #[cfg(feature = "alasso")]
     AdaptiveLasso(AdaptiveLasso<T>),
 }
 
@@ -61,6 +63,7 @@ impl<T: Real> Estimator<T> for Method<T> {
             Method::RidgeM(m) => m.fit_with(system, ls),
             Method::Ridge(m) => m.fit_with(system, ls),
             Method::Ols => Ols.fit_with(system, ls),
+            #[cfg(feature = "alasso")]
             Method::AdaptiveLasso(m) => m.fit_with(system, ls),
         }
     }

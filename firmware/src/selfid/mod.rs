@@ -49,7 +49,7 @@
 //! mode the tick is not scored.
 
 use ridge_core::excitation::{Excitation, Record, DUTY_FULL_SCALE};
-use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Scale, Search};
+use ridge_core::{ArxModel, Evaluation, IntGram, Normal, Offset, Scale, Search};
 
 use crate::event::{Event, FaultReason, RejectReason, SearchStats, SensorFault};
 use crate::monitor::{Monitor, MonitorConfig, FRACTION_PER_DUTY, SLM_PER_COUNT};
@@ -359,9 +359,11 @@ fn evaluate(
     if rms < min_response || rms.is_nan() {
         return Err(RejectReason::NotExcited { rms });
     }
-    let normal = rec
-        .gram
-        .normal::<f32>(Scale::SFM3300_DUTY_10K)
+    // Filled in place: `Gram::normal` would return the 840-byte statistics by value and
+    // cost a second copy on the ATmega2560's stack.
+    let mut normal = Normal::<f32>::empty();
+    rec.gram
+        .normal_into(Scale::SFM3300_DUTY_10K, &mut normal)
         .map_err(|e| match e {
             ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
             e => RejectReason::Search(e),
