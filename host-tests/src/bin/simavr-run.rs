@@ -1,52 +1,310 @@
-//! Runs the ATmega2560 firmware in simavr against the simulated pump (see `scripts/simulate`).
+//! Runs the ATmega2560 firmware in simavr against the simulated pump and SFM3300 (the main
+//! command, `scripts/simulate`, calls this) and prints what the firmware identified, how good
+//! the model is, the cycle figures, flash and RAM, and writes a PNG of measured vs model flow.
 
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, ValueEnum};
+use host_tests::sim::PumpParams;
 use host_tests::simavr::firmware;
-use host_tests::simavr::rig::{Rig, RigConfig};
+use host_tests::simavr::session::{self, IdLine, Outcome, SessionConfig, TICK_CYCLES};
+use ridge_core::excitation::Record;
 
-fn main() {
-    let secs: f64 = std::env::args()
-        .nth(1)
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1.0);
-    let elf = firmware::ensure_elf().expect("firmware");
-    let mut rig = Rig::new(RigConfig::new(elf)).expect("rig");
-    let t0 = std::time::Instant::now();
-    let mut end = host_tests::simavr::rig::RunEnd::Time;
-    let mut t = 0.0;
-    while t < secs {
-        t += 1.0;
-        let w = std::time::Instant::now();
-        end = rig.run_until(t.min(secs), |l| {
-            println!("[{:9.4}] {}", l.cycle as f64 / 16e6, l.text);
-            false
-        });
-        eprintln!(
-            "t={t} wall={:.2} pc={:#x} sp={:#x}",
-            w.elapsed().as_secs_f64(),
-            rig.machine.pc(),
-            rig.machine.sp()
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Plant {
+    Default,
+    Small,
+    Sluggish,
+}
+
+/// Power-up self-identification of the ATmega2560 firmware in simavr (16 MHz), closed loop
+/// with a simulated SFM3300 (TWI 0x40) and blower.
+#[derive(Parser, Debug)]
+#[command(name = "simavr-run")]
+struct Args {
+    /// Firmware ELF (default: target/avr-none/release/atmega2560.elf, built if missing).
+    #[arg(long)]
+    elf: Option<PathBuf>,
+    /// Blower model.
+    #[arg(long, value_enum, default_value = "default")]
+    plant: Plant,
+    /// Sensor noise seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Simulated-time limit, seconds.
+    #[arg(long, default_value_t = 200.0)]
+    max_s: f64,
+    /// PNG of measured vs model flow.
+    #[arg(long, default_value = "target/simavr/flow.png")]
+    png: PathBuf,
+    /// Print every UART line as it arrives.
+    #[arg(long)]
+    lines: bool,
+}
+
+fn ms(cycles: f64) -> f64 {
+    cycles / 16_000.0
+}
+
+fn show_model(m: &IdLine) -> String {
+    let list = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{x:.6}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    format!(
+        "(p, q, d) = ({}, {}, {})  theta = [{}]  phi = [{}]  c = {:.4}",
+        m.p,
+        m.q,
+        m.d,
+        list(&m.theta),
+        list(&m.phi),
+        m.c
+    )
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    let elf = match args.elf.clone().map_or_else(firmware::ensure_elf, Ok) {
+        Ok(e) => e,
+        Err(e) => {
+            eprintln!("simavr-run: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let mut cfg = SessionConfig::new(&elf);
+    cfg.max_s = args.max_s;
+    cfg.rig.seed = args.seed;
+    cfg.rig.pump = match args.plant {
+        Plant::Default => PumpParams::default(),
+        Plant::Small => PumpParams::small(),
+        Plant::Sluggish => PumpParams::sluggish(),
+    };
+    println!(
+        "simavr: ATmega2560 @ 16 MHz, {}, plant {:?}, sensor seed {}",
+        elf.display(),
+        args.plant,
+        args.seed
+    );
+    let out = match session::run(&cfg) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("simavr-run: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    report(&args, &cfg, &out)
+}
+
+fn report(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
+    let rig = &out.rig;
+    if args.lines {
+        for l in &rig.lines {
+            println!("  [{:8.3} s] {}", l.cycle as f64 / 16e6, l.text);
+        }
+    } else {
+        println!("firmware lines (events):");
+        for l in rig.lines.iter().filter(|l| {
+            let k = l.text.split_whitespace().next().unwrap_or("");
+            !matches!(k, "RES")
+        }) {
+            println!("  [{:8.3} s] {}", l.cycle as f64 / 16e6, l.text);
+        }
+    }
+    let sim_s = rig.time_s();
+    println!(
+        "\nsimulated {:.2} s in {:.2} s wall ({:.1}x real time){}",
+        sim_s,
+        out.wall_s,
+        sim_s / out.wall_s.max(1e-9),
+        if rig.machine.resets().is_empty() {
+            String::new()
+        } else {
+            format!(", {} reset(s)", rig.machine.resets().len())
+        }
+    );
+    let mut ok = true;
+
+    println!("\n== identified model (ID line, physical units: slm, duty 0..1)");
+    match &out.id {
+        Some(id) => {
+            println!("  {}", show_model(id));
+            if let Some((e, n)) = id.eval {
+                println!("  candidates evaluated {e} of {n} (exact pruning)");
+            }
+        }
+        None => {
+            println!("  none");
+            ok = false;
+        }
+    }
+    if let (Some(id), Some(est)) = (&out.id, &out.estimation) {
+        match session::host_search(est) {
+            Ok(host) => {
+                let err = session::coefficient_error(id, &host);
+                println!(
+                    "  host rerun (IntGram + Search<f64> on the {} samples served): {}",
+                    est.len(),
+                    match err {
+                        Some(e) => format!("same structure, max coefficient difference {e:.2e}"),
+                        None => format!("DIFFERENT: {}", show_model(&host)),
+                    }
+                );
+            }
+            Err(e) => println!("  host rerun failed: {e}"),
+        }
+        if let Ok(h32) = session::host_search_in::<f32>(est) {
+            println!(
+                "  host rerun in f32 (as the firmware computes): {}",
+                match session::coefficient_error(id, &h32) {
+                    Some(e) => format!("same structure, max coefficient difference {e:.2e}"),
+                    None => format!("DIFFERENT: {}", show_model(&h32)),
+                }
+            );
+        }
+    } else if out.id.is_some() {
+        println!("  (estimation record could not be rebuilt from the logs)");
+    }
+
+    println!("\n== validation");
+    if let Some(a) = &out.accept {
+        println!(
+            "  firmware: ACCEPT free-run fit {} %, rmse {} slm, one-step rmse {} slm",
+            a.get("fit").unwrap_or("?"),
+            a.get("rmse").unwrap_or("?"),
+            a.get("one").unwrap_or("?")
         );
     }
-    let wall = t0.elapsed().as_secs_f64();
+    for r in &out.rejects {
+        println!(
+            "  firmware: REJECT {}",
+            r.fields
+                .iter()
+                .map(|(k, v)| format!("{k}={v}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        );
+    }
+    let mut panels = Vec::new();
+    if let Some(model) = out.id.as_ref().and_then(IdLine::model) {
+        if let Some(val) = &out.validation {
+            let (free, one, trace) = session::score(&model, val);
+            println!(
+                "  host scoring of the firmware's validation record (closed loop): free-run fit {:.1} %, one-step fit {:.1} %",
+                free.unwrap_or(f64::NAN),
+                one.unwrap_or(f64::NAN)
+            );
+            panels.push((
+                format!(
+                    "closed loop, firmware validation record (B-Multistep): free-run fit {:.1} %",
+                    free.unwrap_or(f64::NAN)
+                ),
+                trace,
+            ));
+        }
+        let latency = out
+            .estimation
+            .as_ref()
+            .map_or(2, |e| session::write_latency(rig, e));
+        let fresh = session::fresh_record(
+            &cfg.rig.pump,
+            &cfg.rig.sensor,
+            cfg.rig.seed.wrapping_add(1000),
+            Record::BRamp,
+            3_000,
+            latency,
+        );
+        let (free, one, trace) = session::score(&model, &fresh);
+        println!(
+            "  fresh validation signal (host, B-Ramp, new noise seed, loop timing: duty applied {latency} x 0.5 ms after the read): free-run fit {:.1} %, one-step fit {:.1} %",
+            free.unwrap_or(f64::NAN),
+            one.unwrap_or(f64::NAN)
+        );
+        panels.push((
+            format!(
+                "fresh validation signal (B-Ramp, host): free-run fit {:.1} %",
+                free.unwrap_or(f64::NAN)
+            ),
+            trace,
+        ));
+    }
+    if !panels.is_empty() {
+        if let Some(dir) = args.png.parent() {
+            let _ = std::fs::create_dir_all(dir);
+        }
+        match session::plot(&args.png, &panels) {
+            Ok(()) => println!("  plot: {}", args.png.display()),
+            Err(e) => println!("  plot failed: {e}"),
+        }
+    }
+
+    println!("\n== cycles (16 MHz; tick = 10 ms = {TICK_CYCLES} cycles)");
+    let t = &out.timing;
     println!(
-        "end={end:?} sim={:.3}s wall={wall:.2}s ratio={:.2}",
-        rig.time_s(),
-        rig.time_s() / wall
+        "  ticks measured {}: worst {} cycles ({:.3} ms), mean {:.0} cycles ({:.3} ms)",
+        t.ticks,
+        t.worst,
+        ms(t.worst as f64),
+        t.mean,
+        ms(t.mean)
     );
     println!(
-        "idle={:?} ticks={} duty changes={}",
-        rig.idle_pcs(),
-        rig.ticks().len(),
-        rig.duty_log.len()
+        "  CPU load outside the search {:.1} %; missed ticks (overruns) {}; ticks during the blocking search {}",
+        100.0 * t.load,
+        t.missed,
+        t.during_search
     );
-    let s = rig.sensor.borrow();
+    if let Some((late, lost)) = t.firmware_missed {
+        println!("  firmware's own count: MISSED late={late} lost={lost}");
+    }
+    match t.search_cycles {
+        Some(c) => println!("  search time {} cycles = {:.3} s", c, c as f64 / 16e6),
+        None => println!("  search time: n/a"),
+    }
+    if !out.faults.is_empty() {
+        for (c, f) in &out.faults {
+            println!(
+                "  FAULT at {:.3} s: {} {}",
+                *c as f64 / 16e6,
+                f.words.join(" "),
+                f.fields
+                    .iter()
+                    .map(|(k, v)| format!("{k}={v}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            );
+        }
+        ok = false;
+    }
+
+    println!("\n== flash and RAM");
+    let s = out.sizes;
     println!(
-        "frames={} events={} errors={:?}",
-        s.served().len(),
-        s.events.len(),
-        s.errors
+        "  flash {} B (text {} + data {}) of 256 KB; static RAM {} B (data {} + bss {})",
+        s.flash(),
+        s.text,
+        s.data,
+        s.ram(),
+        s.data,
+        s.bss
     );
-    for e in s.events.iter().take(12) {
-        println!("{e:?}");
+    println!(
+        "  stack high-water: STACK line {} B, SRAM paint {} B  ->  static RAM + stack {} B of 8192",
+        out.stack_used
+            .map_or_else(|| "n/a".into(), |v| v.to_string()),
+        rig.stack_used()
+            .map_or_else(|| "n/a".into(), |v| v.to_string()),
+        s.ram() + rig.stack_used().or(out.stack_used).unwrap_or(0)
+    );
+    if out.accept.is_none() {
+        ok = false;
+    }
+    if ok {
+        ExitCode::SUCCESS
+    } else {
+        println!("\nsimavr-run: the firmware did not identify an accepted model");
+        ExitCode::FAILURE
     }
 }

@@ -22,6 +22,31 @@ const fn ioctl(a: u8, b: u8, c: u8, d: u8) -> u32 {
 
 extern "C" {
     fn free(p: *mut c_void);
+    fn vsnprintf(
+        buf: *mut std::ffi::c_char,
+        n: usize,
+        fmt: *const std::ffi::c_char,
+        ap: *mut ffi::__va_list_tag,
+    ) -> i32;
+}
+
+/// simavr's logger: errors to stderr, prefixed; the rest (firmware loading, warnings such as
+/// OCR writes while a timer is stopped, traces) dropped.
+unsafe extern "C" fn logger(
+    _avr: *mut ffi::avr_t,
+    level: i32,
+    fmt: *const std::ffi::c_char,
+    ap: *mut ffi::__va_list_tag,
+) {
+    if level != ffi::LOG_ERROR as i32 {
+        return;
+    }
+    let mut buf = [0 as std::ffi::c_char; 512];
+    // SAFETY: `fmt`/`ap` come from simavr's printf-style logging call; `buf` bounds the output.
+    unsafe { vsnprintf(buf.as_mut_ptr(), buf.len(), fmt, ap) };
+    // SAFETY: vsnprintf NUL-terminates within `buf`.
+    let msg = unsafe { std::ffi::CStr::from_ptr(buf.as_ptr()) };
+    eprint!("simavr: {}", msg.to_string_lossy());
 }
 
 /// Why a run stopped before its target cycle.
@@ -63,6 +88,8 @@ pub struct IrqEvent {
     /// On entry: the interrupted program counter (bytes), read from the return address just
     /// pushed (3 bytes on cores with more than 128 KB of flash, 2 otherwise). 0 on return.
     pub ret_pc: u32,
+    /// On entry: the interrupted stack pointer (before the return address was pushed).
+    pub ret_sp: u16,
 }
 
 /// Callback state: a pointer to the core (to read its cycle counter) plus a sink.
@@ -126,6 +153,7 @@ unsafe extern "C" fn on_irq_running(_irq: *mut ffi::avr_irq_t, value: u32, param
     let cycle = hook.cycle();
     let running = value != 0;
     let mut ret_pc = 0;
+    let mut ret_sp = 0;
     if running {
         // SAFETY: live core; the stack bytes above SP are inside `data` (SP ≤ RAMEND).
         unsafe {
@@ -143,12 +171,14 @@ unsafe extern "C" fn on_irq_running(_irq: *mut ffi::avr_irq_t, value: u32, param
                 }
             }
             ret_pc = words * 2;
+            ret_sp = (sp + n) as u16;
         }
     }
     hook.sink.borrow_mut().push(IrqEvent {
         cycle,
         running,
         ret_pc,
+        ret_sp,
     });
 }
 
@@ -213,6 +243,7 @@ impl Machine {
         }
         // SAFETY: plain C constructors; every pointer is checked before use.
         unsafe {
+            ffi::avr_global_logger_set(Some(logger));
             let avr = NonNull::new(ffi::avr_make_mcu_by_name(c_mcu.as_ptr()))
                 .ok_or_else(|| format!("simavr does not know the MCU {mcu}"))?;
             let rc = ffi::avr_init(avr.as_ptr());
@@ -417,6 +448,13 @@ impl Machine {
         unsafe { (*self.raw()).pc }
     }
 
+    /// Global interrupt enable (SREG.I): false inside interrupt handlers and critical
+    /// sections.
+    pub fn interrupts_enabled(&self) -> bool {
+        // SAFETY: plain field read (simavr keeps SREG split into `sreg[]`).
+        unsafe { (*self.raw()).sreg[7] != 0 }
+    }
+
     /// Cycles spent in SLEEP so far.
     pub fn sleep_cycles(&self) -> u64 {
         self.sleep_cycles
@@ -495,7 +533,7 @@ impl Machine {
         self.data16(0x5D)
     }
 
-    fn eeprom_desc(&mut self) -> Option<ffi::avr_eeprom_desc_t> {
+    fn eeprom_desc(&self) -> Option<ffi::avr_eeprom_desc_t> {
         // SAFETY: plain field read.
         let size = unsafe { (*self.raw()).e2end } + 1;
         let mut d = ffi::avr_eeprom_desc_t {
@@ -515,7 +553,7 @@ impl Machine {
     }
 
     /// A copy of the whole EEPROM (4 KB on the ATmega2560).
-    pub fn eeprom(&mut self) -> Vec<u8> {
+    pub fn eeprom(&self) -> Vec<u8> {
         match self.eeprom_desc() {
             // SAFETY: simavr owns `size` bytes at `ee`.
             Some(d) => unsafe { std::slice::from_raw_parts(d.ee, d.size as usize).to_vec() },

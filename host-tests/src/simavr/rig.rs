@@ -117,15 +117,17 @@ struct TickMeter {
     vector: Option<u8>,
     events: Option<Rc<RefCell<Vec<IrqEvent>>>>,
     seen: usize,
-    /// Last program counters (ring), to learn the idle loop's instructions.
-    ring: [u32; RING],
+    /// Last (program counter, stack pointer) pairs (ring), to learn the idle loop.
+    ring: Vec<(u32, u16)>,
     ring_pos: usize,
-    /// For each learning tick: the distinct PCs executed just before the ISR fired.
-    learning: Vec<Vec<u32>>,
-    /// The idle wait's instruction addresses (sorted), once learned.
-    idle: Option<Vec<u32>>,
-    /// Open tick: (start, isr_end, waiting for the idle loop).
-    open: Option<(u64, Option<u64>, bool)>,
+    /// For each learning tick: the distinct (PC, SP) executed just before the ISR fired.
+    learning: Vec<Vec<(u32, u16)>>,
+    /// The idle wait's (instruction address, stack pointer) pairs (sorted), once learned. The
+    /// stack pointer tells the wait loop from the same code called deeper (e.g. the tick poll
+    /// inside a long job).
+    idle: Option<Vec<(u32, u16)>>,
+    /// Open tick: (start, isr_end, what it waits for).
+    open: Option<(u64, Option<u64>, Wait)>,
     ticks: Vec<TickTiming>,
     idle_cycles: u64,
     last_cycle: u64,
@@ -135,23 +137,25 @@ struct TickMeter {
 /// Learn the idle loop from this many tick-ISR entries.
 const LEARN_TICKS: usize = 32;
 /// PCs remembered before each ISR entry (the idle loop must be shorter).
-const RING: usize = 12;
+const RING: usize = 64;
 
 impl TickMeter {
-    fn is_idle(&self, pc: u32) -> bool {
-        self.idle.as_ref().is_some_and(|v| v.contains(&pc))
+    fn is_idle(&self, pc: u32, sp: u16) -> bool {
+        self.idle
+            .as_ref()
+            .is_some_and(|v| v.binary_search(&(pc, sp)).is_ok())
     }
 
     /// The idle loop = the PCs found right before (at least 90 % of) the learning ISR entries.
     fn learn(&mut self) {
-        let mut count: HashMap<u32, usize> = HashMap::new();
+        let mut count: HashMap<(u32, u16), usize> = HashMap::new();
         for set in &self.learning {
             for &p in set {
                 *count.entry(p).or_default() += 1;
             }
         }
         let need = self.learning.len() * 9 / 10;
-        let mut idle: Vec<u32> = count
+        let mut idle: Vec<(u32, u16)> = count
             .into_iter()
             .filter(|&(_, n)| n >= need)
             .map(|(p, _)| p)
@@ -160,13 +164,13 @@ impl TickMeter {
         self.idle = Some(idle);
     }
 
-    /// Called after every instruction with the cycle and PC after it.
-    fn after_step(&mut self, cycle: u64, pc: u32) {
+    /// Called after every instruction with the cycle, PC and SP after it, and SREG.I.
+    fn after_step(&mut self, cycle: u64, pc: u32, sp: u16, int_enabled: bool) {
         if self.last_idle {
             self.idle_cycles += cycle - self.last_cycle;
         }
         self.last_cycle = cycle;
-        self.ring[self.ring_pos] = pc;
+        self.ring[self.ring_pos] = (pc, sp);
         self.ring_pos = (self.ring_pos + 1) % RING;
         if let Some(ev) = &self.events {
             let n = ev.borrow().len();
@@ -178,27 +182,48 @@ impl TickMeter {
                 }
             }
         }
-        let idle_now = self.is_idle(pc);
+        let idle_now = self.is_idle(pc, sp);
         self.last_idle = idle_now;
-        if let Some((start, Some(_), true)) = self.open {
-            if idle_now {
-                self.open = None;
-                self.ticks.push(TickTiming {
-                    start,
-                    busy: cycle - start,
-                    interrupted_busy: false,
-                });
+        match self.open {
+            // ISR returned into the idle wait: the tick's work starts when the main loop
+            // leaves it (an instruction outside the wait with interrupts enabled, i.e. not
+            // another ISR such as the UART's) ...
+            Some((start, Some(ret), Wait::Leave)) if !idle_now && int_enabled => {
+                self.open = Some((start, Some(ret), Wait::Return));
             }
+            // ... and ends when it is back: tentatively at the first instruction back in the
+            // wait, confirmed once the loop has stayed there for `CONFIRM` cycles (the tick poll
+            // shares its tail with the path that detects the tick) ...
+            Some((start, Some(ret), Wait::Return)) if idle_now => {
+                self.open = Some((start, Some(ret), Wait::Confirm(cycle)));
+            }
+            Some((start, Some(ret), Wait::Confirm(_))) if !idle_now && int_enabled => {
+                self.open = Some((start, Some(ret), Wait::Return));
+            }
+            Some((start, Some(_), Wait::Confirm(end))) if cycle - end >= CONFIRM => {
+                self.close(start, end);
+            }
+            _ => {}
         }
+    }
+
+    fn close(&mut self, start: u64, end: u64) {
+        self.open = None;
+        self.ticks.push(TickTiming {
+            start,
+            busy: end - start,
+            interrupted_busy: false,
+        });
     }
 
     fn on_event(&mut self, e: IrqEvent) {
         if e.running {
             if self.idle.is_none() {
                 // The newest ring entry is the vector itself: skip it.
-                let mut set: Vec<u32> = (1..RING)
+                let mut set: Vec<(u32, u16)> = (1..RING)
                     .map(|k| self.ring[(self.ring_pos + RING - 1 - k) % RING])
                     .collect();
+                set.push((e.ret_pc, e.ret_sp));
                 set.sort_unstable();
                 set.dedup();
                 self.learning.push(set);
@@ -207,7 +232,10 @@ impl TickMeter {
                 }
                 return;
             }
-            let was_idle = self.is_idle(e.ret_pc);
+            let was_idle = self.is_idle(e.ret_pc, e.ret_sp);
+            if let Some((start, Some(_), Wait::Confirm(end))) = self.open {
+                self.close(start, end);
+            }
             if let Some((start, _, _)) = self.open.take() {
                 // The previous tick never got back to idle before this one fired.
                 self.ticks.push(TickTiming {
@@ -216,11 +244,10 @@ impl TickMeter {
                     interrupted_busy: true,
                 });
             }
-            self.open = Some((e.cycle, None, was_idle));
+            let wait = if was_idle { Wait::Leave } else { Wait::Busy };
+            self.open = Some((e.cycle, None, wait));
         } else if let Some((start, None, wait)) = self.open {
-            if wait {
-                self.open = Some((start, Some(e.cycle), true));
-            } else {
+            if wait == Wait::Busy {
                 // The ISR interrupted a busy main loop (the search, or an overrun): the tick
                 // itself is only the ISR.
                 self.open = None;
@@ -229,10 +256,28 @@ impl TickMeter {
                     busy: e.cycle - start,
                     interrupted_busy: true,
                 });
+            } else {
+                self.open = Some((start, Some(e.cycle), wait));
             }
         }
     }
 }
+
+/// What an open tick waits for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Wait {
+    /// The main loop to leave the idle wait (after the ISR).
+    Leave,
+    /// The main loop to return to the idle wait.
+    Return,
+    /// Nothing: the ISR found the main loop busy.
+    Busy,
+    /// Back in the wait since this cycle; confirming.
+    Confirm(u64),
+}
+
+/// Cycles the main loop must stay in its idle wait for a tick to count as finished.
+const CONFIRM: u64 = 2_000;
 
 /// Scheduled change during a run.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -306,6 +351,7 @@ impl Rig {
         p.delay_samples *= SUBSTEPS;
         let pump = Pump::new(p);
         let ticks = TickMeter {
+            ring: vec![(0, 0); RING],
             vector: cfg.tick_vector,
             events: cfg.tick_vector.map(|v| machine.watch_vector(v)),
             ..TickMeter::default()
@@ -468,8 +514,12 @@ impl Rig {
             let chunk_end = self.next_step.min(target);
             while self.machine.cycle() < chunk_end {
                 let h = self.machine.step();
-                self.ticks
-                    .after_step(self.machine.cycle(), self.machine.pc());
+                self.ticks.after_step(
+                    self.machine.cycle(),
+                    self.machine.pc(),
+                    self.machine.sp(),
+                    self.machine.interrupts_enabled(),
+                );
                 if h != Halt::Reached {
                     self.halted = Some(h);
                     self.drain_uart();
@@ -505,8 +555,8 @@ impl Rig {
         &self.ticks.ticks
     }
 
-    /// Learned idle-wait instruction addresses (bytes), if any.
-    pub fn idle_pcs(&self) -> Option<&[u32]> {
+    /// Learned idle wait: (instruction address in bytes, stack pointer) pairs, if any.
+    pub fn idle_pcs(&self) -> Option<&[(u32, u16)]> {
         self.ticks.idle.as_deref()
     }
 

@@ -15,7 +15,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use ridge_core::excitation::{Record, DUTY_FULL_SCALE};
-use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Scale, Search};
+use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Real, Scale, Search};
 
 use super::firmware::{self, Sizes};
 use super::report::{Line, Report};
@@ -253,13 +253,20 @@ pub fn analyse(rig: Rig, sizes: Sizes, wall_s: f64) -> Outcome {
             .map(|c| rig.line_starts[j].saturating_sub(*c)),
         _ => None,
     };
-    let search_window = match (&estimation, id_line) {
-        (Some(s), Some(j)) => s
-            .cycle
-            .last()
-            .map(|c| (*c, rig.lines[j].cycle + TICK_CYCLES)),
-        _ => None,
-    };
+    // Every search: from the end of an excitation record to the next ID/REJECT line.
+    let mut search_windows = Vec::new();
+    for (i, r) in reports.iter().filter(|(_, r)| r.keyword == "EXCITE") {
+        let n = r.int("n").unwrap_or(3000).max(0) as u64;
+        let from = rig.lines[*i].cycle + n * TICK_CYCLES;
+        if let Some((j, _)) = reports
+            .iter()
+            .find(|(j, r)| *j > *i && matches!(r.keyword.as_str(), "ID" | "REJECT"))
+        {
+            search_windows.push((from, rig.lines[*j].cycle + TICK_CYCLES));
+        } else {
+            search_windows.push((from, u64::MAX));
+        }
+    }
     let firmware_missed = reports
         .iter()
         .rev()
@@ -267,7 +274,7 @@ pub fn analyse(rig: Rig, sizes: Sizes, wall_s: f64) -> Outcome {
         .and_then(|(_, r)| Some((r.int("late")?, r.int("lost")?)));
     let timing = timing(
         rig.ticks(),
-        search_window,
+        &search_windows,
         &rig,
         search_cycles,
         firmware_missed,
@@ -289,12 +296,12 @@ pub fn analyse(rig: Rig, sizes: Sizes, wall_s: f64) -> Outcome {
 
 fn timing(
     ticks: &[TickTiming],
-    search: Option<(u64, u64)>,
+    searches: &[(u64, u64)],
     rig: &Rig,
     search_cycles: Option<u64>,
     firmware_missed: Option<(i64, i64)>,
 ) -> Timing {
-    let in_search = |c: u64| search.is_some_and(|(a, b)| (a..=b).contains(&c));
+    let in_search = |c: u64| searches.iter().any(|&(a, b)| (a..=b).contains(&c));
     let normal: Vec<u64> = ticks
         .iter()
         .filter(|t| !t.interrupted_busy)
@@ -317,7 +324,11 @@ fn timing(
     // Load outside the search, from the first measured tick on.
     let from = ticks.first().map_or(0, |t| t.start);
     let elapsed = rig.machine.cycle().saturating_sub(from);
-    let search_len = search.map_or(0, |(a, b)| b.min(rig.machine.cycle()).saturating_sub(a));
+    let now = rig.machine.cycle();
+    let search_len: u64 = searches
+        .iter()
+        .map(|&(a, b)| b.min(now).saturating_sub(a.min(now)))
+        .sum();
     let busy_total = elapsed.saturating_sub(rig.idle_cycles());
     let load = if elapsed > search_len {
         busy_total.saturating_sub(search_len) as f64 / (elapsed - search_len) as f64
@@ -377,8 +388,8 @@ pub fn rebuild(rig: &Rig, idx: usize, r: &Report) -> Option<Samples> {
 }
 
 /// The firmware's search configuration (`selfid::Config::default().search`: ridge-core's
-/// default search, no offset, on deviations from the operating point), in `f64`.
-pub fn firmware_search() -> Search<f64> {
+/// default search, no offset, on deviations from the operating point), in `T`.
+pub fn firmware_search<T: Real>() -> Search<T> {
     Search::default()
 }
 
@@ -387,6 +398,12 @@ pub fn firmware_search() -> Search<f64> {
 /// `(u − u0, y − y0)`), and converts the result to the absolute model with an intercept as the
 /// firmware does (`selfid::absolute_model`: `c = c_dev + y0 (1 − Σθ) − u0 Σφ`).
 pub fn host_search(samples: &Samples) -> Result<IdLine, String> {
+    host_search_in::<f64>(samples)
+}
+
+/// [`host_search`] with the normal equations and the search in `T` (`f32` is what the
+/// firmware runs).
+pub fn host_search_in<T: Real>(samples: &Samples) -> Result<IdLine, String> {
     let mut g = IntGram::new();
     let (u0, y0) = (i32::from(samples.u0), i32::from(samples.y0));
     for (&u, &raw) in samples.u.iter().zip(&samples.raw) {
@@ -397,26 +414,28 @@ pub fn host_search(samples: &Samples) -> Result<IdLine, String> {
         .map_err(|e| format!("{e:?}"))?;
     }
     let normal = g
-        .normal::<f64>(Scale::SFM3300_DUTY_10K)
+        .normal::<T>(Scale::SFM3300_DUTY_10K)
         .map_err(|e| format!("{e:?}"))?;
-    let sel = firmware_search()
+    let sel = firmware_search::<T>()
         .run(&normal, None)
         .map_err(|e| format!("{e:?}"))?;
     let m = sel.fit.model();
     let s = m.structure();
-    let sum_theta: f64 = m.theta().iter().sum();
-    let sum_phi: f64 = m.phi().iter().sum();
-    let c = m.intercept() + f64::from(y0) / 120.0 * (1.0 - sum_theta)
+    let theta: Vec<f64> = m.theta().iter().map(|v| v.to_f64()).collect();
+    let phi: Vec<f64> = m.phi().iter().map(|v| v.to_f64()).collect();
+    let sum_theta: f64 = theta.iter().sum();
+    let sum_phi: f64 = phi.iter().sum();
+    let c = m.intercept().to_f64() + f64::from(y0) / 120.0 * (1.0 - sum_theta)
         - f64::from(u0) / f64::from(DUTY_FULL_SCALE) * sum_phi;
     Ok(IdLine {
         p: s.p,
         q: s.q,
         d: s.d,
         offset: true,
-        theta: m.theta().to_vec(),
-        phi: m.phi().to_vec(),
+        theta,
+        phi,
         c,
-        score: Some(sel.score),
+        score: Some(sel.score.to_f64()),
         eval: Some((i64::from(sel.evaluated), i64::from(sel.candidates))),
     })
 }

@@ -1,0 +1,353 @@
+//! The ATmega2560 firmware's release ELF in simavr (16 MHz), closed loop with the simulated
+//! SFM3300 and blower (`host_tests::simavr`). The ELF is built if missing (nightly, avr-none);
+//! a failed build fails the tests.
+//!
+//! Budgets checked: tick < 1.6 ms (25 600 cycles) with no overruns, search < 10 s, flash
+//! < 64 KB, static RAM + stack < 6 KB; the identified model's free-run fit on a fresh
+//! validation signal ≥ [`MIN_FRESH_FIT`] %; the firmware's result equal to ridge-core's on the
+//! host from the same samples (same structure, coefficients within [`COEF_TOL`]).
+
+use host_tests::sim::sfm3300::flow_to_raw;
+use host_tests::sim::PumpParams;
+use host_tests::simavr::firmware;
+use host_tests::simavr::rig::{Action, Rig, RigConfig};
+use host_tests::simavr::sensor::Fault;
+use host_tests::simavr::session::{self, Outcome, SessionConfig, TICK_CYCLES};
+use ridge_core::excitation::Record;
+
+/// Tick budget, cycles (1.6 ms at 16 MHz).
+const TICK_BUDGET: u64 = 25_600;
+/// Search budget, seconds.
+const SEARCH_BUDGET_S: f64 = 10.0;
+/// Flash budget, bytes.
+const FLASH_BUDGET: u32 = 64 * 1024;
+/// Static RAM + stack budget, bytes.
+const RAM_BUDGET: u32 = 6 * 1024;
+/// Smallest free-run fit (%) of the identified model on a fresh host-side validation signal
+/// (B-Ramp, new noise seed, the loop's timing). The firmware's own acceptance threshold on its
+/// validation record is 70 %.
+const MIN_FRESH_FIT: f64 = 70.0;
+/// Largest coefficient difference between the firmware (f32 on the AVR) and ridge-core on the
+/// host (f64) from the same samples, relative to max(1, |coefficient|). README: f32 vs f64 on
+/// exact statistics differ by ≤ 1.4e-5 relative.
+const COEF_TOL: f64 = 1e-4;
+
+fn elf() -> std::path::PathBuf {
+    firmware::ensure_elf().unwrap_or_else(|e| panic!("cannot build the ATmega2560 firmware: {e}"))
+}
+
+fn session(pump: PumpParams, seed: u64) -> Outcome {
+    let mut cfg = SessionConfig::new(elf());
+    cfg.rig.pump = pump;
+    cfg.rig.seed = seed;
+    cfg.max_s = 200.0;
+    session::run(&cfg).expect("simavr session")
+}
+
+fn transcript(o: &Outcome) -> String {
+    o.rig
+        .lines
+        .iter()
+        .filter(|l| !l.text.starts_with("RES "))
+        .map(|l| format!("  [{:8.3} s] {}\n", l.cycle as f64 / 16e6, l.text))
+        .collect()
+}
+
+/// Checks of one identification session; returns the list of failures.
+fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
+    let mut bad = Vec::new();
+    if let Some(h) = o.rig.halted() {
+        bad.push(format!("core halted: {h:?}"));
+    }
+    if !o.rig.machine.resets().is_empty() {
+        bad.push(format!(
+            "{} reset(s) during the run",
+            o.rig.machine.resets().len()
+        ));
+    }
+    if o.accept.is_none() {
+        bad.push("no ACCEPT line".into());
+    }
+    if !o.faults.is_empty() {
+        bad.push(format!("FAULT lines: {:?}", o.faults));
+    }
+    let Some(id) = &o.id else {
+        bad.push("no ID line".into());
+        return bad;
+    };
+    match &o.estimation {
+        None => bad.push("estimation record could not be rebuilt from the served frames".into()),
+        Some(est) => {
+            assert_eq!(est.len(), 3000);
+            match session::host_search(est) {
+                Ok(host) => match session::coefficient_error(id, &host) {
+                    Some(e) if e <= COEF_TOL => {}
+                    Some(e) => bad.push(format!(
+                        "coefficients differ from the host by {e:.2e} (> {COEF_TOL:e}): firmware {id:?} host {host:?}"
+                    )),
+                    None => bad.push(format!(
+                        "structure differs from the host: firmware ({},{},{}) host ({},{},{}) [host {host:?}]",
+                        id.p, id.q, id.d, host.p, host.q, host.d
+                    )),
+                },
+                Err(e) => bad.push(format!("host search failed: {e}")),
+            }
+        }
+    }
+    match id.model() {
+        None => bad.push("ID line does not give a valid model".into()),
+        Some(model) => {
+            let lat = o
+                .estimation
+                .as_ref()
+                .map_or(2, |e| session::write_latency(&o.rig, e));
+            let cfg = o.rig.config();
+            let fresh = session::fresh_record(
+                &cfg.pump,
+                &cfg.sensor,
+                cfg.seed + 1000,
+                Record::BRamp,
+                3_000,
+                lat,
+            );
+            let (free, _, _) = session::score(&model, &fresh);
+            match free {
+                Some(f) if f >= MIN_FRESH_FIT => {}
+                f => bad.push(format!(
+                    "fresh validation free-run fit {f:?} < {MIN_FRESH_FIT} %"
+                )),
+            }
+        }
+    }
+    if budgets {
+        let t = &o.timing;
+        if t.ticks < 1000 {
+            bad.push(format!("only {} ticks timed", t.ticks));
+        }
+        if t.worst >= TICK_BUDGET {
+            bad.push(format!(
+                "worst tick {} cycles ≥ {TICK_BUDGET} (mean {:.0})",
+                t.worst, t.mean
+            ));
+        }
+        if t.missed > 0 {
+            bad.push(format!("{} tick overrun(s) outside the search", t.missed));
+        }
+        match t.search_cycles {
+            Some(c) if (c as f64 / 16e6) < SEARCH_BUDGET_S => {}
+            c => bad.push(format!("search time {c:?} cycles ≥ {SEARCH_BUDGET_S} s")),
+        }
+        if o.sizes.flash() >= FLASH_BUDGET {
+            bad.push(format!("flash {} B ≥ {FLASH_BUDGET} B", o.sizes.flash()));
+        }
+        let stack = o.rig.stack_used().or(o.stack_used).unwrap_or(u32::MAX);
+        if o.sizes.ram() + stack >= RAM_BUDGET {
+            bad.push(format!(
+                "static RAM {} B + stack {stack} B ≥ {RAM_BUDGET} B",
+                o.sizes.ram()
+            ));
+        }
+        if o.stack_used.is_some() && o.stack_used != o.rig.stack_used() {
+            bad.push(format!(
+                "STACK line {:?} B disagrees with the SRAM paint {:?} B",
+                o.stack_used,
+                o.rig.stack_used()
+            ));
+        }
+    }
+    bad
+}
+
+fn assert_clean(what: &str, o: &Outcome, bad: Vec<String>) {
+    assert!(
+        bad.is_empty(),
+        "{what}:\n- {}\nfirmware said:\n{}",
+        bad.join("\n- "),
+        transcript(o)
+    );
+}
+
+/// Default pump: identification, host equality, fresh-signal fit, all budgets; then the
+/// persisted record: an intact copy is loaded at the next boot, a corrupted one is rejected.
+#[test]
+fn default_pump_identifies_within_budgets_and_persists() {
+    let o = session(PumpParams::default(), 1);
+    let bad = check_identification(&o, true);
+    assert_clean("default pump, seed 1", &o, bad);
+
+    // Next boot with the EEPROM the firmware wrote (simavr keeps EEPROM in the core; the rig
+    // programs it into a fresh core before reset).
+    let mut machine_eeprom = o.rig.machine.eeprom();
+    let written: Vec<usize> = machine_eeprom
+        .iter()
+        .enumerate()
+        .filter(|(_, &b)| b != 0xFF)
+        .map(|(i, _)| i)
+        .collect();
+    assert!(
+        !written.is_empty(),
+        "ACCEPT … persist, but the EEPROM is blank"
+    );
+    let boot = |eeprom: &[u8]| {
+        let mut cfg = RigConfig::new(elf());
+        cfg.eeprom = vec![(0, eeprom.to_vec())];
+        let mut rig = Rig::new(cfg).expect("rig");
+        rig.run_until(3.0, |l| {
+            l.text.starts_with("LOADED")
+                || l.text.starts_with("STORED-REJECTED")
+                || l.text.starts_with("EXCITE")
+        });
+        rig
+    };
+    let intact = boot(&machine_eeprom);
+    assert!(
+        intact.find_lines("LOADED").next().is_some(),
+        "intact record not loaded: {:?}",
+        intact.lines
+    );
+    // Corrupt one byte in the middle of the record.
+    let mid = written[written.len() / 2];
+    machine_eeprom[mid] ^= 0x10;
+    let corrupt = boot(&machine_eeprom);
+    let texts: Vec<&str> = corrupt.lines.iter().map(|l| l.text.as_str()).collect();
+    assert!(
+        corrupt.find_lines("STORED-REJECTED").next().is_some(),
+        "corrupted record (byte {mid}) not rejected: {texts:?}"
+    );
+    assert!(
+        corrupt.find_lines("LOADED").next().is_none(),
+        "corrupted record loaded: {texts:?}"
+    );
+}
+
+#[test]
+fn small_pump_identifies() {
+    let o = session(PumpParams::small(), 7);
+    let bad = check_identification(&o, false);
+    assert_clean("small pump, seed 7", &o, bad);
+}
+
+#[test]
+fn sluggish_pump_identifies() {
+    let o = session(PumpParams::sluggish(), 11);
+    let bad = check_identification(&o, false);
+    assert_clean("sluggish pump, seed 11", &o, bad);
+}
+
+/// Runs to `at_s` (in the excitation), applies `fault`, runs on until a FAULT line or
+/// `at_s + within_s`. Returns the rig and the FAULT line's index.
+fn inject(actions: &[(f64, Action)], within_s: f64) -> (Rig, Option<usize>) {
+    let mut rig = Rig::new(RigConfig::new(elf())).expect("rig");
+    for &(t, a) in actions {
+        rig.schedule(t, a);
+    }
+    let until = actions.iter().map(|(t, _)| *t).fold(0.0, f64::max) + within_s;
+    let end = rig.run_until(until, |l| l.text.starts_with("FAULT"));
+    let idx = match end {
+        host_tests::simavr::rig::RunEnd::Line(i) => Some(i),
+        _ => None,
+    };
+    if idx.is_some() {
+        // Two more ticks so the PWM log covers the stop.
+        rig.run_for(0.03);
+    }
+    (rig, idx)
+}
+
+/// The pump must be off (duty 0 on the pin) from at most two ticks after the FAULT line's tick
+/// on, to the end of the run.
+fn assert_stopped(rig: &Rig, idx: usize, what: &str) {
+    let line_start = rig.line_starts[idx];
+    let deadline = line_start + 2 * TICK_CYCLES;
+    let last_on = rig
+        .duty_log
+        .iter()
+        .rev()
+        .find(|d| d.fraction > 0.0)
+        .map(|d| d.cycle);
+    let off_since = rig
+        .duty_log
+        .iter()
+        .rev()
+        .find(|d| d.fraction > 0.0)
+        .and_then(|on| rig.duty_log.iter().find(|d| d.cycle > on.cycle))
+        .map(|d| d.cycle);
+    assert!(
+        rig.duty_at(rig.machine.cycle())
+            .is_some_and(|d| d.fraction == 0.0),
+        "{what}: pump still running at the end: {:?}",
+        rig.duty_at(rig.machine.cycle())
+    );
+    assert!(
+        off_since.is_some_and(|c| c <= deadline),
+        "{what}: pump off at cycle {off_since:?} (last on {last_on:?}), FAULT line at {line_start}, deadline {deadline}"
+    );
+}
+
+fn fault_case(actions: &[(f64, Action)], within_s: f64, expect: &str) {
+    let (rig, idx) = inject(actions, within_s);
+    let texts: Vec<&str> = rig.lines.iter().map(|l| l.text.as_str()).collect();
+    let Some(idx) = idx else {
+        panic!("{expect}: no FAULT line within {within_s} s: {texts:?}");
+    };
+    assert!(
+        rig.lines[idx].text.contains(expect),
+        "expected a FAULT with `{expect}`, got `{}`",
+        rig.lines[idx].text
+    );
+    assert_stopped(&rig, idx, expect);
+}
+
+/// Fault injection starts at 5 s: the firmware is in the excitation record (after 2 s settle).
+const AT: f64 = 5.0;
+
+#[test]
+fn fault_sensor_absent_stops_pump() {
+    fault_case(&[(AT, Action::Sensor(Fault::Absent))], 2.0, "sensor=nack");
+}
+
+#[test]
+fn fault_crc_corruption_stops_pump_but_short_burst_is_bridged() {
+    // A burst of three corrupted frames (30 ms) is bridged: no fault.
+    let (rig, idx) = inject(
+        &[
+            (AT, Action::Sensor(Fault::CrcCorrupt)),
+            (AT + 0.03, Action::Sensor(Fault::None)),
+        ],
+        2.0,
+    );
+    assert!(
+        idx.is_none(),
+        "a 30 ms CRC burst raised {:?}",
+        idx.map(|i| &rig.lines[i].text)
+    );
+    fault_case(
+        &[(AT, Action::Sensor(Fault::CrcCorrupt))],
+        2.0,
+        "sensor=crc",
+    );
+}
+
+#[test]
+fn fault_flow_out_of_range_stops_pump() {
+    fault_case(
+        &[(AT, Action::Sensor(Fault::Raw(flow_to_raw(300.0))))],
+        1.0,
+        "range",
+    );
+}
+
+#[test]
+fn fault_stalled_pump_stops_pump() {
+    fault_case(&[(AT, Action::Stall(true))], 30.0, "stall");
+}
+
+#[test]
+fn fault_stuck_reading_at_zero_flow_stops_pump() {
+    // A frozen zero-flow reading while the pump is driven looks like a stall.
+    fault_case(
+        &[(AT, Action::Sensor(Fault::Stuck(flow_to_raw(0.0))))],
+        30.0,
+        "stall",
+    );
+}
