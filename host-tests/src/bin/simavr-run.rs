@@ -141,6 +141,10 @@ fn report(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
         }
     }
     if let (Some(id), Some(est)) = (&out.id, &out.estimation) {
+        println!(
+            "  operating point: EXCITE y0 = {} counts, from the served frames {:?}",
+            est.y0, est.y0_frames
+        );
         match session::host_search(est) {
             Ok(host) => {
                 let err = session::coefficient_error(id, &host);
@@ -163,6 +167,19 @@ fn report(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
                     None => format!("DIFFERENT: {}", show_model(&h32)),
                 }
             );
+        }
+    } else if let Some(est) = &out.estimation {
+        for (name, r) in [
+            ("f64", session::host_search(est)),
+            ("f32", session::host_search_in::<f32>(est)),
+        ] {
+            match r {
+                Ok(h) => println!(
+                    "  host ({name}) on the first record the firmware saw: {}",
+                    show_model(&h)
+                ),
+                Err(e) => println!("  host ({name}) on the first record: {e}"),
+            }
         }
     } else if out.id.is_some() {
         println!("  (estimation record could not be rebuilt from the logs)");

@@ -100,6 +100,9 @@ pub struct Samples {
     pub u0: u16,
     /// Operating point flow, counts (`raw − 32768`).
     pub y0: i16,
+    /// The operating point recomputed from the served frames as the firmware defines it:
+    /// rounded mean (halves away from zero) of the 50 readings before the record.
+    pub y0_frames: Option<i16>,
 }
 
 impl Samples {
@@ -236,9 +239,13 @@ pub fn analyse(rig: Rig, sizes: Sizes, wall_s: f64) -> Outcome {
         .map(|v| v as u32);
     // The estimation record: the last EXCITE before the ID line.
     let id_line = id_idx.map(|(i, _)| *i);
-    let excite = reports
-        .iter()
-        .rfind(|(i, r)| r.keyword == "EXCITE" && id_line.is_none_or(|j| *i < j));
+    let excite = match id_line {
+        Some(j) => reports
+            .iter()
+            .rfind(|(i, r)| r.keyword == "EXCITE" && *i < j),
+        // No model: the first record, to compare with what the host finds on it.
+        None => reports.iter().find(|(_, r)| r.keyword == "EXCITE"),
+    };
     let estimation = excite.and_then(|(i, r)| rebuild(&rig, *i, r));
     let validate = reports
         .iter()
@@ -371,9 +378,18 @@ pub fn rebuild(rig: &Rig, idx: usize, r: &Report) -> Option<Samples> {
             .enumerate()
             .all(|(i, &g)| counts_at(frames[k + i].0) == duty_counts(g));
         if ok {
+            let y0_frames = (k >= 50).then(|| {
+                let sum: i32 = frames[k - 50..k]
+                    .iter()
+                    .map(|(_, raw)| i32::from(*raw) - i32::from(OFFSET_RAW))
+                    .sum();
+                let half = if sum >= 0 { 25 } else { -25 };
+                ((sum + half) / 50) as i16
+            });
             let mut s = Samples {
                 u0: r.num("u0").map_or(0, |v| (v * 100.0).round() as u16),
                 y0: r.num("y0").map_or(0, |v| (v * 120.0).round() as i16),
+                y0_frames,
                 ..Samples::default()
             };
             for (i, &g) in gen.iter().enumerate() {
