@@ -4,6 +4,7 @@
 //! ridge-pump firmware: SFM3300 flow-sensor driver, pump PWM control and report formatting for
 //! the on-device self-identification loop (ATmega2560 and STM32F411).
 
+pub mod arith;
 pub mod event;
 pub mod monitor;
 pub mod persist;

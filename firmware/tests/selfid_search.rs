@@ -295,7 +295,10 @@ impl Real for C {
     fn from_f64(x: f64) -> C {
         C(x as f32)
     }
-    fn from_i128(x: i128) -> C {
+    fn from_i64(x: i64) -> C {
+        C(x as f32)
+    }
+    fn from_u64(x: u64) -> C {
         C(x as f32)
     }
     fn to_f64(self) -> f64 {

@@ -25,6 +25,7 @@
 use crate::error::{Error, Result};
 use crate::normal::{Normal, OTHERS};
 use crate::real::Real;
+use crate::wide::Wide;
 use crate::{L_MAX, P_MAX};
 
 /// Physical units per raw count for the input and the output.
@@ -78,7 +79,8 @@ pub trait Accumulator: Copy + Default + core::fmt::Debug + PartialEq + sealed::S
     /// `true` for zero.
     fn is_zero(self) -> bool;
     /// `(s11 · sab − sa1 · sb1) / s11` in `T`: the Schur complement of one entry with
-    /// respect to the first pivot, computed exactly (128-bit) for integer statistics.
+    /// respect to the first pivot, its numerator computed exactly (128-bit) for integer
+    /// statistics.
     fn schur<T: Real>(s11: Self, sab: Self, sa1: Self, sb1: Self) -> Result<T>;
     /// `n · Σs² − (Σs)²` is zero or numerically zero: the signal is constant.
     fn is_constant(n: u32, sum: Self, sum_sq: Self) -> bool;
@@ -139,23 +141,21 @@ impl Accumulator for i64 {
         self == 0
     }
     fn schur<T: Real>(s11: i64, sab: i64, sa1: i64, sb1: i64) -> Result<T> {
-        let num = i128::from(s11)
-            .checked_mul(i128::from(sab))
-            .zip(i128::from(sa1).checked_mul(i128::from(sb1)))
-            .and_then(|(x, y)| x.checked_sub(y))
-            .ok_or(Error::Overflow)?;
-        Ok(T::from_i128(num) / T::from_i128(i128::from(s11)))
+        // Exact: |S| < 2^63 (capacity), so both products are below 2^126 and their
+        // difference fits in 128 bits.
+        let num = Wide::mul(s11, sab).sub(Wide::mul(sa1, sb1));
+        Ok(num.to_real::<T>() / T::from_i64(s11))
     }
     fn rounding(_: u32, _: i64) -> f64 {
         0.0
     }
     fn is_constant(n: u32, sum: i64, sum_sq: i64) -> bool {
-        let var = i128::from(n) * i128::from(sum_sq) - i128::from(sum) * i128::from(sum);
-        var <= 0
+        let var = Wide::mul(i64::from(n), sum_sq).sub(Wide::mul(sum, sum));
+        var.is_negative() || var.is_zero()
     }
     #[inline]
     fn to_real<T: Real>(self) -> T {
-        T::from_i128(i128::from(self))
+        T::from_i64(self)
     }
     fn widen_count(n: u32) -> Self {
         i64::from(n)
@@ -447,7 +447,7 @@ impl<A: Accumulator> Gram<A> {
     /// [`Gram::normal`] into existing storage: no 840-byte (`f32`) temporary and copy on
     /// the stack, which matters on an 8 KB MCU. On error `out` is left empty.
     pub fn normal_into<T: Real>(&self, scale: Scale, normal: &mut Normal<T>) -> Result<()> {
-        *normal = Normal::empty();
+        normal.clear();
         if !(scale.u.is_finite() && scale.y.is_finite()) || scale.u == 0.0 || scale.y == 0.0 {
             return Err(Error::NonFinite);
         }
@@ -490,7 +490,7 @@ impl<A: Accumulator> Gram<A> {
             }
         }
         if let Err(e) = normal.check_finite() {
-            *normal = Normal::empty();
+            normal.clear();
             return Err(e);
         }
         Ok(())

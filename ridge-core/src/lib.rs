@@ -47,6 +47,8 @@ pub mod real;
 pub mod rls;
 pub mod search;
 pub mod structure;
+#[doc(hidden)]
+pub mod wide;
 
 pub use error::{Error, Result};
 pub use estimate::{Estimator, Fit, Ols, Ridge, RidgeM};

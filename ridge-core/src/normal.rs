@@ -85,6 +85,16 @@ impl<T: Real> Normal<T> {
         }
     }
 
+    /// Resets to [`Normal::empty`] in place, element by element (no 840-byte temporary).
+    pub(crate) fn clear(&mut self) {
+        self.n = 0;
+        self.s11 = T::ZERO;
+        self.y_rounding = T::ZERO;
+        for v in self.r.iter_mut().chain(self.schur.iter_mut()) {
+            *v = T::ZERO;
+        }
+    }
+
     pub(crate) fn set_schur(&mut self, a: usize, b: usize, v: T) {
         let (a, b) = if a >= b { (a, b) } else { (b, a) };
         if let Some(x) = self.schur.get_mut(packed(a, b)) {

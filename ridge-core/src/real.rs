@@ -32,8 +32,10 @@ pub trait Real:
     const MAX: Self;
     /// Converts from `f64`, rounding to nearest.
     fn from_f64(x: f64) -> Self;
-    /// Converts from an exact 128-bit integer, rounding to nearest.
-    fn from_i128(x: i128) -> Self;
+    /// Converts from a 64-bit integer, rounding to nearest.
+    fn from_i64(x: i64) -> Self;
+    /// Converts from an unsigned 64-bit integer, rounding to nearest.
+    fn from_u64(x: u64) -> Self;
     /// Widens to `f64`.
     fn to_f64(self) -> f64;
     /// Square root (NaN for negative input).
@@ -58,7 +60,11 @@ impl Real for f32 {
         x as f32
     }
     #[inline]
-    fn from_i128(x: i128) -> Self {
+    fn from_i64(x: i64) -> Self {
+        x as f32
+    }
+    #[inline]
+    fn from_u64(x: u64) -> Self {
         x as f32
     }
     #[inline]
@@ -97,7 +103,11 @@ impl Real for f64 {
         x
     }
     #[inline]
-    fn from_i128(x: i128) -> Self {
+    fn from_i64(x: i64) -> Self {
+        x as f64
+    }
+    #[inline]
+    fn from_u64(x: u64) -> Self {
         x as f64
     }
     #[inline]

@@ -1,0 +1,115 @@
+//! A fixed computation through ridge-core's statistics path, printed value by value, for
+//! comparing a board's arithmetic with the host's (`src/bin/avr-arith.rs`,
+//! `scripts/avr-arith-check`). Diagnostics: on the ATmega2560 build this currently
+//! disagrees with the host (see README, "Known limits").
+use ridge_core::{IntGram, Offset, Scale, Search, Structure};
+
+fn record() -> (IntGram, i64, i64, i64) {
+    let mut g = IntGram::new();
+    let (mut sy, mut syy, mut sy1) = (0i64, 0i64, 0i64);
+    let mut x: u32 = 12345;
+    let (mut y1, mut y2) = (0i32, 0i32);
+    for t in 0..600i32 {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        let u = 2000 + ((t / 15) % 7) * 1000;
+        let y = (12 * y1 - 4 * y2) / 10 + u / 3 + (x % 41) as i32 - 20;
+        let _ = g.push(u, y);
+        sy += i64::from(y);
+        syy += i64::from(y) * i64::from(y);
+        sy1 += i64::from(y) * i64::from(y1);
+        y2 = y1;
+        y1 = y;
+    }
+    (g, sy, syy, sy1)
+}
+
+/// Writes `name value` lines (f32 values as their bit patterns in decimal).
+pub fn write<W: ufmt::uWrite>(w: &mut W) {
+    for (a, b, c, d) in [
+        (600i64, 45268477322i64, 4852116i64, 4852116i64),
+        (3, 5, 2, 7),
+        (1 << 40, 1 << 30, 1, 1),
+    ] {
+        let (hi, lo) = ridge_core::wide::probe(a, b, c, d);
+        let _ = ufmt::uwriteln!(
+            w,
+            "wide {} {} {} {}",
+            (hi >> 32) as u32,
+            hi as u32,
+            (lo >> 32) as u32,
+            lo as u32
+        );
+    }
+    let (g, sy, syy, sy1) = record();
+    let _ = ufmt::uwriteln!(w, "n {} sy {} syy {} sy1 {}", g.len(), sy, syy, sy1);
+    let r = g.normal::<f32>(Scale::UNIT);
+    let _ = ufmt::uwriteln!(w, "unit ok {}", r.is_ok());
+    if let Ok(f) = r {
+        let _ = ufmt::uwriteln!(w, "samples {}", f.samples());
+        match f.system(Structure { p: 1, q: 1, d: 0 }, Offset::None) {
+            Err(ridge_core::Error::TooShort { needed, have }) => {
+                let _ = ufmt::uwriteln!(w, "tooshort {} {}", needed, have);
+            }
+            Err(ridge_core::Error::InvalidStructure) => {
+                let _ = ufmt::uwriteln!(w, "invalid");
+            }
+            Err(_) => {
+                let _ = ufmt::uwriteln!(w, "other");
+            }
+            Ok(_) => {}
+        }
+        if let Ok(sys) = f.system(Structure { p: 1, q: 1, d: 0 }, Offset::None) {
+            // Exact in f32 only up to 2^24, so print as integers via i64 casts.
+            let _ = ufmt::uwriteln!(
+                w,
+                "s11 {} s10 {} s00 {}",
+                sys.augmented(0, 0) as i64,
+                sys.augmented(0, 2) as i64,
+                sys.augmented(2, 2) as i64
+            );
+        }
+    }
+    let Ok(mut nn) = g.normal::<f32>(Scale::SFM3300_DUTY_10K) else {
+        let _ = ufmt::uwriteln!(w, "normal error");
+        return;
+    };
+    let normal = &mut nn;
+    let s = Structure { p: 2, q: 2, d: 1 };
+    if let Ok(sys) = normal.system(s, Offset::None) {
+        for i in 0..=sys.params() {
+            for j in 0..=i {
+                let _ = ufmt::uwriteln!(w, "aug {} {} {}", i, j, sys.augmented(i, j).to_bits());
+            }
+        }
+        match sys.factor(0.0) {
+            Ok(f) => {
+                let _ = ufmt::uwriteln!(w, "rss {}", f.rss_min().to_bits());
+            }
+            Err(_) => {
+                let _ = ufmt::uwriteln!(w, "factor error");
+            }
+        }
+    }
+    match Search::<f32>::default().run(normal, None) {
+        Ok(sel) => {
+            let st = sel.structure();
+            let _ = ufmt::uwriteln!(w, "pick {} {} {} skip {}", st.p, st.q, st.d, sel.skipped);
+        }
+        Err(_) => {
+            let _ = ufmt::uwriteln!(w, "search error");
+        }
+    }
+    let _ = ufmt::uwriteln!(w, "i64f32 {}", (123_456_789_012i64 as f32).to_bits());
+    let _ = ufmt::uwriteln!(
+        w,
+        "u64f32 {}",
+        (18_000_000_000_000_000_000u64 as f32).to_bits()
+    );
+    let a: u64 = 0x1_2345_6789;
+    let b: u64 = 0x9_8765_4321;
+    let p = a.wrapping_mul(b);
+    let _ = ufmt::uwriteln!(w, "u64mul {} {}", (p >> 32) as u32, p as u32);
+    let _ = ufmt::uwriteln!(w, "end");
+}
