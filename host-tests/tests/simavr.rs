@@ -71,8 +71,53 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
     if !o.faults.is_empty() {
         bad.push(format!("FAULT lines: {:?}", o.faults));
     }
+    if budgets {
+        let t = &o.timing;
+        if t.ticks < 1000 {
+            bad.push(format!("only {} ticks timed", t.ticks));
+        }
+        if t.worst >= TICK_BUDGET {
+            bad.push(format!(
+                "worst tick {} cycles ≥ {TICK_BUDGET} (mean {:.0})",
+                t.worst, t.mean
+            ));
+        }
+        if t.missed > 0 {
+            bad.push(format!("{} tick overrun(s) outside the search", t.missed));
+        }
+        match t.search_cycles {
+            Some(c) if (c as f64 / 16e6) < SEARCH_BUDGET_S => {}
+            c => bad.push(format!("search time {c:?} cycles ≥ {SEARCH_BUDGET_S} s")),
+        }
+        if o.sizes.flash() >= FLASH_BUDGET {
+            bad.push(format!("flash {} B ≥ {FLASH_BUDGET} B", o.sizes.flash()));
+        }
+        let stack = o.rig.stack_used().or(o.stack_used).unwrap_or(u32::MAX);
+        if o.sizes.ram() + stack >= RAM_BUDGET {
+            bad.push(format!(
+                "static RAM {} B + stack {stack} B ≥ {RAM_BUDGET} B",
+                o.sizes.ram()
+            ));
+        }
+        if o.stack_used.is_some() && o.stack_used != o.rig.stack_used() {
+            bad.push(format!(
+                "STACK line {:?} B disagrees with the SRAM paint {:?} B",
+                o.stack_used,
+                o.rig.stack_used()
+            ));
+        }
+    }
     let Some(id) = &o.id else {
         bad.push("no ID line".into());
+        if let Some(est) = &o.estimation {
+            match session::host_search(est) {
+                Ok(h) => bad.push(format!(
+                    "ridge-core on the host finds ({},{},{}) on the firmware's first record: {h:?}",
+                    h.p, h.q, h.d
+                )),
+                Err(e) => bad.push(format!("host search on the first record: {e}")),
+            }
+        }
         return bad;
     };
     match &o.estimation {
@@ -125,42 +170,6 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
             }
         }
     }
-    if budgets {
-        let t = &o.timing;
-        if t.ticks < 1000 {
-            bad.push(format!("only {} ticks timed", t.ticks));
-        }
-        if t.worst >= TICK_BUDGET {
-            bad.push(format!(
-                "worst tick {} cycles ≥ {TICK_BUDGET} (mean {:.0})",
-                t.worst, t.mean
-            ));
-        }
-        if t.missed > 0 {
-            bad.push(format!("{} tick overrun(s) outside the search", t.missed));
-        }
-        match t.search_cycles {
-            Some(c) if (c as f64 / 16e6) < SEARCH_BUDGET_S => {}
-            c => bad.push(format!("search time {c:?} cycles ≥ {SEARCH_BUDGET_S} s")),
-        }
-        if o.sizes.flash() >= FLASH_BUDGET {
-            bad.push(format!("flash {} B ≥ {FLASH_BUDGET} B", o.sizes.flash()));
-        }
-        let stack = o.rig.stack_used().or(o.stack_used).unwrap_or(u32::MAX);
-        if o.sizes.ram() + stack >= RAM_BUDGET {
-            bad.push(format!(
-                "static RAM {} B + stack {stack} B ≥ {RAM_BUDGET} B",
-                o.sizes.ram()
-            ));
-        }
-        if o.stack_used.is_some() && o.stack_used != o.rig.stack_used() {
-            bad.push(format!(
-                "STACK line {:?} B disagrees with the SRAM paint {:?} B",
-                o.stack_used,
-                o.rig.stack_used()
-            ));
-        }
-    }
     bad
 }
 
@@ -181,6 +190,13 @@ fn default_pump_identifies_within_budgets_and_persists() {
     let bad = check_identification(&o, true);
     assert_clean("default pump, seed 1", &o, bad);
 
+    assert!(
+        o.rig
+            .find_lines("PERSIST")
+            .any(|(_, l)| l.text == "PERSIST saved"),
+        "no `PERSIST saved` after ACCEPT:\n{}",
+        transcript(&o)
+    );
     // Next boot with the EEPROM the firmware wrote (simavr keeps EEPROM in the core; the rig
     // programs it into a fresh core before reset).
     let mut machine_eeprom = o.rig.machine.eeprom();

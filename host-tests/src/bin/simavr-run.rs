@@ -260,10 +260,11 @@ fn report(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
     println!("\n== cycles (16 MHz; tick = 10 ms = {TICK_CYCLES} cycles)");
     let t = &out.timing;
     println!(
-        "  ticks measured {}: worst {} cycles ({:.3} ms), mean {:.0} cycles ({:.3} ms)",
+        "  ticks measured {}: worst {} cycles ({:.3} ms, at {:.3} s), mean {:.0} cycles ({:.3} ms)",
         t.ticks,
         t.worst,
         ms(t.worst as f64),
+        t.worst_at as f64 / 16e6,
         t.mean,
         ms(t.mean)
     );

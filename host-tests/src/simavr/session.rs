@@ -124,6 +124,8 @@ pub struct Timing {
     pub ticks: usize,
     /// Worst such tick, cycles from ISR entry to idle.
     pub worst: u64,
+    /// Cycle at which the worst tick started.
+    pub worst_at: u64,
     /// Mean, cycles.
     pub mean: f64,
     /// Ticks that found the main loop busy outside the search (overruns: missed deadlines).
@@ -199,7 +201,12 @@ pub fn run(cfg: &SessionConfig) -> Result<Outcome, String> {
     let mut rig = Rig::new(cfg.rig.clone())?;
     let t0 = Instant::now();
     let end = rig.run_until(cfg.max_s, is_final);
-    if let RunEnd::Line(_) = end {
+    if let RunEnd::Line(i) = end {
+        if rig.lines[i].text.starts_with("ACCEPT") && rig.lines[i].report().has_word("persist") {
+            // Let the EEPROM write finish (`PERSIST saved` / `PERSIST failed`).
+            let t = (rig.time_s() + 5.0).min(cfg.max_s);
+            rig.run_until(t, |l| l.text.starts_with("PERSIST"));
+        }
         let t = (rig.time_s() + cfg.linger_s).min(cfg.max_s);
         rig.run_until(t, |_| false);
     }
@@ -253,7 +260,14 @@ pub fn analyse(rig: Rig, sizes: Sizes, wall_s: f64) -> Outcome {
         .map(|(i, r)| (*i, r.clone()))
         .next();
     let validation = validate.and_then(|(i, r)| rebuild(&rig, i, &r));
-    let search_cycles = match (&estimation, id_line) {
+    // The search that followed the rebuilt record: up to its ID or REJECT line.
+    let search_end = excite.and_then(|(i, _)| {
+        reports
+            .iter()
+            .find(|(j, r)| *j > *i && matches!(r.keyword.as_str(), "ID" | "REJECT"))
+            .map(|(j, _)| *j)
+    });
+    let search_cycles = match (&estimation, search_end) {
         (Some(s), Some(j)) => s
             .cycle
             .last()
@@ -264,7 +278,8 @@ pub fn analyse(rig: Rig, sizes: Sizes, wall_s: f64) -> Outcome {
     let mut search_windows = Vec::new();
     for (i, r) in reports.iter().filter(|(_, r)| r.keyword == "EXCITE") {
         let n = r.int("n").unwrap_or(3000).max(0) as u64;
-        let from = rig.lines[*i].cycle + n * TICK_CYCLES;
+        // The record's last tick starts (n − 1) ticks after the tick that printed EXCITE.
+        let from = rig.line_starts[*i] + n.saturating_sub(1) * TICK_CYCLES;
         if let Some((j, _)) = reports
             .iter()
             .find(|(j, r)| *j > *i && matches!(r.keyword.as_str(), "ID" | "REJECT"))
@@ -314,6 +329,11 @@ fn timing(
         .filter(|t| !t.interrupted_busy)
         .map(|t| t.busy)
         .collect();
+    let worst_at = ticks
+        .iter()
+        .filter(|t| !t.interrupted_busy)
+        .max_by_key(|t| t.busy)
+        .map_or(0, |t| t.start);
     let missed = ticks
         .iter()
         .filter(|t| t.interrupted_busy && !in_search(t.start))
@@ -345,6 +365,7 @@ fn timing(
     Timing {
         ticks: normal.len(),
         worst,
+        worst_at,
         mean,
         missed,
         during_search,
