@@ -410,3 +410,52 @@ fn avr_tester_runs_the_firmware_with_the_sfm3300_slave() {
     assert!(state.borrow().measuring());
     assert!(!state.borrow().served().is_empty());
 }
+
+/// EEPROM through simavr: a record written with the firmware's own encoder at the board's
+/// address (0) is loaded at boot (`LOADED`, no identification); the same record with one byte
+/// flipped is rejected (`STORED-REJECTED`) and the firmware identifies anew (`EXCITE`).
+#[test]
+fn persisted_record_is_loaded_and_a_corrupted_one_rejected() {
+    use ridge_core::{ArxModel, Offset};
+    use ridge_pump_firmware::persist;
+
+    let model = ArxModel::new(&[0.9f32], &[12.0], 3, Offset::Intercept, -1.5).expect("model");
+    let record = persist::encode(&model, 88.5);
+    let boot = |bytes: &[u8]| {
+        let mut cfg = RigConfig::new(elf());
+        cfg.eeprom = vec![(0, bytes.to_vec())];
+        let mut rig = Rig::new(cfg).expect("rig");
+        rig.run_until(4.0, |l| {
+            l.text.starts_with("LOADED") || l.text.starts_with("EXCITE")
+        });
+        rig.lines.iter().map(|l| l.text.clone()).collect::<Vec<_>>()
+    };
+    let intact = boot(&record);
+    assert!(
+        intact.iter().any(|l| l.starts_with("LOADED p=1 q=1 d=3")),
+        "intact record not loaded: {intact:?}"
+    );
+    assert!(
+        !intact
+            .iter()
+            .any(|l| l.starts_with("EXCITE") || l.starts_with("STORED-REJECTED")),
+        "{intact:?}"
+    );
+    for byte in [0, record.len() / 2, record.len() - 1] {
+        let mut bad = record;
+        bad[byte] ^= 0x04;
+        let lines = boot(&bad);
+        assert!(
+            lines.iter().any(|l| l.starts_with("STORED-REJECTED")),
+            "byte {byte} flipped: not rejected: {lines:?}"
+        );
+        assert!(
+            !lines.iter().any(|l| l.starts_with("LOADED")),
+            "byte {byte} flipped: loaded anyway: {lines:?}"
+        );
+        assert!(
+            lines.iter().any(|l| l.starts_with("EXCITE")),
+            "byte {byte} flipped: no new identification: {lines:?}"
+        );
+    }
+}
