@@ -1,6 +1,6 @@
 //! The ATmega2560 firmware's release ELF in simavr (16 MHz), closed loop with the simulated
-//! SFM3300 and blower (`host_tests::simavr`). The ELF is built if missing (nightly, avr-none);
-//! a failed build fails the tests.
+//! SFM3300 and blower (`host_tests::simavr`). The ELF is brought up to date first (one
+//! incremental nightly avr-none build per test process); a failed build fails the tests.
 //!
 //! Budgets checked: tick < 1.6 ms (25 600 cycles) with no overruns, search < 10 s, flash
 //! < 64 KB, static RAM + stack < 6 KB; the identified model's free-run fit on a fresh

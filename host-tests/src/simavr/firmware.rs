@@ -43,6 +43,7 @@ pub fn build() -> Result<PathBuf, String> {
     cmd.args([
         "+nightly",
         "build",
+        "-q",
         "-p",
         "ridge-pump-firmware",
         "--bin",
@@ -85,13 +86,19 @@ pub fn build() -> Result<PathBuf, String> {
     }
 }
 
-/// The ELF, built if missing (or if `RIDGE_PUMP_REBUILD` is set).
+/// The ELF, brought up to date by one (incremental) build per process, so that tests never run
+/// a stale image. `RIDGE_PUMP_ELF` names a prebuilt image instead (no build).
 pub fn ensure_elf() -> Result<PathBuf, String> {
-    let elf = default_elf();
-    if elf.is_file() && std::env::var_os("RIDGE_PUMP_REBUILD").is_none() {
-        return Ok(elf);
+    static BUILT: std::sync::OnceLock<Result<PathBuf, String>> = std::sync::OnceLock::new();
+    if std::env::var_os("RIDGE_PUMP_ELF").is_some() {
+        let elf = default_elf();
+        return if elf.is_file() {
+            Ok(elf)
+        } else {
+            Err(format!("RIDGE_PUMP_ELF: no such file {}", elf.display()))
+        };
     }
-    build()
+    BUILT.get_or_init(build).clone()
 }
 
 /// Section sizes of an AVR ELF.
