@@ -109,6 +109,10 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
     }
     let Some(id) = &o.id else {
         bad.push("no ID line".into());
+        bad.push(format!(
+            "the firmware's own state machine replayed on the host with the same readings: {}",
+            replay(o)
+        ));
         if let Some(est) = &o.estimation {
             match session::host_search(est) {
                 Ok(h) => bad.push(format!(
@@ -171,6 +175,37 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
         }
     }
     bad
+}
+
+/// Replays the firmware's state machine (`ridge_pump_firmware::selfid`, compiled for the host)
+/// with the readings the rig served, in order, and describes its first search result: tells an
+/// AVR-specific defect (code generation, float library) from one of the algorithm.
+fn replay(o: &Outcome) -> String {
+    use ridge_pump_firmware::event::Event;
+    use ridge_pump_firmware::selfid::{Config, SelfIdentification};
+    let frames = o.rig.sensor.borrow().served();
+    let mut sid = SelfIdentification::new(Config::default(), None);
+    for (_, raw) in frames {
+        sid.tick(Ok((i32::from(raw) - 32_768) as i16));
+        if sid.needs_search() {
+            return match sid.search(|| {}) {
+                Some(Event::Identified { model, .. }) => {
+                    let s = model.structure();
+                    format!(
+                        "({},{},{}) theta {:?} phi {:?} c {}",
+                        s.p,
+                        s.q,
+                        s.d,
+                        model.theta(),
+                        model.phi(),
+                        model.intercept()
+                    )
+                }
+                other => format!("{other:?}"),
+            };
+        }
+    }
+    "no search reached".into()
 }
 
 fn assert_clean(what: &str, o: &Outcome, bad: Vec<String>) {
