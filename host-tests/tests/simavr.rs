@@ -141,8 +141,8 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
                         "coefficients differ from the host by {e:.2e} (> {COEF_TOL:e}): firmware {id:?} host {host:?}"
                     )),
                     None => bad.push(format!(
-                        "structure differs from the host: firmware ({},{},{}) host ({},{},{}) [host {host:?}]",
-                        id.p, id.q, id.d, host.p, host.q, host.d
+                        "structure differs from the host: firmware ({},{},{}) host ({},{},{}) [host {host:?}]; the firmware's state machine replayed on the host: {}",
+                        id.p, id.q, id.d, host.p, host.q, host.d, replay(o)
                     )),
                 },
                 Err(e) => bad.push(format!("host search failed: {e}")),
