@@ -31,19 +31,56 @@ pub fn write<W: ufmt::uWrite>(w: &mut W) {
         (600i64, 45268477322i64, 4852116i64, 4852116i64),
         (3, 5, 2, 7),
         (1 << 40, 1 << 30, 1, 1),
+        (45168016793, 45268477322, 45163815969, 45163815969),
     ] {
-        let (hi, lo) = ridge_core::wide::probe(a, b, c, d);
+        let (hi, lo, f) = ridge_core::wide::probe(&a, &b, &c, &d);
         let _ = ufmt::uwriteln!(
             w,
-            "wide {} {} {} {}",
+            "wide {} {} {} {} f {}",
             (hi >> 32) as u32,
             hi as u32,
             (lo >> 32) as u32,
-            lo as u32
+            lo as u32,
+            f.to_bits()
         );
     }
     let (g, sy, syy, sy1) = record();
     let _ = ufmt::uwriteln!(w, "n {} sy {} syy {} sy1 {}", g.len(), sy, syy, sy1);
+    let _ = ufmt::uwriteln!(
+        w,
+        "raw yy00 {} yy11 {} yy01 {} yy22 {}",
+        g.output_lag_entry(0, 0),
+        g.output_lag_entry(1, 1),
+        g.output_lag_entry(0, 1),
+        g.output_lag_entry(2, 2)
+    );
+    let _ = ufmt::uwriteln!(
+        w,
+        "raw u0y1 {} u0y0 {} u1y1 {} u3y0 {}",
+        g.input_output_entry(0, 1),
+        g.input_output_entry(0, 0),
+        g.input_output_entry(1, 1),
+        g.input_output_entry(3, 0)
+    );
+    {
+        let mut e = ridge_core::Normal::<f32>::empty();
+        let _ = ufmt::uwriteln!(
+            w,
+            "size {} empty {}",
+            core::mem::size_of::<ridge_core::Normal<f32>>() as u32,
+            e.samples()
+        );
+        let r = g.normal_into(&Scale::UNIT, &mut e);
+        let code: u8 = match r {
+            Ok(()) => 0,
+            Err(ridge_core::Error::NonFinite) => 1,
+            Err(ridge_core::Error::Overflow) => 2,
+            Err(ridge_core::Error::TooShort { .. }) => 3,
+            Err(ridge_core::Error::NotExcited) => 4,
+            Err(_) => 5,
+        };
+        let _ = ufmt::uwriteln!(w, "into code {} samples {}", code, e.samples());
+    }
     let r = g.normal::<f32>(Scale::UNIT);
     let _ = ufmt::uwriteln!(w, "unit ok {}", r.is_ok());
     if let Ok(f) = r {

@@ -23,7 +23,7 @@
 //! fed the statistics.
 
 use crate::error::{Error, Result};
-use crate::normal::{Normal, OTHERS};
+use crate::normal::{other, Normal, N_OTHER};
 use crate::real::Real;
 use crate::wide::Wide;
 use crate::{L_MAX, P_MAX};
@@ -81,7 +81,9 @@ pub trait Accumulator: Copy + Default + core::fmt::Debug + PartialEq + sealed::S
     /// `(s11 · sab − sa1 · sb1) / s11` in `T`: the Schur complement of one entry with
     /// respect to the first pivot, its numerator computed exactly (128-bit) for integer
     /// statistics.
-    fn schur<T: Real>(s11: Self, sab: Self, sa1: Self, sb1: Self) -> Result<T>;
+    ///
+    /// By reference: four 64-bit values by value would spill to the stack on AVR.
+    fn schur<T: Real>(s11: &Self, sab: &Self, sa1: &Self, sb1: &Self) -> Result<T>;
     /// `n · Σs² − (Σs)²` is zero or numerically zero: the signal is constant.
     fn is_constant(n: u32, sum: Self, sum_sq: Self) -> bool;
     /// Rounding level of the statistics of a signal with `Σs² = sum_sq` over `n`
@@ -140,11 +142,11 @@ impl Accumulator for i64 {
     fn is_zero(self) -> bool {
         self == 0
     }
-    fn schur<T: Real>(s11: i64, sab: i64, sa1: i64, sb1: i64) -> Result<T> {
+    fn schur<T: Real>(s11: &i64, sab: &i64, sa1: &i64, sb1: &i64) -> Result<T> {
         // Exact: |S| < 2^63 (capacity), so both products are below 2^126 and their
         // difference fits in 128 bits.
-        let num = Wide::mul(s11, sab).sub(Wide::mul(sa1, sb1));
-        Ok(num.to_real::<T>() / T::from_i64(s11))
+        let num = Wide::mul(*s11, *sab).sub(Wide::mul(*sa1, *sb1));
+        Ok(num.to_real::<T>() / T::from_i64(*s11))
     }
     fn rounding(_: u32, _: i64) -> f64 {
         0.0
@@ -214,7 +216,7 @@ impl Accumulator for f64 {
     fn is_zero(self) -> bool {
         self == 0.0
     }
-    fn schur<T: Real>(s11: f64, sab: f64, sa1: f64, sb1: f64) -> Result<T> {
+    fn schur<T: Real>(s11: &f64, sab: &f64, sa1: &f64, sb1: &f64) -> Result<T> {
         let v = sab - sa1 * (sb1 / s11);
         if v.is_finite() {
             Ok(T::from_f64(v))
@@ -377,44 +379,73 @@ impl<A: Accumulator> Gram<A> {
         Ok(())
     }
 
+    /// Diagnostics only (`scripts/avr-arith-check`): the exact entry of output lags `i`, `j`.
+    #[doc(hidden)]
+    pub fn output_lag_entry(&self, i: u8, j: u8) -> A {
+        self.entry(Col::Y(i), Col::Y(j))
+    }
+
+    /// Diagnostics only: the exact entry of input lag `i` and output lag `j`.
+    #[doc(hidden)]
+    pub fn input_output_entry(&self, i: u8, j: u8) -> A {
+        self.entry(Col::U(i), Col::Y(j))
+    }
+
     /// `Σ_{t=1..N} a_t b_t` for two columns of the zero-padded lag matrix.
     pub(crate) fn entry(&self, a: Col, b: Col) -> A {
         match (a, b) {
             (Col::One, Col::One) => A::widen_count(self.n),
             (Col::One, c) | (c, Col::One) => self.column_sum(c),
+            // Each arm subtracts `Σ_{m<i} a_{N-m} b_{N-m-k}`, what the running correlation at
+            // lag `k` holds beyond the rows where the earlier column is still inside the
+            // record. The loops are spelled out per history pair on purpose: on AVR the
+            // current backend miscompiled a shared helper taking two slices (the tail came
+            // out zero) and one taking two flags (the wrong history was read); found with
+            // `scripts/avr-arith-check`.
             (Col::Y(i), Col::Y(j)) => {
-                let (i, j) = order(i, j);
-                let k = j - i;
-                self.lagged(self.yy[k], i, k, &self.y_hist, &self.y_hist)
+                let (i, k) = lag_pair(i, j);
+                let mut tail = A::default();
+                for m in 0..i {
+                    if let (Some(&a), Some(&b)) = (self.y_hist.get(m), self.y_hist.get(m + k)) {
+                        tail = tail.plus(A::product(a, b));
+                    }
+                }
+                self.yy.get(k).copied().unwrap_or_default().minus(tail)
             }
             (Col::U(i), Col::U(j)) => {
-                let (i, j) = order(i, j);
-                let k = j - i;
-                self.lagged(self.uu[k], i, k, &self.u_hist, &self.u_hist)
+                let (i, k) = lag_pair(i, j);
+                let mut tail = A::default();
+                for m in 0..i {
+                    if let (Some(&a), Some(&b)) = (self.u_hist.get(m), self.u_hist.get(m + k)) {
+                        tail = tail.plus(A::product(a, b));
+                    }
+                }
+                self.uu.get(k).copied().unwrap_or_default().minus(tail)
             }
             (Col::Y(i), Col::U(j)) | (Col::U(j), Col::Y(i)) => {
                 let (i, j) = (usize::from(i), usize::from(j));
+                let mut tail = A::default();
                 if i <= j {
+                    // Σ y_s u_{s-k}, truncated: the output lag is the earlier column.
                     let k = j - i;
-                    self.lagged(self.yu[k], i, k, &self.y_hist, &self.u_hist)
+                    for m in 0..i {
+                        if let (Some(&a), Some(&b)) = (self.y_hist.get(m), self.u_hist.get(m + k)) {
+                            tail = tail.plus(A::product(a, b));
+                        }
+                    }
+                    self.yu.get(k).copied().unwrap_or_default().minus(tail)
                 } else {
+                    // Σ u_s y_{s-k}, truncated: the input lag is the earlier column.
                     let k = i - j;
-                    self.lagged(self.uy[k - 1], j, k, &self.u_hist, &self.y_hist)
+                    for m in 0..j {
+                        if let (Some(&a), Some(&b)) = (self.u_hist.get(m), self.y_hist.get(m + k)) {
+                            tail = tail.plus(A::product(a, b));
+                        }
+                    }
+                    self.uy.get(k - 1).copied().unwrap_or_default().minus(tail)
                 }
             }
         }
-    }
-
-    /// `corr − Σ_{m<i} a_{N-m} b_{N-m-k}`: the running correlation at lag `k`
-    /// truncated to the rows where the earlier column is still inside the record.
-    fn lagged(&self, corr: A, i: usize, k: usize, a: &[A::Sample], b: &[A::Sample]) -> A {
-        let mut tail = A::default();
-        for m in 0..i {
-            if let (Some(&am), Some(&bm)) = (a.get(m), b.get(m + k)) {
-                tail = tail.plus(A::product(am, bm));
-            }
-        }
-        corr.minus(tail)
     }
 
     /// `Σ_{t=1..N} c_t` for a lag column `c`.
@@ -438,15 +469,20 @@ impl<A: Accumulator> Gram<A> {
     /// Errors: [`Error::TooShort`] below 2 samples, [`Error::NotExcited`] when the
     /// input or output is constant, [`Error::NonFinite`] for a non-finite or zero
     /// scale, [`Error::Overflow`] when a value leaves the range of `T`.
+    // Inlined so that no call passes the 16-byte `Scale` plus a return pointer: on AVR such
+    // calls spill arguments to the stack, which the current backend miscompiles.
+    #[inline(always)]
     pub fn normal<T: Real>(&self, scale: Scale) -> Result<Normal<T>> {
         let mut out = Normal::empty();
-        self.normal_into(scale, &mut out)?;
+        self.normal_into(&scale, &mut out)?;
         Ok(out)
     }
 
     /// [`Gram::normal`] into existing storage: no 840-byte (`f32`) temporary and copy on
-    /// the stack, which matters on an 8 KB MCU. On error `out` is left empty.
-    pub fn normal_into<T: Real>(&self, scale: Scale, normal: &mut Normal<T>) -> Result<()> {
+    /// the stack, which matters on an 8 KB MCU. On error `out` is left empty. `scale` is
+    /// taken by reference: on AVR, arguments that spill to the stack are miscompiled by the
+    /// current backend (found with `scripts/avr-arith-check`).
+    pub fn normal_into<T: Real>(&self, scale: &Scale, normal: &mut Normal<T>) -> Result<()> {
         normal.clear();
         if !(scale.u.is_finite() && scale.y.is_finite()) || scale.u == 0.0 || scale.y == 0.0 {
             return Err(Error::NonFinite);
@@ -478,14 +514,18 @@ impl<A: Accumulator> Gram<A> {
         normal.s11 = s11.to_real::<T>() * sy * sy;
         // In T, not f64: no software doubles on the device (the integer path gives 0).
         normal.y_rounding = T::from_f64(A::rounding(self.n, self.yy[0])) * sy * sy;
-        let mut s_a1 = [A::default(); OTHERS.len()];
-        for (idx, &c) in OTHERS.iter().enumerate() {
+        let mut s_a1 = [A::default(); N_OTHER];
+        for idx in 0..N_OTHER {
+            let c = other(idx);
             s_a1[idx] = self.entry(c, Col::Y(1));
             normal.r[idx] = s_a1[idx].to_real::<T>() * col_scale(c) * sy;
         }
-        for (a, &ca) in OTHERS.iter().enumerate() {
-            for (b, &cb) in OTHERS.iter().enumerate().take(a + 1) {
-                let schur: T = A::schur(s11, self.entry(ca, cb), s_a1[a], s_a1[b])?;
+        for a in 0..N_OTHER {
+            let ca = other(a);
+            for b in 0..=a {
+                let cb = other(b);
+                let sab = self.entry(ca, cb);
+                let schur: T = A::schur(&s11, &sab, &s_a1[a], &s_a1[b])?;
                 normal.set_schur(a, b, schur * col_scale(ca) * col_scale(cb));
             }
         }
@@ -508,11 +548,8 @@ fn shift_in<S: Copy>(h: &mut [S], v: S) {
     }
 }
 
-/// `(min, max)` of two lags as `usize`.
-fn order(i: u8, j: u8) -> (usize, usize) {
-    if i <= j {
-        (usize::from(i), usize::from(j))
-    } else {
-        (usize::from(j), usize::from(i))
-    }
+/// `(earlier lag, lag difference)` of two lags of the same signal.
+fn lag_pair(i: u8, j: u8) -> (usize, usize) {
+    let (lo, hi) = if i <= j { (i, j) } else { (j, i) };
+    (usize::from(lo), usize::from(hi - lo))
 }

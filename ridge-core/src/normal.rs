@@ -45,6 +45,23 @@ const fn others() -> [Col; P_MAX - 1 + L_MAX + 2] {
     out
 }
 
+/// The column at position `idx` of [`OTHERS`], computed rather than read from the
+/// constant table (the AVR build is checked against the host with this form).
+pub(crate) fn other(idx: usize) -> Col {
+    if idx < P_MAX - 1 {
+        Col::Y(idx as u8 + 2)
+    } else if idx < P_MAX - 1 + L_MAX {
+        Col::U((idx - (P_MAX - 1)) as u8)
+    } else if idx == P_MAX - 1 + L_MAX {
+        Col::One
+    } else {
+        Col::Y(0)
+    }
+}
+
+/// Number of columns besides the pivot `y_{t-1}`.
+pub(crate) const N_OTHER: usize = OTHERS.len();
+
 /// Position of a column in [`OTHERS`].
 fn others_index(c: Col) -> usize {
     match c {
@@ -61,6 +78,7 @@ const N_OTHERS: usize = OTHERS.len();
 /// exactly (see the [module docs](self)). Made by [`crate::Gram::normal`]; 210 scalars
 /// (840 bytes in `f32`).
 #[derive(Debug, Clone, PartialEq)]
+#[repr(C)]
 pub struct Normal<T: Real> {
     pub(crate) n: u32,
     /// `Σ y_{t-1}²`.

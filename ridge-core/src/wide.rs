@@ -78,9 +78,9 @@ impl Wide {
 
 /// Diagnostics only: `a·b − c·d` as `(high, low)` limbs.
 #[doc(hidden)]
-pub fn probe(a: i64, b: i64, c: i64, d: i64) -> (u64, u64) {
-    let w = Wide::mul(a, b).sub(Wide::mul(c, d));
-    (w.hi, w.lo)
+pub fn probe(a: &i64, b: &i64, c: &i64, d: &i64) -> (u64, u64, f32) {
+    let w = Wide::mul(*a, *b).sub(Wide::mul(*c, *d));
+    (w.hi, w.lo, w.to_real::<f32>())
 }
 
 #[cfg(test)]

@@ -363,7 +363,7 @@ fn evaluate(
     // cost a second copy on the ATmega2560's stack.
     let mut normal = Normal::<f32>::empty();
     rec.gram
-        .normal_into(Scale::SFM3300_DUTY_10K, &mut normal)
+        .normal_into(&Scale::SFM3300_DUTY_10K, &mut normal)
         .map_err(|e| match e {
             ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
             e => RejectReason::Search(e),
