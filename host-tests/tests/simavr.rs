@@ -220,7 +220,7 @@ fn assert_clean(what: &str, o: &Outcome, bad: Vec<String>) {
 /// Default pump: identification, host equality, fresh-signal fit, all budgets; then the
 /// persisted record: an intact copy is loaded at the next boot, a corrupted one is rejected.
 #[test]
-#[ignore = "blocked: the ATmega2560 build computes wrong Normal statistics (scripts/avr-arith-check, README Known limits); run with --ignored"]
+#[ignore = "open: worst tick (8.2 ms at ACCEPT) and static RAM + stack (7.5 KB) exceed the 1.6 ms / 6 KB budgets; identification itself passes (see small/sluggish); run with --ignored"]
 fn default_pump_identifies_within_budgets_and_persists() {
     let o = session(PumpParams::default(), 1);
     let bad = check_identification(&o, true);
@@ -279,7 +279,6 @@ fn default_pump_identifies_within_budgets_and_persists() {
 }
 
 #[test]
-#[ignore = "blocked: the ATmega2560 build computes wrong Normal statistics (scripts/avr-arith-check, README Known limits); run with --ignored"]
 fn small_pump_identifies() {
     let o = session(PumpParams::small(), 7);
     let bad = check_identification(&o, false);
@@ -287,7 +286,6 @@ fn small_pump_identifies() {
 }
 
 #[test]
-#[ignore = "blocked: the ATmega2560 build computes wrong Normal statistics (scripts/avr-arith-check, README Known limits); run with --ignored"]
 fn sluggish_pump_identifies() {
     let o = session(PumpParams::sluggish(), 11);
     let bad = check_identification(&o, false);
