@@ -86,7 +86,7 @@ mod image {
         app: &'a mut MaybeUninit<MegaApp>,
         board: &'a mut MaybeUninit<Mega>,
     ) -> (&'a mut MegaApp, &'a mut Mega) {
-        let dp = pac::Peripherals::take().unwrap();
+        let dp = pac::Peripherals::take().unwrap(); // ok: first and only call, at boot
         let reset_cause = watchdog::take_reset_cause(&dp.CPU);
 
         let mut out = usart::Usart0::new(dp.USART0);

@@ -60,7 +60,8 @@ mod image {
 
     #[entry]
     fn main() -> ! {
-        let dp = pac::Peripherals::take().unwrap();
+        let dp = pac::Peripherals::take().unwrap(); // ok: first and only call, at boot
+
         // Reset cause (RCC_CSR bits 31..24: LPWR, WWDG, IWDG, SFT, POR, PIN, BOR), then clear.
         let reset_cause = (dp.RCC.csr().read().bits() >> 24) as u8;
         dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
@@ -80,7 +81,7 @@ mod image {
         };
 
         let tx: stm32f4xx_hal::serial::Tx<pac::USART1, u8> =
-            dp.USART1.tx(gpioa.pa9, 115_200.bps(), &mut rcc).unwrap();
+            dp.USART1.tx(gpioa.pa9, 115_200.bps(), &mut rcc).unwrap(); // ok: fixed config, valid at 100 MHz; a panic stops the pump
         let mut out = Uart::new(tx);
 
         let i2c = I2c::new(
