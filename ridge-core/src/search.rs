@@ -246,10 +246,10 @@ impl<T: Real> Search<T> {
             }
         };
         let mut ls = Factor::empty();
-        let mut bound = [T::ZERO; GRID_MAX];
-        let mut pending = Bits::default();
         if self.prune {
             // Phase 1: bounds of every usable candidate, which are then pending.
+            let mut bound = [T::ZERO; GRID_MAX];
+            let mut pending = Bits::default();
             for (i, s) in self.grid.iter().enumerate().take(GRID_MAX) {
                 match self.prepare(s, est, val, &mut ls) {
                     Ok((_, b)) => {
@@ -260,21 +260,6 @@ impl<T: Real> Search<T> {
                 }
                 progress();
             }
-        }
-        // One candidate: its system and factor, then the estimator and the criterion.
-        let mut run = |s: Structure| -> Option<(Fit<T>, T)> {
-            let Ok((system, _)) = self.prepare(s, est, val, &mut ls) else {
-                skipped += 1;
-                return None;
-            };
-            evaluated += 1;
-            let scored = self.score(&system, &ls, val, progress);
-            if scored.is_err() {
-                skipped += 1;
-            }
-            scored.ok()
-        };
-        if self.prune {
             // Phase 2: ascending bounds until no bound can beat the best.
             loop {
                 let mut next: Option<usize> = None;
@@ -303,14 +288,26 @@ impl<T: Real> Search<T> {
                         break;
                     }
                 }
-                if let Some((fit, score)) = run(s) {
-                    consider(fit, score, &mut best);
+                let Ok((system, _)) = self.prepare(s, est, val, &mut ls) else {
+                    skipped += 1;
+                    continue;
+                };
+                evaluated += 1;
+                match self.score(&system, &ls, val, progress) {
+                    Ok((fit, score)) => consider(fit, score, &mut best),
+                    Err(_) => skipped += 1,
                 }
             }
         } else {
             for s in self.grid.iter() {
-                if let Some((fit, score)) = run(s) {
-                    consider(fit, score, &mut best);
+                let Ok((system, _)) = self.prepare(s, est, val, &mut ls) else {
+                    skipped += 1;
+                    continue;
+                };
+                evaluated += 1;
+                match self.score(&system, &ls, val, progress) {
+                    Ok((fit, score)) => consider(fit, score, &mut best),
+                    Err(_) => skipped += 1,
                 }
             }
         }
