@@ -138,6 +138,9 @@ pub fn write<W: ufmt::uWrite>(w: &mut W) {
             let _ = ufmt::uwriteln!(w, "search error");
         }
     }
+    for x in [2.0f32, 0.3, 1.0e-40, 3.4e38, 12_345.678, 1.000_000_1, 0.25] {
+        let _ = ufmt::uwriteln!(w, "sqrt {}", ridge_core::real::sqrt_f32(x).to_bits());
+    }
     let _ = ufmt::uwriteln!(w, "i64f32 {}", (123_456_789_012i64 as f32).to_bits());
     let _ = ufmt::uwriteln!(
         w,

@@ -130,7 +130,7 @@ fn overflow_is_reported_before_it_happens() {
     assert_eq!(g.push(i32::MAX, 0), Err(Error::Overflow));
     assert_eq!(g, before);
     assert_eq!(g.len(), pushed);
-    // 16-bit counts (SFM3300, PWM) have room for 2^33 samples: far beyond any record.
+    // 16-bit counts (SFM3300, PWM) have room for 2^31 samples: far beyond any record.
     let mut g = IntGram::new();
     for _ in 0..100_000 {
         g.push(i32::from(i16::MAX), i32::from(i16::MIN)).unwrap();
