@@ -146,6 +146,14 @@ impl Rig {
         if let Some(e) = &t.event {
             self.events.push(line(e));
         }
+        // As the board loop: the judgement, then the search, after the tick's PWM write; a
+        // latched fault stops the pump at once.
+        if let Some(e) = self.sm.judge() {
+            self.events.push(line(&e));
+            if self.sm.fault().is_some() {
+                self.duty = 0;
+            }
+        }
         if self.sm.needs_search() {
             let mut pets = 0;
             if let Some(e) = self.sm.search(|| pets += 1) {
@@ -159,6 +167,14 @@ impl Rig {
     fn tick(&mut self) -> Tick {
         let y = self.plant.step(self.duty);
         self.tick_with(Ok(y))
+    }
+
+    /// One tick of the state machine alone (no judgement, no search).
+    fn tick_without_judgement(&mut self) -> Tick {
+        let y = self.plant.step(self.duty);
+        let t = self.sm.tick(Ok(y));
+        self.duty = t.duty;
+        t
     }
 
     fn run_until(&mut self, max: usize, until: impl Fn(&Self) -> bool) {
@@ -660,12 +676,48 @@ fn the_split_search_gives_the_same_result_as_the_blocking_one() {
             let e = b.sm.finish_search(job.run(|| {})).unwrap();
             assert!(line(&e).starts_with("ID p=1 q=1 d=3"));
         }
+        if let Some(e) = b.sm.judge() {
+            assert!(line(&e).starts_with("ACCEPT"));
+        }
         if b.sm.state() == State::Run {
             break;
         }
     }
     assert_eq!(a.sm.model(), b.sm.model());
     assert_eq!(a.sm.persist_bytes(), b.sm.persist_bytes());
+}
+
+#[test]
+fn the_tick_that_completes_the_validation_only_holds_the_base_duty_until_the_judgement() {
+    let mut rig = Rig::new(Config::default(), None, Plant::reference());
+    rig.run_to(State::Validate);
+    // Tick by hand (no judgement) until the record is complete.
+    let mut complete = None;
+    for _ in 0..4_000 {
+        let y = rig.plant.step(rig.duty);
+        let t = rig.sm.tick(Ok(y));
+        rig.duty = t.duty;
+        if rig.sm.needs_judgement() {
+            complete = Some(t);
+            break;
+        }
+    }
+    let t = complete.expect("validation record complete");
+    assert_eq!(t.event, None, "no verdict from the tick itself");
+    assert_eq!(t.duty, Config::default().base_duty);
+    assert_eq!(rig.sm.state(), State::Validate);
+    assert!(rig.sm.model().is_none());
+    // Ticks before the judgement hold the base duty and keep the record as it was.
+    for _ in 0..3 {
+        assert_eq!(rig.tick_without_judgement().duty, 3_000);
+    }
+    assert!(rig.sm.needs_judgement());
+    let verdict = rig.sm.judge().map(|e| line(&e)).unwrap_or_default();
+    assert!(verdict.starts_with("ACCEPT fit="), "{verdict}");
+    assert!(!rig.sm.needs_judgement());
+    assert_eq!(rig.sm.judge(), None, "judged once");
+    assert_eq!(rig.sm.state(), State::Run);
+    assert_eq!(rig.tick().duty, Config::default().run_duty);
 }
 
 #[test]

@@ -65,7 +65,12 @@ impl Loop {
         if let Some(e) = t.event {
             self.events.push(line(&e));
         }
-        // The split search, as a board that keeps ticking from its timer interrupt does.
+        // After the tick's PWM write, as the board loop: the judgement of a complete
+        // validation record, then the split search (as a board that keeps ticking from its
+        // timer interrupt runs it).
+        if let Some(e) = self.sm.judge() {
+            self.events.push(line(&e));
+        }
         if let Some(job) = self.sm.take_search() {
             self.grams.push(job.gram().clone());
             let outcome = job.run(|| {});

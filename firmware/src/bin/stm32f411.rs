@@ -33,6 +33,10 @@ mod image {
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
     use ufmt::uwriteln;
 
+    /// I2C clock: standard mode (the STM32F411's 100 MHz core has no tick budget problem, and
+    /// 100 kHz tolerates long sensor cables).
+    const I2C_HZ: u32 = 100_000;
+
     struct BlackPill {
         ticker: Ticker,
         watchdog: IndependentWatchdog,
@@ -87,7 +91,7 @@ mod image {
         let i2c = I2c::new(
             dp.I2C1,
             (gpiob.pb6, gpiob.pb7),
-            Mode::standard(100.kHz()),
+            Mode::standard(I2C_HZ.Hz()),
             &mut rcc,
         );
         let sensor = Sfm3300::new(i2c);
@@ -112,7 +116,7 @@ mod image {
             }
         )
         .ok();
-        let mut app = App::new(sensor, pump, out, sid);
+        let mut app = App::new(sensor, pump, out, sid, I2C_HZ);
         let mut board = BlackPill {
             ticker,
             watchdog,

@@ -1,7 +1,8 @@
 //! The 100 Hz main loop shared by both boards: wait for the tick, pet the watchdog, read the
 //! SFM3300 (I2C in the main loop, never in an interrupt), step the self-identification state
 //! machine ([`ridge_pump_firmware::selfid`]), apply its duty to the pump, print its events,
-//! persist its record when an event asks for it, and run the structure search when it is due.
+//! persist its record when an event asks for it, and — after the PWM write — judge the
+//! validation record and run the structure search when they are due.
 //!
 //! The search runs in one of two ways ([`Board::TICK_DURING_SEARCH`]):
 //! - ticking (STM32F411): as a `SearchJob` whose `pet` closure also keeps the loop going: at
@@ -37,10 +38,25 @@ use ufmt::{uWrite, uwriteln};
 /// sensor's power-up time when the MCU starts faster than the sensor).
 pub const START_TICKS: u8 = 100;
 
-/// Read attempts per sample: NACKed reads are retried at once, ~90 µs each at 100 kHz, so 8
-/// attempts bridge the sensor's 0.5 ms update time (needed right after the discarded first
-/// frame).
-pub const READ_ATTEMPTS: u8 = 8;
+/// Read attempts per sample for an I2C clock of `i2c_hz` Hz: NACKed reads are retried at once,
+/// each costing one address byte plus START/STOP (≈ 10 SCL periods: 100 µs at 100 kHz, 25 µs at
+/// 400 kHz), and the attempts must bridge the sensor's 0.5 ms update period (needed right after
+/// the discarded first frame) with margin: `ceil(0.75 ms / attempt)`, at least 2.
+///
+/// `read_attempts(100_000) == 8`, `read_attempts(400_000) == 30` (checked at compile time).
+pub const fn read_attempts(i2c_hz: u32) -> u8 {
+    // 0.75 ms / (10 / f) = f · 75 / 1e6 attempts, rounded up.
+    let n = (i2c_hz as u64 * 75).div_ceil(1_000_000);
+    if n < 2 {
+        2
+    } else if n > 255 {
+        255
+    } else {
+        n as u8
+    }
+}
+
+const _: () = assert!(read_attempts(100_000) == 8 && read_attempts(400_000) == 30);
 
 /// Ticks per `MISSED` summary check (1 s).
 const SUMMARY_TICKS: u8 = 100;
@@ -81,9 +97,16 @@ pub struct App<I, P, W> {
 }
 
 impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
-    /// Puts the parts together; nothing is sent yet.
-    pub fn new(mut sensor: Sfm3300<I>, pump: Pump<P>, out: W, sid: SelfIdentification) -> Self {
-        sensor.set_read_attempts(READ_ATTEMPTS);
+    /// Puts the parts together; nothing is sent yet. `i2c_hz` is the sensor bus clock (Hz),
+    /// which sets the read attempts per sample ([`read_attempts`]).
+    pub fn new(
+        mut sensor: Sfm3300<I>,
+        pump: Pump<P>,
+        out: W,
+        sid: SelfIdentification,
+        i2c_hz: u32,
+    ) -> Self {
+        sensor.set_read_attempts(read_attempts(i2c_hz));
         App {
             sensor,
             pump,
@@ -130,8 +153,29 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
         self.lost = self.lost.saturating_add(elapsed - 1);
         self.tick(board);
         self.summary();
+        if self.sid.needs_judgement() {
+            self.judge(board);
+        }
         if self.sid.needs_search() {
             self.search(board);
+        }
+    }
+
+    /// Scores the complete validation record (after the tick's PWM write, so that it does not
+    /// delay it), stops the pump at once if that latched a fault, and reports the outcome.
+    #[inline(never)]
+    fn judge(&mut self, board: &mut impl Board) {
+        if let Some(event) = self.sid.judge() {
+            self.stop_on_fault();
+            self.report(board, &event);
+        }
+    }
+
+    /// Stops the pump now when the state machine holds a fault (its duty is then 0), instead
+    /// of at the next tick.
+    fn stop_on_fault(&mut self) {
+        if self.sid.fault().is_some() {
+            self.pump.stop().ok();
         }
     }
 
@@ -195,6 +239,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             self.sid.search(|| board.pet())
         };
         if let Some(event) = event {
+            self.stop_on_fault();
             self.report(board, &event);
         }
         // Catch up with the boundary that passed last (the ones before it are lost), so that

@@ -6,7 +6,11 @@
 //! structure search from its main loop: either [`SelfIdentification::search`] (blocking, no
 //! ticks meanwhile: the PWM keeps the base duty) or, to keep ticking from the timer interrupt
 //! while the search runs, [`SelfIdentification::take_search`] →
-//! [`SearchJob::run`] → [`SelfIdentification::finish_search`].
+//! [`SearchJob::run`] → [`SelfIdentification::finish_search`]. When
+//! [`SelfIdentification::needs_judgement`] is true (the validation record is complete) it calls
+//! [`SelfIdentification::judge`] after the tick's PWM write, applies [`SelfIdentification::duty`]
+//! if that is 0 (a latched fault), and reports the event. Both are kept out of `tick`, which
+//! therefore costs about the same every time (a sensor read, one statistics update).
 //!
 //! # States
 //! ```text
@@ -38,7 +42,8 @@
 //! (no offset) applies as is; the operating point becomes the intercept of the stored model.
 //! - **Validate**: the [`Config::validation`] record, scored with a streaming
 //!   [`Evaluation<f32>`] in physical units (seeded with measured samples, SPEC §6); a model with
-//!   a free-run fit below [`Config::min_fit`] is rejected.
+//!   a free-run fit below [`Config::min_fit`] is rejected by [`SelfIdentification::judge`]
+//!   (base duty from the end of the record until then).
 //! - **Run**: [`Config::run_duty`] ([`SelfIdentification::set_run_duty`]), with the one-step
 //!   residual monitor ([`crate::monitor`]).
 //! - **Fault**: duty 0 from the tick that detected it on, for ever (until a new
@@ -249,6 +254,8 @@ enum Phase {
         model: ArxModel<f32>,
         gaps: u16,
         started: bool,
+        /// The record is complete: waiting for [`SelfIdentification::judge`].
+        complete: bool,
     },
     Run {
         monitor: Monitor,
@@ -537,10 +544,35 @@ impl SelfIdentification {
                     model,
                     gaps: 0,
                     started: false,
+                    complete: false,
                 };
                 Some(Event::Identified { model, stats })
             }
             Err(reason) => Some(self.reject(reason)),
+        }
+    }
+
+    /// `true` once the validation record is complete: the board should call
+    /// [`judge`](Self::judge) from its main loop (after the tick's PWM write). Until then the
+    /// ticks hold the base duty.
+    pub fn needs_judgement(&self) -> bool {
+        matches!(self.phase, Phase::Validate { complete: true, .. })
+    }
+
+    /// Scores the complete validation record and accepts the model (run mode at
+    /// [`Config::run_duty`] from the next tick; [`Event::Accepted`], whose
+    /// [`persist`](Event::persist) asks for [`persist_bytes`](Self::persist_bytes) to be
+    /// stored) or rejects it ([`Event::Rejected`]; after the last attempt the fault is latched
+    /// and [`duty`](Self::duty) is 0 at once). `None` when no judgement is due.
+    ///
+    /// Kept out of [`tick`](Self::tick) because it costs about 1 ms on the ATmega2560 (three
+    /// square roots, divisions, moving the model into run mode), which would push that tick's
+    /// PWM write past its 1.6 ms budget.
+    pub fn judge(&mut self) -> Option<Event> {
+        if self.needs_judgement() {
+            Some(self.end_validation())
+        } else {
+            None
         }
     }
 
@@ -731,8 +763,14 @@ impl SelfIdentification {
                 eval,
                 gaps,
                 started,
+                complete,
                 ..
             } => {
+                if *complete {
+                    // Waiting for `judge`: hold the base duty, score nothing.
+                    self.duty = self.cfg.base_duty;
+                    return None;
+                }
                 if !*started {
                     *started = true;
                     let record = self.cfg.validation;
@@ -742,7 +780,11 @@ impl SelfIdentification {
                             self.duty = d;
                             Some(Event::Validate { record, samples })
                         }
-                        None => Some(self.end_validation()),
+                        None => {
+                            *complete = true;
+                            self.duty = self.cfg.base_duty;
+                            Some(Event::Validate { record, samples })
+                        }
                     };
                 }
                 if reading.is_none() {
@@ -761,7 +803,13 @@ impl SelfIdentification {
                         self.duty = d;
                         None
                     }
-                    None => Some(self.end_validation()),
+                    None => {
+                        // Scoring (square roots, the model's move into run mode) is left to
+                        // `judge`, outside the tick, so that the tick stays short.
+                        *complete = true;
+                        self.duty = self.cfg.base_duty;
+                        None
+                    }
                 }
             }
             Phase::Run { monitor } => {

@@ -8,7 +8,9 @@
 //! `d ≥ 1` is written as `OCR4A = d − 1` (in fast PWM the pin is high for `OCR4A + 1` counts, and
 //! `OCR4A = TOP` is constantly high), while `d = 0` disconnects OC4A from the pin, which then
 //! drives its PORT value, low. (With `OCR4A = 0` fast PWM would still give a one-count pulse
-//! each period.)
+//! each period.) Every duty-0 write also clears PH3 in PORTH: on silicon the output compare unit
+//! never touches PORTH, but simavr copies the OC4A level into it, so without this the pin would
+//! stay high there when the PWM is cut during its high phase.
 
 use avr_device::atmega2560::{PORTH, TC4};
 use core::convert::Infallible;
@@ -49,12 +51,14 @@ pub unsafe fn force_off() {
 /// PWM channel OC4A (D6).
 pub struct Pwm4A {
     tc4: TC4,
+    porth: PORTH,
     connected: bool,
 }
 
 impl Pwm4A {
-    /// Starts Timer4 at 20 kHz with the output disconnected and D6 driven low (duty 0).
-    pub fn new(tc4: TC4, porth: &PORTH) -> Self {
+    /// Starts Timer4 at 20 kHz with the output disconnected and D6 driven low (duty 0). Takes
+    /// PORTH (D6 is its only pin the board uses).
+    pub fn new(tc4: TC4, porth: PORTH) -> Self {
         porth
             .porth()
             .modify(|r, w| unsafe { w.bits(r.bits() & !PIN) });
@@ -69,6 +73,7 @@ impl Pwm4A {
         tc4.tccr4b().write(|w| unsafe { w.bits(TCCR4B_RUN) });
         Pwm4A {
             tc4,
+            porth,
             connected: false,
         }
     }
@@ -91,6 +96,9 @@ impl SetDutyCycle for Pwm4A {
                 self.connected = false;
             }
             self.tc4.ocr4a().write(|w| unsafe { w.bits(0) });
+            self.porth
+                .porth()
+                .modify(|r, w| unsafe { w.bits(r.bits() & !PIN) });
         } else {
             // OCR4A is double-buffered in fast PWM: the new value takes effect at TOP.
             self.tc4.ocr4a().write(|w| unsafe { w.bits(duty - 1) });
