@@ -2,8 +2,9 @@
 //! SFM3300 and blower (`host_tests::simavr`). The ELF is brought up to date first (one
 //! incremental nightly avr-none build per test process); a failed build fails the tests.
 //!
-//! Budgets checked: tick < 1.6 ms (25 600 cycles) with no overruns, search < 10 s, flash
-//! < 64 KB, static RAM + stack < 6 KB; the identified model's free-run fit on a fresh
+//! Budgets checked: tick control work (ISR → sensor read → statistics → PWM written) < 1.6 ms
+//! (25 600 cycles), every whole tick (with report lines, verdict, persistence) within its
+//! 10 ms period and no overruns, search < 10 s, flash < 64 KB, static RAM + stack < 6 KB; the identified model's free-run fit on a fresh
 //! validation signal ≥ [`MIN_FRESH_FIT`] %; the firmware's result equal to ridge-core's on the
 //! host from the same samples (same structure, coefficients within [`COEF_TOL`]).
 
@@ -76,10 +77,25 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
         if t.ticks < 1000 {
             bad.push(format!("only {} ticks timed", t.ticks));
         }
-        if t.worst >= TICK_BUDGET {
+        // The budget covers the tick's control work: ISR entry → sensor read → statistics
+        // update → PWM written. Report lines, the validation verdict and persistence follow the
+        // PWM write; they only have to end before the next tick (no overrun, below).
+        if t.control_ticks + 16 < t.ticks {
             bad.push(format!(
-                "worst tick {} cycles ≥ {TICK_BUDGET} (mean {:.0})",
-                t.worst, t.mean
+                "control latency seen in only {} of {} ticks",
+                t.control_ticks, t.ticks
+            ));
+        }
+        if t.control_worst >= TICK_BUDGET {
+            bad.push(format!(
+                "worst tick control latency {} cycles ≥ {TICK_BUDGET} (mean {:.0})",
+                t.control_worst, t.control_mean
+            ));
+        }
+        if t.worst >= TICK_CYCLES {
+            bad.push(format!(
+                "worst whole tick {} cycles ≥ one period ({TICK_CYCLES})",
+                t.worst
             ));
         }
         if t.missed > 0 {

@@ -506,6 +506,38 @@ impl Machine {
         }
     }
 
+    /// Program word at byte address `addr` (little-endian, as the core fetches it); `None`
+    /// beyond the end of flash.
+    pub fn flash_word(&self, addr: u32) -> Option<u16> {
+        // SAFETY: `flash` is `flashend + 1` bytes; bounds are checked.
+        unsafe {
+            let avr = &*self.raw();
+            if addr.checked_add(1)? > avr.flashend {
+                return None;
+            }
+            let lo = *avr.flash.add(addr as usize);
+            let hi = *avr.flash.add(addr as usize + 1);
+            Some(u16::from_le_bytes([lo, hi]))
+        }
+    }
+
+    /// Byte addresses of every `STS k, Rr` instruction in flash whose data address `k` is in
+    /// `targets` (the 32-bit `STS`: `1001 001r rrrr 0000`, then `k`). Scanned word by word, so
+    /// a second instruction word that happens to look like `STS` can be listed too; it is
+    /// never executed as an instruction start, so callers matching executed addresses are not
+    /// misled.
+    pub fn sts_sites(&self, targets: &[u16]) -> Vec<u32> {
+        let mut sites = Vec::new();
+        let mut addr = 0u32;
+        while let (Some(op), Some(k)) = (self.flash_word(addr), self.flash_word(addr + 2)) {
+            if op & 0xFE0F == 0x9200 && targets.contains(&k) {
+                sites.push(addr);
+            }
+            addr += 2;
+        }
+        sites
+    }
+
     /// Little-endian 16-bit word at `addr` (low byte first, as AVR 16-bit registers).
     pub fn data16(&self, addr: u16) -> u16 {
         u16::from_le_bytes([self.data(addr), self.data(addr + 1)])

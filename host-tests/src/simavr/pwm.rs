@@ -129,6 +129,11 @@ impl Channel {
         (m.data(r.tccra) >> (6 - 2 * self.index())) & 3
     }
 
+    /// Data-space address of `TCCRnA` (compare-output mode of all three channels).
+    pub fn tccra_addr(&self) -> u16 {
+        regs(self.timer).expect("16-bit timer").tccra
+    }
+
     /// Data-space address of `OCRnX` (low byte).
     pub fn ocr_addr(&self) -> u16 {
         regs(self.timer).expect("16-bit timer").ocra + 2 * self.index()

@@ -14,7 +14,13 @@
 //!   wait. The idle loop is learned from the addresses the tick ISR interrupts (the most
 //!   frequent one and its neighbours within 16 bytes), so no marker pin is needed;
 //! - a tick is **missed** when the ISR finds the main loop outside its idle wait (the previous
-//!   tick's work was still running).
+//!   tick's work was still running);
+//! - **control latency** of a tick: from the tick ISR's entry to the end of the first
+//!   instruction in that tick that writes the pump channel's compare register (`OCRnX` low
+//!   byte, which completes the 16-bit update) or its `TCCRnA` (output connected/disconnected).
+//!   Those `STS` instructions are found by scanning the flash at load, so this too needs no
+//!   marker in the firmware. It covers the sensor read, the state machine with the statistics
+//!   update, and the PWM write; report lines and persistence that follow are in `busy` only.
 
 use std::cell::{Cell, RefCell};
 use std::collections::HashMap;
@@ -110,6 +116,9 @@ pub struct TickTiming {
     /// The tick did not end in the idle wait: the ISR found the main loop busy (a blocking job
     /// such as the search, or the previous tick overrunning), or the next tick fired first.
     pub interrupted_busy: bool,
+    /// Cycles from ISR entry to the end of the tick's first write of the pump PWM registers
+    /// (see the module docs); `None` if the tick wrote none (or the ISR found the loop busy).
+    pub control: Option<u64>,
 }
 
 #[derive(Debug, Default)]
@@ -128,6 +137,10 @@ struct TickMeter {
     idle: Option<Vec<(u32, u16)>>,
     /// Open tick: (start, isr_end, what it waits for).
     open: Option<(u64, Option<u64>, Wait)>,
+    /// Control latency of the open tick, once its first PWM write executed.
+    open_control: Option<u64>,
+    /// Flash byte addresses of the instructions that write the pump PWM registers (sorted).
+    pwm_sites: Vec<u32>,
     ticks: Vec<TickTiming>,
     idle_cycles: u64,
     last_cycle: u64,
@@ -164,8 +177,9 @@ impl TickMeter {
         self.idle = Some(idle);
     }
 
-    /// Called after every instruction with the cycle, PC and SP after it, and SREG.I.
-    fn after_step(&mut self, cycle: u64, pc: u32, sp: u16, int_enabled: bool) {
+    /// Called after every instruction with the cycle, PC and SP after it, SREG.I, and the
+    /// address of the instruction just executed.
+    fn after_step(&mut self, cycle: u64, pc: u32, sp: u16, int_enabled: bool, executed: u32) {
         if self.last_idle {
             self.idle_cycles += cycle - self.last_cycle;
         }
@@ -180,6 +194,14 @@ impl TickMeter {
                 for e in new {
                     self.on_event(e);
                 }
+            }
+        }
+        if let Some((start, _, wait)) = self.open {
+            if wait != Wait::Busy
+                && self.open_control.is_none()
+                && self.pwm_sites.binary_search(&executed).is_ok()
+            {
+                self.open_control = Some(cycle - start);
             }
         }
         let idle_now = self.is_idle(pc, sp);
@@ -213,6 +235,7 @@ impl TickMeter {
             start,
             busy: end - start,
             interrupted_busy: false,
+            control: self.open_control.take(),
         });
     }
 
@@ -242,10 +265,12 @@ impl TickMeter {
                     start,
                     busy: e.cycle - start,
                     interrupted_busy: true,
+                    control: self.open_control.take(),
                 });
             }
             let wait = if was_idle { Wait::Leave } else { Wait::Busy };
             self.open = Some((e.cycle, None, wait));
+            self.open_control = None;
         } else if let Some((start, None, wait)) = self.open {
             if wait == Wait::Busy {
                 // The ISR interrupted a busy main loop (the search, or an overrun): the tick
@@ -255,6 +280,7 @@ impl TickMeter {
                     start,
                     busy: e.cycle - start,
                     interrupted_busy: true,
+                    control: None,
                 });
             } else {
                 self.open = Some((start, Some(e.cycle), wait));
@@ -350,8 +376,20 @@ impl Rig {
         p.ts_s /= SUBSTEPS as f64;
         p.delay_samples *= SUBSTEPS;
         let pump = Pump::new(p);
+        // The pump channel's PWM registers; with no channel configured, every 16-bit channel's.
+        let channels: Vec<Channel> = match cfg.pwm {
+            Some(c) => vec![c],
+            None => Channel::all().collect(),
+        };
+        let targets: Vec<u16> = channels
+            .iter()
+            .flat_map(|c| [c.ocr_addr(), c.tccra_addr()])
+            .collect();
+        let mut pwm_sites = machine.sts_sites(&targets);
+        pwm_sites.sort_unstable();
         let ticks = TickMeter {
             ring: vec![(0, 0); RING],
+            pwm_sites,
             vector: cfg.tick_vector,
             events: cfg.tick_vector.map(|v| machine.watch_vector(v)),
             ..TickMeter::default()
@@ -513,12 +551,14 @@ impl Rig {
         while self.machine.cycle() < target {
             let chunk_end = self.next_step.min(target);
             while self.machine.cycle() < chunk_end {
+                let executed = self.machine.pc();
                 let h = self.machine.step();
                 self.ticks.after_step(
                     self.machine.cycle(),
                     self.machine.pc(),
                     self.machine.sp(),
                     self.machine.interrupts_enabled(),
+                    executed,
                 );
                 if h != Halt::Reached {
                     self.halted = Some(h);

@@ -128,6 +128,15 @@ pub struct Timing {
     pub worst_at: u64,
     /// Mean, cycles.
     pub mean: f64,
+    /// Ticks with a control latency (ISR entry → pump PWM registers written: sensor read,
+    /// state machine with the statistics update, PWM), see [`TickTiming::control`].
+    pub control_ticks: usize,
+    /// Worst control latency, cycles.
+    pub control_worst: u64,
+    /// Cycle at which the tick with the worst control latency started.
+    pub control_worst_at: u64,
+    /// Mean control latency, cycles.
+    pub control_mean: f64,
     /// Ticks that found the main loop busy outside the search (overruns: missed deadlines).
     pub missed: usize,
     /// Ticks that fired during the (blocking) search.
@@ -362,11 +371,26 @@ fn timing(
     } else {
         0.0
     };
+    let control: Vec<(u64, u64)> = ticks
+        .iter()
+        .filter(|t| !t.interrupted_busy)
+        .filter_map(|t| t.control.map(|c| (c, t.start)))
+        .collect();
+    let (control_worst, control_worst_at) = control.iter().copied().max().unwrap_or((0, 0));
+    let control_mean = if control.is_empty() {
+        0.0
+    } else {
+        control.iter().map(|c| c.0).sum::<u64>() as f64 / control.len() as f64
+    };
     Timing {
         ticks: normal.len(),
         worst,
         worst_at,
         mean,
+        control_ticks: control.len(),
+        control_worst,
+        control_worst_at,
+        control_mean,
         missed,
         during_search,
         load,
