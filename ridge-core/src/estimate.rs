@@ -78,13 +78,21 @@ impl<T: Real> Default for Ridge<T> {
     }
 }
 
-impl<T: Real> Estimator<T> for Ridge<T> {
-    fn fit_with(&self, system: &System<T>, ls: &Factor<T>) -> Result<Fit<T>> {
+impl<T: Real> Ridge<T> {
+    /// [`Estimator::fit_with`] with caller-provided storage for the factor of `XᵀX + γD`
+    /// (overwritten), see [`RidgeM::iterate_in`].
+    pub fn fit_in(&self, system: &System<T>, ls: &Factor<T>, f: &mut Factor<T>) -> Result<Fit<T>> {
         if !(self.gamma.is_finite() && self.gamma > T::ZERO) {
             return Err(Error::InvalidParameter);
         }
-        let f = system.factor(self.gamma)?;
+        system.factor_into(self.gamma, f)?;
         Ok(Fit::new(system.layout, f.solution(), ls, 1))
+    }
+}
+
+impl<T: Real> Estimator<T> for Ridge<T> {
+    fn fit_with(&self, system: &System<T>, ls: &Factor<T>) -> Result<Fit<T>> {
+        self.fit_in(system, ls, &mut Factor::empty())
     }
 }
 
@@ -165,11 +173,24 @@ impl<T: Real> RidgeM<T> {
     pub fn iterate(
         &self,
         system: &System<T>,
+        visit: impl FnMut(u32, &[T]),
+    ) -> Result<([T; PARAMS_MAX], u32)> {
+        let mut f = Factor::empty();
+        self.iterate_in(system, &mut f, visit)
+    }
+
+    /// [`RidgeM::iterate`] with caller-provided storage for the factor of `XᵀX + γD`
+    /// (its previous contents are overwritten): the search keeps one such scratch factor
+    /// instead of a 420-byte temporary per call, which matters in 8 KB of SRAM.
+    pub fn iterate_in(
+        &self,
+        system: &System<T>,
+        f: &mut Factor<T>,
         mut visit: impl FnMut(u32, &[T]),
     ) -> Result<([T; PARAMS_MAX], u32)> {
         self.check()?;
         let n = system.params();
-        let f = system.factor(self.gamma)?;
+        system.factor_into(self.gamma, f)?;
         let w_ridge = f.solution();
         let intercept = system.layout.intercept();
         let mut v = [T::ZERO; PARAMS_MAX];

@@ -15,7 +15,7 @@ use crate::estimate::{Estimator, Fit, Ols, Ridge, RidgeM};
 use crate::lasso::AdaptiveLasso;
 use crate::normal::{Factor, Normal, System};
 use crate::real::Real;
-use crate::structure::{Grid, Offset, Structure, GRID_MAX};
+use crate::structure::{Grid, Offset, Structure};
 
 /// How candidates are ranked. All use `N ln(RSS/N)`; they differ in the penalty.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -152,20 +152,23 @@ impl<T: Real> Search<T> {
     /// `ls` (caller-owned storage, reused across candidates to keep the stack small on
     /// an 8-bit MCU) and the criterion of the least-squares RSS, a lower bound of its
     /// score.
+    /// Sets up candidate `s`: its system, its least-squares factor in `ls`, and the lower
+    /// bound of its score. `scratch` is overwritten (validation factor).
     fn prepare<'n>(
         &self,
         s: Structure,
         est: &'n Normal<T>,
         val: Option<&Normal<T>>,
         ls: &mut Factor<T>,
+        scratch: &mut Factor<T>,
     ) -> Result<(System<'n, T>, T)> {
         let system = est.system(s, self.offset)?;
         system.factor_into(T::ZERO, ls)?;
         let bound = match (self.criterion, val) {
             (Criterion::Validation, Some(v)) => {
                 let vs = v.system(s, self.offset)?;
-                let vls = vs.factor(T::ZERO)?;
-                self.criterion(vls.rss_min(), vs.samples(), s)
+                vs.factor_into(T::ZERO, scratch)?;
+                self.criterion(scratch.rss_min(), vs.samples(), s)
             }
             _ => self.criterion(ls.rss_min(), system.samples(), s),
         };
@@ -176,18 +179,27 @@ impl<T: Real> Search<T> {
         Ok((system, bound))
     }
 
+    /// Fits a prepared candidate and scores it. All factor storage comes from the caller
+    /// (`ls`: the least-squares factor from [`prepare`](Self::prepare); `scratch`:
+    /// overwritten), so that the search's deepest stack frame holds no factor of its own.
     fn score(
         &self,
         system: &System<'_, T>,
         ls: &Factor<T>,
+        scratch: &mut Factor<T>,
         val: Option<&Normal<T>>,
         progress: &mut impl FnMut(),
     ) -> Result<(Fit<T>, T)> {
         let fit = match &self.method {
             // Ridge-M is the long one: report progress after every iterate.
             Method::RidgeM(m) => {
-                let (w, used) = m.iterate(system, |_, _| progress())?;
+                let (w, used) = m.iterate_in(system, scratch, |_, _| progress())?;
                 Fit::new(system.layout, w, ls, used)
+            }
+            Method::Ridge(m) => {
+                let fit = m.fit_in(system, ls, scratch);
+                progress();
+                fit?
             }
             other => {
                 let fit = other.fit_with(system, ls);
@@ -199,8 +211,8 @@ impl<T: Real> Search<T> {
         let score = match (self.criterion, val) {
             (Criterion::Validation, Some(v)) => {
                 let vs = v.system(s, self.offset)?;
-                let vls = vs.factor(T::ZERO)?;
-                self.criterion(vls.rss(&fit.w[..vs.params()]), vs.samples(), s)
+                vs.factor_into(T::ZERO, scratch)?;
+                self.criterion(scratch.rss(&fit.w[..vs.params()]), vs.samples(), s)
             }
             _ => self.criterion(fit.rss, system.samples(), s),
         };
@@ -245,67 +257,66 @@ impl<T: Real> Search<T> {
                 *best = Some((fit, score));
             }
         };
-        let mut ls = Factor::empty();
+        let (mut ls, mut scratch) = (Factor::empty(), Factor::empty());
         if self.prune {
-            // Phase 1: bounds of every usable candidate, which are then pending.
-            let mut bound = [T::ZERO; GRID_MAX];
-            let mut pending = Bits::default();
-            for (i, s) in self.grid.iter().enumerate().take(GRID_MAX) {
-                match self.prepare(s, est, val, &mut ls) {
-                    Ok((_, b)) => {
-                        bound[i] = b;
-                        pending.set(i, true);
-                    }
-                    Err(_) => skipped += 1,
-                }
-                progress();
-            }
-            // Phase 2: ascending bounds until no bound can beat the best.
-            loop {
-                let mut next: Option<usize> = None;
-                for i in 0..candidates.min(GRID_MAX) {
-                    if !pending.get(i) {
-                        continue;
-                    }
-                    next = match next {
-                        None => Some(i),
-                        Some(j) => {
-                            let (si, sj) = (self.grid.get(i), self.grid.get(j));
-                            match (si, sj) {
-                                (Some(si), Some(sj)) if better(bound[i], si, bound[j], sj) => {
-                                    Some(i)
-                                }
-                                _ => Some(j),
+            // Candidates are evaluated in ascending order of their lower bounds until a bound
+            // exceeds the best score. The bounds are not all kept: each pass over the grid
+            // computes them again and queues the `QUEUE` smallest that come after everything
+            // queued before; a further pass is only needed when all of those were evaluated
+            // and the search goes on (rare: most searches stop within the first few).
+            let mut after: Option<(T, Structure)> = None;
+            let mut first_pass = true;
+            'passes: loop {
+                let mut queue = Queue::<T>::default();
+                for (i, s) in self.grid.iter().enumerate() {
+                    match self.prepare(s, est, val, &mut ls, &mut scratch) {
+                        Ok((_, b)) => {
+                            let done = after.is_some_and(|(ab, a)| !better(ab, a, b, s));
+                            if !done {
+                                queue.offer(b, s, i);
                             }
                         }
-                    };
+                        Err(_) => {
+                            if first_pass {
+                                skipped += 1;
+                            }
+                        }
+                    }
+                    progress();
                 }
-                let Some(i) = next else { break };
-                pending.set(i, false);
-                let Some(s) = self.grid.get(i) else { break };
-                if let Some((_, bs)) = &best {
-                    if bound[i] > *bs {
-                        break;
+                first_pass = false;
+                for &(b, s, i) in queue.entries() {
+                    if let Some((_, bs)) = &best {
+                        if b > *bs {
+                            break 'passes;
+                        }
+                    }
+                    after = Some((b, s));
+                    let Some(s) = self.grid.get(usize::from(i)) else {
+                        break 'passes;
+                    };
+                    let Ok((system, _)) = self.prepare(s, est, val, &mut ls, &mut scratch) else {
+                        skipped += 1;
+                        continue;
+                    };
+                    evaluated += 1;
+                    match self.score(&system, &ls, &mut scratch, val, progress) {
+                        Ok((fit, score)) => consider(fit, score, &mut best),
+                        Err(_) => skipped += 1,
                     }
                 }
-                let Ok((system, _)) = self.prepare(s, est, val, &mut ls) else {
-                    skipped += 1;
-                    continue;
-                };
-                evaluated += 1;
-                match self.score(&system, &ls, val, progress) {
-                    Ok((fit, score)) => consider(fit, score, &mut best),
-                    Err(_) => skipped += 1,
+                if queue.len < QUEUE {
+                    break;
                 }
             }
         } else {
             for s in self.grid.iter() {
-                let Ok((system, _)) = self.prepare(s, est, val, &mut ls) else {
+                let Ok((system, _)) = self.prepare(s, est, val, &mut ls, &mut scratch) else {
                     skipped += 1;
                     continue;
                 };
                 evaluated += 1;
-                match self.score(&system, &ls, val, progress) {
+                match self.score(&system, &ls, &mut scratch, val, progress) {
                     Ok((fit, score)) => consider(fit, score, &mut best),
                     Err(_) => skipped += 1,
                 }
@@ -330,10 +341,10 @@ impl<T: Real> Search<T> {
         mut visit: impl FnMut(Structure, &Fit<T>, T),
     ) -> Result<()> {
         self.check(val)?;
-        let mut ls = Factor::empty();
+        let (mut ls, mut scratch) = (Factor::empty(), Factor::empty());
         for s in self.grid.iter() {
-            if let Ok((system, _)) = self.prepare(s, est, val, &mut ls) {
-                if let Ok((fit, score)) = self.score(&system, &ls, val, &mut || {}) {
+            if let Ok((system, _)) = self.prepare(s, est, val, &mut ls, &mut scratch) {
+                if let Ok((fit, score)) = self.score(&system, &ls, &mut scratch, val, &mut || {}) {
                     visit(s, &fit, score);
                 }
             }
@@ -356,20 +367,52 @@ fn better<T: Real>(sa: T, a: Structure, sb: T, b: Structure) -> bool {
     (ka, core::cmp::Reverse(a.d), a.p) < (kb, core::cmp::Reverse(b.d), b.p)
 }
 
-/// A set of candidate indices, 32 bytes for the 252 of the default grid.
-#[derive(Default)]
-struct Bits([u32; GRID_MAX.div_ceil(32)]);
+/// Candidates queued per pass of the pruned search.
+const QUEUE: usize = 16;
 
-impl Bits {
-    fn get(&self, i: usize) -> bool {
-        self.0.get(i / 32).is_some_and(|w| w & (1 << (i % 32)) != 0)
+/// The `QUEUE` best-ranked candidates offered so far, ascending: (bound, structure, grid
+/// index). 16 × 8 bytes with `f32`, against 4 bytes per grid candidate (1 KB) for keeping
+/// every bound.
+struct Queue<T> {
+    items: [(T, Structure, u8); QUEUE],
+    len: usize,
+}
+
+impl<T: Real> Default for Queue<T> {
+    fn default() -> Self {
+        Queue {
+            items: [(T::ZERO, Structure { p: 0, q: 0, d: 0 }, 0); QUEUE],
+            len: 0,
+        }
     }
-    fn set(&mut self, i: usize, on: bool) {
-        if let Some(w) = self.0.get_mut(i / 32) {
-            if on {
-                *w |= 1 << (i % 32);
-            } else {
-                *w &= !(1 << (i % 32));
+}
+
+impl<T: Real> Queue<T> {
+    /// The queued entries, best first.
+    fn entries(&self) -> &[(T, Structure, u8)] {
+        self.items.get(..self.len).unwrap_or(&[])
+    }
+
+    /// Inserts candidate `i` (structure `s`, bound `b`) in rank order if it ranks among the
+    /// `QUEUE` best; the worst one drops out of a full queue.
+    fn offer(&mut self, b: T, s: Structure, i: usize) {
+        let Ok(i) = u8::try_from(i) else { return };
+        let at = self
+            .entries()
+            .iter()
+            .position(|&(qb, qs, _)| better(b, s, qb, qs))
+            .unwrap_or(self.len);
+        let end = (self.len + 1).min(QUEUE);
+        // Shift [at, end) one place up (the last entry of a full queue falls off), then put
+        // the new entry at `at`; nothing happens when it ranks after a full queue.
+        if at >= end {
+            return;
+        }
+        if let Some(window) = self.items.get_mut(at..end) {
+            window.rotate_right(1);
+            if let Some(slot) = window.first_mut() {
+                *slot = (b, s, i);
+                self.len = end;
             }
         }
     }
