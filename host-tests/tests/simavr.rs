@@ -236,7 +236,6 @@ fn assert_clean(what: &str, o: &Outcome, bad: Vec<String>) {
 /// Default pump: identification, host equality, fresh-signal fit, all budgets; then the
 /// persisted record: an intact copy is loaded at the next boot, a corrupted one is rejected.
 #[test]
-#[ignore = "open: worst tick (8.2 ms at ACCEPT) and static RAM + stack (7.5 KB) exceed the 1.6 ms / 6 KB budgets; identification itself passes (see small/sluggish); run with --ignored"]
 fn default_pump_identifies_within_budgets_and_persists() {
     let o = session(PumpParams::default(), 1);
     let bad = check_identification(&o, true);

@@ -157,7 +157,8 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             self.judge(board);
         }
         if self.sid.needs_search() {
-            self.search(board);
+            let (event, ticks, lost) = self.search(board);
+            self.after_search(board, event, ticks, lost);
         }
     }
 
@@ -213,17 +214,18 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
         }
     }
 
-    /// Runs the search, ticking from its `pet` calls.
+    /// Runs the search (ticking from its `pet` calls if the board does); returns its event
+    /// and the ticks handled and lost meanwhile.
     ///
     /// Never inlined: the search's locals (the job with its statistics, the normal equations,
     /// the candidate systems: several KB on the ATmega2560) must only be on the stack while it
-    /// runs, not in the frame of the endless loop.
+    /// runs, not in the frame of the endless loop, nor under the catch-up tick that follows.
     #[inline(never)]
-    fn search<B: Board>(&mut self, board: &mut B) {
+    fn search<B: Board>(&mut self, board: &mut B) -> (Option<Event>, u16, u16) {
         let (mut ticks, mut lost) = (0u16, 0u16);
         let event = if B::TICK_DURING_SEARCH {
             let Some(job) = self.sid.take_search() else {
-                return;
+                return (None, ticks, lost);
             };
             let outcome = job.run(|| {
                 board.pet();
@@ -238,6 +240,18 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             // No ticks meanwhile: the PWM holds the base duty the state machine set.
             self.sid.search(|| board.pet())
         };
+        (event, ticks, lost)
+    }
+
+    /// After a search (its frame is gone): its event, the catch-up tick and the `SEARCH` /
+    /// `STACK` lines.
+    fn after_search(
+        &mut self,
+        board: &mut impl Board,
+        event: Option<Event>,
+        mut ticks: u16,
+        mut lost: u16,
+    ) {
         if let Some(event) = event {
             self.stop_on_fault();
             self.report(board, &event);
