@@ -4,10 +4,11 @@
 //! Baud rate: with U2X (double speed) `UBRR = 16` gives 16 MHz / (8 · 17) = 117 647 baud, +2.1 %
 //! from 115 200 (without U2X the nearest is −3.5 %, too far for reliable 8N1 reception).
 //!
-//! Bytes go through a 128-byte queue that the data-register-empty interrupt (`USART0_UDRE`)
-//! drains, so a report line costs the main loop a few µs instead of 87 µs per character. When the
-//! queue is full the writer waits for room (≤ 11 ms for a whole queue); with interrupts disabled
-//! it sends directly instead.
+//! Bytes go through a 256-byte queue that the data-register-empty interrupt (`USART0_UDRE`)
+//! drains, so a report line costs the main loop a few µs instead of 87 µs per character. The
+//! longest burst (the `ID` line after the search with the `SEARCH` and `STACK` lines, ~220
+//! bytes) fits. When the queue is full the writer waits for room (≤ 22 ms for a whole queue);
+//! with interrupts disabled it sends directly instead.
 
 use super::super::ring::Ring;
 use avr_device::atmega2560::USART0;
@@ -26,7 +27,7 @@ const TXEN0: u8 = 1 << 3;
 const UCSR0C_8N1: u8 = 0b0000_0110;
 
 /// Transmit queue, drained by `USART0_UDRE`.
-static TX: Ring<128> = Ring::new();
+static TX: Ring<256> = Ring::new();
 
 /// USART0 transmitter.
 pub struct Usart0 {
