@@ -115,6 +115,21 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
                 o.sizes.ram()
             ));
         }
+        // The worst case over every path (call graph), not only those this run took.
+        match host_tests::simavr::stack::analyze_elf(&elf()) {
+            Ok(r) if !r.complete() => bad.push(format!("stack bound incomplete: {r:?}")),
+            Ok(r) if o.sizes.ram() + r.worst() >= RAM_BUDGET => bad.push(format!(
+                "static RAM {} B + worst-case stack {} B ≥ {RAM_BUDGET} B",
+                o.sizes.ram(),
+                r.worst()
+            )),
+            Ok(r) if r.worst() < stack => bad.push(format!(
+                "call-graph stack bound {} B below the measured {stack} B",
+                r.worst()
+            )),
+            Ok(_) => {}
+            Err(e) => bad.push(format!("stack analysis: {e}")),
+        }
         if o.stack_used.is_some() && o.stack_used != o.rig.stack_used() {
             bad.push(format!(
                 "STACK line {:?} B disagrees with the SRAM paint {:?} B",

@@ -325,6 +325,17 @@ fn report(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
             .map_or_else(|| "n/a".into(), |v| v.to_string()),
         s.ram() + rig.stack_used().or(out.stack_used).unwrap_or(0)
     );
+    match host_tests::simavr::stack::analyze_elf(&cfg.rig.elf) {
+        Ok(r) => println!(
+            "  worst-case stack over every path (call graph): {} B (main {} + interrupt {})  ->  static RAM + stack {} B (budget 6144){}",
+            r.worst(),
+            r.main.bytes,
+            r.interrupt.bytes,
+            s.ram() + r.worst(),
+            if r.complete() { "" } else { " [incomplete: recursion or indirect calls]" }
+        ),
+        Err(e) => println!("  worst-case stack: {e}"),
+    }
     if out.accept.is_none() {
         ok = false;
     }

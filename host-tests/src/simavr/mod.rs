@@ -20,3 +20,4 @@ pub mod report;
 pub mod rig;
 pub mod sensor;
 pub mod session;
+pub mod stack;
