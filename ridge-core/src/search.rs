@@ -8,6 +8,11 @@
 //! stops when the next bound exceeds the best criterion found. The pick is identical to
 //! the exhaustive grid: the same arithmetic produces every score, and every score is
 //! `bound + (non-negative excess)`.
+//!
+//! Memory is bounded by a constant, not by the grid: each pass over the grid queues the 16
+//! best-ranked bounds after those already queued, and another pass runs only when all of them
+//! were evaluated and the search goes on (a factorisation per candidate and pass; the default
+//! search on the simulated pump needs one pass).
 
 use crate::error::{Error, Result};
 use crate::estimate::{Estimator, Fit, Ols, Ridge, RidgeM};
