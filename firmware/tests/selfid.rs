@@ -687,6 +687,74 @@ fn the_split_search_gives_the_same_result_as_the_blocking_one() {
     assert_eq!(a.sm.persist_bytes(), b.sm.persist_bytes());
 }
 
+/// The guard a board runs while the state machine cannot tick (the ATmega2560's blocking
+/// search) applies the tick's own checks, continuing its counters, and the fault it finds is
+/// latched and reported once.
+#[test]
+fn the_search_guard_checks_like_the_tick_and_its_fault_is_latched_once() {
+    let mut rig = Rig::new(Config::default(), None, Plant::reference());
+    for _ in 0..20_000 {
+        if rig.sm.needs_search() {
+            break;
+        }
+        rig.tick_without_judgement();
+    }
+    assert!(rig.sm.needs_search());
+    // Two sensor errors while the search is due: the guard continues from them.
+    rig.sm.tick(Err(SensorFault::Nack));
+    rig.sm.tick(Err(SensorFault::Nack));
+    let mut guard = rig.sm.guard();
+    let mut third = guard;
+    assert_eq!(
+        third.check(3_000, Err(SensorFault::Nack)),
+        Ok(None),
+        "third error"
+    );
+    third.check(3_000, Err(SensorFault::Nack)).unwrap();
+    assert!(
+        third.check(3_000, Err(SensorFault::Nack)).is_err(),
+        "the fifth consecutive error, counting the two before the search"
+    );
+    assert_eq!(guard.check(3_000, Ok(2_400)), Ok(Some(2_400)));
+    // A good reading resets the count: five more errors make the fault, not three.
+    for _ in 0..4 {
+        assert_eq!(guard.check(3_000, Err(SensorFault::Nack)), Ok(None));
+    }
+    let reason = guard.check(3_000, Err(SensorFault::Nack)).unwrap_err();
+    assert_eq!(
+        reason,
+        FaultReason::Sensor {
+            error: SensorFault::Nack,
+            count: 5
+        }
+    );
+    // Range and stall as in `tick`.
+    let mut g = rig.sm.guard();
+    assert_eq!(
+        g.check(3_000, Ok(30_001)),
+        Err(FaultReason::FlowRange { counts: 30_001 })
+    );
+    let mut g = rig.sm.guard();
+    for _ in 0..49 {
+        assert_eq!(g.check(4_000, Ok(100)), Ok(Some(100)));
+    }
+    assert_eq!(
+        g.check(4_000, Ok(100)),
+        Err(FaultReason::Stall {
+            duty: 4_000,
+            counts: 100
+        })
+    );
+    // The board hands the fault over after the search: duty 0, reported once.
+    let event = rig.sm.fault_detected(reason);
+    assert_eq!(line(&event), "FAULT sensor=nack n=5");
+    assert_eq!(rig.sm.state(), State::Fault);
+    assert_eq!(rig.sm.duty(), 0);
+    let t = rig.tick();
+    assert_eq!((t.duty, t.event), (0, None));
+    assert!(!rig.sm.needs_search(), "the pending search is dropped");
+}
+
 #[test]
 fn the_tick_that_completes_the_validation_only_holds_the_base_duty_until_the_judgement() {
     let mut rig = Rig::new(Config::default(), None, Plant::reference());

@@ -440,6 +440,46 @@ fn fault_stuck_reading_at_zero_flow_stops_pump() {
     );
 }
 
+/// During the blocking structure search (from the end of the 30 s record at ~32 s to ~35 s)
+/// the state machine does not tick, but the firmware still reads the sensor at the tick
+/// boundaries its progress calls see and runs the fault checks: a sensor that dies in the
+/// middle of the search stops the pump within the fault limit (5 ticks) plus the longest gap
+/// between those reads, not only when the search is over.
+#[test]
+fn fault_sensor_absent_during_the_search_stops_pump_before_it_ends() {
+    const DIES: f64 = 33.0;
+    let (rig, idx) = inject(&[(DIES, Action::Sensor(Fault::Absent))], 4.0);
+    let texts: Vec<&str> = rig.lines.iter().map(|l| l.text.as_str()).collect();
+    let idx = idx.unwrap_or_else(|| panic!("no FAULT line: {texts:?}"));
+    assert!(
+        rig.lines[idx].text.contains("sensor=nack"),
+        "{}",
+        rig.lines[idx].text
+    );
+    // The search was running: its ID line comes after the sensor died.
+    let id = texts
+        .iter()
+        .position(|t| t.starts_with("ID "))
+        .unwrap_or_else(|| panic!("no ID line: {texts:?}"));
+    let dies = (DIES * 16e6) as u64;
+    assert!(rig.line_starts[id] > dies + 16_000_000 / 2, "{texts:?}");
+    // The pump stopped long before: 5 failed reads and at most ~0.15 s without a read.
+    let off = rig
+        .duty_log
+        .iter()
+        .find(|d| d.cycle > dies && d.fraction == 0.0)
+        .map(|d| d.cycle)
+        .unwrap_or(u64::MAX);
+    let delay_s = off.saturating_sub(dies) as f64 / 16e6;
+    assert!(delay_s < 0.25, "pump off {delay_s} s after the sensor died");
+    assert!(off < rig.line_starts[id], "pump off only after the search");
+    assert!(
+        rig.duty_at(rig.machine.cycle())
+            .is_some_and(|d| d.fraction == 0.0),
+        "pump running at the end"
+    );
+}
+
 /// The same SFM3300 model works as an `avr_tester::TwiSlave` under avr-tester itself: the
 /// firmware boots, starts the sensor and reads it (`SENSOR ready`), with UART read through
 /// avr-tester.

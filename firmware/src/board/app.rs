@@ -9,8 +9,10 @@
 //!   every pet it pets the watchdog and, if a 10 ms boundary has passed, reads the sensor and
 //!   calls `tick` (the state machine holds the base duty and keeps detecting faults). Those
 //!   ticks come as late as the longest stretch between two pets (one factorisation);
-//! - blocking (ATmega2560, for stack): `SelfIdentification::search`, petting the watchdog only;
-//!   the PWM holds the base duty and the ticks meanwhile are lost.
+//! - blocking (ATmega2560, for stack): `SelfIdentification::search`; its `pet` closure pets the
+//!   watchdog and, at every 10 ms boundary, reads the sensor and runs the tick's fault checks
+//!   (`SelfIdentification::guard`: sensor errors, flow range, stall), stopping the pump at once
+//!   on a fault; the PWM holds the base duty, the readings are not recorded.
 //!
 //! Either way the search's ticks are counted on the `SEARCH` line, not in `MISSED`.
 //!
@@ -21,14 +23,14 @@
 //! |---|---|
 //! | `SENSOR ready tries=<n>` / `SENSOR start failed` | at start: continuous measurement started (retried every tick for 1 s) |
 //! | `MISSED late=<n> lost=<n>` | at most once a second, when a total changed: `late` = loop passes that came back after the next tick had already fired, `lost` = ticks skipped entirely (no sample) |
-//! | `SEARCH ticks=<n> lost=<n>` | after a search: ticks handled and ticks skipped while it ran |
+//! | `SEARCH ticks=<n> lost=<n>` | after a search: tick boundaries handled (ticked, or sensor read and fault checks on the ATmega2560) and skipped while it ran |
 //! | `STACK used=<bytes> free=<bytes>` | after each search (boards that measure the stack) |
 //! | `PERSIST saved` / `PERSIST failed` | a record write finished |
 //! | `PUMP error` | the PWM channel refused a duty: the pump is stopped |
 
 use embedded_hal::i2c::I2c;
 use embedded_hal::pwm::SetDutyCycle;
-use ridge_pump_firmware::event::{Event, SensorFault};
+use ridge_pump_firmware::event::{Event, FaultReason, SensorFault};
 use ridge_pump_firmware::pump::Pump;
 use ridge_pump_firmware::selfid::SelfIdentification;
 use ridge_pump_firmware::sfm3300::Sfm3300;
@@ -67,7 +69,9 @@ pub trait Board {
     /// `pet` calls, through [`SelfIdentification::take_search`]. That costs a copy of the
     /// estimation statistics and the tick's stack on top of the search's deepest frame, which
     /// the ATmega2560's 8 KB do not have; without it the blocking
-    /// [`SelfIdentification::search`] runs and the PWM holds the base duty meanwhile.
+    /// [`SelfIdentification::search`] runs and the PWM holds the base duty meanwhile, with
+    /// the sensor read and the fault checks ([`SelfIdentification::guard`]) at every tick
+    /// boundary.
     const TICK_DURING_SEARCH: bool;
     /// Non-blocking: the number of 10 ms tick boundaries that passed since the last call that
     /// returned `Some` (≥ 1), or `None` if none did.
@@ -94,6 +98,10 @@ pub struct App<I, P, W> {
     lost: u16,
     reported: (u16, u16),
     summary_in: u8,
+    /// A fault the guard found during a blocking search, for the state machine after it.
+    guard_fault: Option<FaultReason>,
+    /// `(ticks, lost)` of the last search, for its `SEARCH` line in the next pass.
+    search_lines: Option<(u16, u16)>,
 }
 
 impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
@@ -116,6 +124,8 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             lost: 0,
             reported: (0, 0),
             summary_in: SUMMARY_TICKS,
+            guard_fault: None,
+            search_lines: None,
         }
     }
 
@@ -153,6 +163,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
         self.lost = self.lost.saturating_add(elapsed - 1);
         self.tick(board);
         self.summary();
+        self.print_search_lines(board);
         if self.sid.needs_judgement() {
             self.judge(board);
         }
@@ -237,14 +248,37 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             });
             self.sid.finish_search(outcome)
         } else {
-            // No ticks meanwhile: the PWM holds the base duty the state machine set.
-            self.sid.search(|| board.pet())
+            // The state machine cannot tick meanwhile (its statistics are in use, and the stack
+            // has no room for a tick on top of the search): the PWM holds the base duty, and a
+            // copy of the tick's fault checks reads the sensor at every tick boundary. A fault
+            // stops the pump at once; the state machine takes it over after the search.
+            let mut guard = self.sid.guard();
+            let applied = self.pump.applied();
+            let (sensor, pump) = (&mut self.sensor, &mut self.pump);
+            let mut fault = None;
+            let event = self.sid.search(|| {
+                board.pet();
+                if let Some(elapsed) = board.poll_tick() {
+                    ticks = ticks.saturating_add(1);
+                    lost = lost.saturating_add(elapsed - 1);
+                    if fault.is_none() {
+                        let flow = sensor.read_counts().map_err(SensorFault::from);
+                        if let Err(reason) = guard.check(applied, flow) {
+                            pump.stop().ok();
+                            fault = Some(reason);
+                        }
+                    }
+                }
+            });
+            self.guard_fault = fault;
+            event
         };
         (event, ticks, lost)
     }
 
-    /// After a search (its frame is gone): its event, the catch-up tick and the `SEARCH` /
-    /// `STACK` lines.
+    /// After a search (its frame is gone): its event (and a fault the guard found), then the
+    /// catch-up tick. The `SEARCH` / `STACK` lines wait for the next pass, right after its
+    /// tick, so that printing them cannot run into the next tick boundary.
     fn after_search(
         &mut self,
         board: &mut impl Board,
@@ -256,6 +290,10 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             self.stop_on_fault();
             self.report(board, &event);
         }
+        if let Some(reason) = self.guard_fault.take() {
+            let event = self.sid.fault_detected(reason);
+            self.report(board, &event);
+        }
         // Catch up with the boundary that passed last (the ones before it are lost), so that
         // the next pass of the loop does not count as late.
         if let Some(elapsed) = board.poll_tick() {
@@ -263,9 +301,16 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             lost = lost.saturating_add(elapsed - 1);
             self.tick(board);
         }
-        uwriteln!(self.out, "SEARCH ticks={} lost={}", ticks, lost).ok();
-        if let Some((used, free)) = board.stack() {
-            uwriteln!(self.out, "STACK used={} free={}", used, free).ok();
+        self.search_lines = Some((ticks, lost));
+    }
+
+    /// The `SEARCH` / `STACK` lines of the last search, once.
+    fn print_search_lines(&mut self, board: &impl Board) {
+        if let Some((ticks, lost)) = self.search_lines.take() {
+            uwriteln!(self.out, "SEARCH ticks={} lost={}", ticks, lost).ok();
+            if let Some((used, free)) = board.stack() {
+                uwriteln!(self.out, "STACK used={} free={}", used, free).ok();
+            }
         }
     }
 

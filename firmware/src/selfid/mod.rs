@@ -125,6 +125,80 @@ impl Default for Config {
     }
 }
 
+/// The fault checks of every tick, with their counters: [`Config::sensor_fault_limit`]
+/// consecutive sensor errors, a reading beyond [`Config::flow_limit`], and a stall
+/// ([`Config::stall_duty`] or more with a flow below [`Config::stall_flow`] for
+/// [`Config::stall_ticks`] ticks). [`SelfIdentification::tick`] runs them first;
+/// [`SelfIdentification::guard`] hands out a copy for stretches without ticks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Guard {
+    sensor_fault_limit: u8,
+    flow_limit: i16,
+    stall_duty: u16,
+    stall_flow: i16,
+    stall_ticks: u16,
+    /// Consecutive sensor errors.
+    errors: u8,
+    /// Consecutive ticks meeting the stall condition.
+    stall: u16,
+}
+
+impl Guard {
+    /// The checks of `cfg`, counters at zero.
+    pub fn new(cfg: &Config) -> Self {
+        Guard {
+            sensor_fault_limit: cfg.sensor_fault_limit.max(1),
+            flow_limit: cfg.flow_limit,
+            stall_duty: cfg.stall_duty,
+            stall_flow: cfg.stall_flow,
+            stall_ticks: cfg.stall_ticks.max(1),
+            errors: 0,
+            stall: 0,
+        }
+    }
+
+    /// Checks one tick's sensor result `flow` (counts, 1/120 slm), read after the pump ran at
+    /// `applied` (1/10 000) for the tick. `Ok(Some(counts))`: a good reading; `Ok(None)`: a
+    /// sensor error still within the limit (to be bridged); `Err`: the fault it completes.
+    pub fn check(
+        &mut self,
+        applied: u16,
+        flow: Result<i16, SensorFault>,
+    ) -> Result<Option<i16>, FaultReason> {
+        let c = match flow {
+            Ok(c) => {
+                self.errors = 0;
+                c
+            }
+            Err(error) => {
+                self.errors = self.errors.saturating_add(1);
+                if self.errors >= self.sensor_fault_limit {
+                    return Err(FaultReason::Sensor {
+                        error,
+                        count: self.errors,
+                    });
+                }
+                return Ok(None);
+            }
+        };
+        if i32::from(c).abs() > i32::from(self.flow_limit) {
+            return Err(FaultReason::FlowRange { counts: c });
+        }
+        if applied >= self.stall_duty && c < self.stall_flow {
+            self.stall = self.stall.saturating_add(1);
+            if self.stall >= self.stall_ticks {
+                return Err(FaultReason::Stall {
+                    duty: applied,
+                    counts: c,
+                });
+            }
+        } else {
+            self.stall = 0;
+        }
+        Ok(Some(c))
+    }
+}
+
 /// The externally visible state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum State {
@@ -283,10 +357,8 @@ pub struct SelfIdentification {
     duty: u16,
     /// Last good reading, counts.
     last_counts: i16,
-    /// Consecutive sensor errors.
-    errors: u8,
-    /// Consecutive ticks meeting the stall condition.
-    stall: u16,
+    /// The fault checks and their counters.
+    guard: Guard,
     /// Identification attempt in progress (1-based; 0 before the first).
     attempt: u8,
     /// Bumped whenever a search result would be stale.
@@ -411,8 +483,7 @@ impl SelfIdentification {
             phase: Phase::Wait,
             duty: 0,
             last_counts: 0,
-            errors: 0,
-            stall: 0,
+            guard: Guard::new(&config),
             attempt: 0,
             generation: 0,
             model,
@@ -435,37 +506,11 @@ impl SelfIdentification {
         if matches!(self.phase, Phase::Fault) {
             return self.fault_tick();
         }
-        let reading = match flow {
-            Ok(c) => {
-                self.errors = 0;
-                Some(c)
-            }
-            Err(e) => {
-                self.errors = self.errors.saturating_add(1);
-                if self.errors >= self.cfg.sensor_fault_limit.max(1) {
-                    return self.fault_now(FaultReason::Sensor {
-                        error: e,
-                        count: self.errors,
-                    });
-                }
-                None
-            }
+        let reading = match self.guard.check(applied, flow) {
+            Ok(reading) => reading,
+            Err(reason) => return self.fault_now(reason),
         };
         if let Some(c) = reading {
-            if i32::from(c).abs() > i32::from(self.cfg.flow_limit) {
-                return self.fault_now(FaultReason::FlowRange { counts: c });
-            }
-            if applied >= self.cfg.stall_duty && c < self.cfg.stall_flow {
-                self.stall = self.stall.saturating_add(1);
-                if self.stall >= self.cfg.stall_ticks.max(1) {
-                    return self.fault_now(FaultReason::Stall {
-                        duty: applied,
-                        counts: c,
-                    });
-                }
-            } else {
-                self.stall = 0;
-            }
             self.last_counts = c;
         }
         let event = self.advance(applied, reading);
@@ -550,6 +595,23 @@ impl SelfIdentification {
             }
             Err(reason) => Some(self.reject(reason)),
         }
+    }
+
+    /// A copy of the tick's fault checks with their current counters, for a board that cannot
+    /// tick the state machine for a while (the ATmega2560's blocking search): it reads the
+    /// sensor at every tick boundary, stops the pump itself when [`Guard::check`] returns a
+    /// fault, and hands that to [`fault_detected`](Self::fault_detected) afterwards.
+    pub fn guard(&self) -> Guard {
+        self.guard
+    }
+
+    /// Latches a fault that a [`Guard`] found outside [`tick`](Self::tick): duty 0 from now on,
+    /// any search result or record in progress is dropped. Returns the [`Event::Fault`] to
+    /// report (it is not repeated by the next tick).
+    pub fn fault_detected(&mut self, reason: FaultReason) -> Event {
+        self.enter_fault(reason);
+        self.fault_announced = true;
+        Event::Fault(reason)
     }
 
     /// `true` once the validation record is complete: the board should call
