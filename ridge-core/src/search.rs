@@ -228,6 +228,23 @@ impl<T: Real> Search<T> {
         }
     }
 
+    /// Prepares, fits and scores candidate `s`: `None` when it cannot be prepared (not
+    /// evaluated), otherwise its fit and score or why they failed. Inlined: a frame of its
+    /// own would hold the returned fit once more on the search's deepest path (AVR stack).
+    #[inline(always)]
+    fn evaluate(
+        &self,
+        s: Structure,
+        est: &Normal<T>,
+        val: Option<&Normal<T>>,
+        ls: &mut Factor<T>,
+        scratch: &mut Factor<T>,
+        progress: &mut impl FnMut(),
+    ) -> Option<Result<(Fit<T>, T)>> {
+        let (system, _) = self.prepare(s, est, val, ls, scratch).ok()?;
+        Some(self.score(&system, ls, scratch, val, progress))
+    }
+
     /// Runs the search on the estimation statistics `est` (and, for
     /// [`Criterion::Validation`], the validation statistics `val`).
     ///
@@ -249,66 +266,44 @@ impl<T: Real> Search<T> {
         progress: &mut impl FnMut(),
     ) -> Result<Selection<T>> {
         self.check(val)?;
-        let candidates = self.grid.len();
-        let mut best: Option<(Fit<T>, T)> = None;
-        let mut evaluated = 0u16;
-        let mut skipped = 0u16;
-        let consider = |fit: Fit<T>, score: T, best: &mut Option<(Fit<T>, T)>| {
-            let better = match best {
-                None => true,
-                Some((b, bs)) => better(score, fit.layout.structure, *bs, b.layout.structure),
-            };
-            if better {
-                *best = Some((fit, score));
-            }
+        let mut tally = Tally {
+            best: None,
+            evaluated: 0,
+            skipped: 0,
         };
         let (mut ls, mut scratch) = (Factor::empty(), Factor::empty());
         if self.prune {
             // Candidates are evaluated in ascending order of their lower bounds until a bound
             // exceeds the best score. The bounds are not all kept: each pass over the grid
             // computes them again and queues the `QUEUE` smallest that come after everything
-            // queued before; a further pass is only needed when all of those were evaluated
-            // and the search goes on (rare: most searches stop within the first few).
+            // queued before (`after`: the last one evaluated; `None` in the first pass); a
+            // further pass is only needed when all of those were evaluated and the search
+            // goes on (rare: most searches stop within the first few).
             let mut after: Option<(T, Structure)> = None;
-            let mut first_pass = true;
             'passes: loop {
                 let mut queue = Queue::<T>::default();
-                for (i, s) in self.grid.iter().enumerate() {
+                for s in self.grid.iter() {
                     match self.prepare(s, est, val, &mut ls, &mut scratch) {
                         Ok((_, b)) => {
                             let done = after.is_some_and(|(ab, a)| !better(ab, a, b, s));
                             if !done {
-                                queue.offer(b, s, i);
+                                queue.offer(b, s);
                             }
                         }
-                        Err(_) => {
-                            if first_pass {
-                                skipped += 1;
-                            }
-                        }
+                        // Counted once, in the first pass.
+                        Err(_) if after.is_none() => tally.skipped += 1,
+                        Err(_) => {}
                     }
                     progress();
                 }
-                first_pass = false;
-                for &(b, s, i) in queue.entries() {
-                    if let Some((_, bs)) = &best {
+                for (b, s) in queue.entries() {
+                    if let Some((_, bs)) = &tally.best {
                         if b > *bs {
                             break 'passes;
                         }
                     }
                     after = Some((b, s));
-                    let Some(s) = self.grid.get(usize::from(i)) else {
-                        break 'passes;
-                    };
-                    let Ok((system, _)) = self.prepare(s, est, val, &mut ls, &mut scratch) else {
-                        skipped += 1;
-                        continue;
-                    };
-                    evaluated += 1;
-                    match self.score(&system, &ls, &mut scratch, val, progress) {
-                        Ok((fit, score)) => consider(fit, score, &mut best),
-                        Err(_) => skipped += 1,
-                    }
+                    tally.add(self.evaluate(s, est, val, &mut ls, &mut scratch, progress));
                 }
                 if queue.len < QUEUE {
                     break;
@@ -316,24 +311,16 @@ impl<T: Real> Search<T> {
             }
         } else {
             for s in self.grid.iter() {
-                let Ok((system, _)) = self.prepare(s, est, val, &mut ls, &mut scratch) else {
-                    skipped += 1;
-                    continue;
-                };
-                evaluated += 1;
-                match self.score(&system, &ls, &mut scratch, val, progress) {
-                    Ok((fit, score)) => consider(fit, score, &mut best),
-                    Err(_) => skipped += 1,
-                }
+                tally.add(self.evaluate(s, est, val, &mut ls, &mut scratch, progress));
             }
         }
-        let (fit, score) = best.ok_or(Error::NoCandidate)?;
+        let (fit, score) = tally.best.ok_or(Error::NoCandidate)?;
         Ok(Selection {
             fit,
             score,
-            candidates: candidates as u16,
-            evaluated,
-            skipped,
+            candidates: self.grid.len() as u16,
+            evaluated: tally.evaluated,
+            skipped: tally.skipped,
         })
     }
 
@@ -348,10 +335,10 @@ impl<T: Real> Search<T> {
         self.check(val)?;
         let (mut ls, mut scratch) = (Factor::empty(), Factor::empty());
         for s in self.grid.iter() {
-            if let Ok((system, _)) = self.prepare(s, est, val, &mut ls, &mut scratch) {
-                if let Ok((fit, score)) = self.score(&system, &ls, &mut scratch, val, &mut || {}) {
-                    visit(s, &fit, score);
-                }
+            if let Some(Ok((fit, score))) =
+                self.evaluate(s, est, val, &mut ls, &mut scratch, &mut || {})
+            {
+                visit(s, &fit, score);
             }
         }
         Ok(())
@@ -375,18 +362,21 @@ fn better<T: Real>(sa: T, a: Structure, sb: T, b: Structure) -> bool {
 /// Candidates queued per pass of the pruned search.
 const QUEUE: usize = 16;
 
-/// The `QUEUE` best-ranked candidates offered so far, ascending: (bound, structure, grid
-/// index). 16 × 8 bytes with `f32`, against 4 bytes per grid candidate (1 KB) for keeping
-/// every bound.
+/// The `QUEUE` best-ranked candidates offered so far, ascending: bounds and structures
+/// (16 × 7 bytes with `f32`, against 4 bytes per grid candidate, 1 KB, for keeping every
+/// bound). Two arrays, not one of `(bound, structure)` pairs: the AVR backend read the
+/// structure of such a pair wrong (`scripts/avr-arith-check` picked another model).
 struct Queue<T> {
-    items: [(T, Structure, u8); QUEUE],
+    bounds: [T; QUEUE],
+    structures: [Structure; QUEUE],
     len: usize,
 }
 
 impl<T: Real> Default for Queue<T> {
     fn default() -> Self {
         Queue {
-            items: [(T::ZERO, Structure { p: 0, q: 0, d: 0 }, 0); QUEUE],
+            bounds: [T::ZERO; QUEUE],
+            structures: [Structure { p: 0, q: 0, d: 0 }; QUEUE],
             len: 0,
         }
     }
@@ -394,18 +384,20 @@ impl<T: Real> Default for Queue<T> {
 
 impl<T: Real> Queue<T> {
     /// The queued entries, best first.
-    fn entries(&self) -> &[(T, Structure, u8)] {
-        self.items.get(..self.len).unwrap_or(&[])
+    fn entries(&self) -> impl Iterator<Item = (T, Structure)> + '_ {
+        self.bounds
+            .iter()
+            .copied()
+            .zip(self.structures.iter().copied())
+            .take(self.len)
     }
 
-    /// Inserts candidate `i` (structure `s`, bound `b`) in rank order if it ranks among the
-    /// `QUEUE` best; the worst one drops out of a full queue.
-    fn offer(&mut self, b: T, s: Structure, i: usize) {
-        let Ok(i) = u8::try_from(i) else { return };
+    /// Inserts candidate `s` with bound `b` in rank order if it ranks among the `QUEUE`
+    /// best; the worst one drops out of a full queue.
+    fn offer(&mut self, b: T, s: Structure) {
         let at = self
             .entries()
-            .iter()
-            .position(|&(qb, qs, _)| better(b, s, qb, qs))
+            .position(|(qb, qs)| better(b, s, qb, qs))
             .unwrap_or(self.len);
         let end = (self.len + 1).min(QUEUE);
         // Shift [at, end) one place up (the last entry of a full queue falls off), then put
@@ -413,12 +405,52 @@ impl<T: Real> Queue<T> {
         if at >= end {
             return;
         }
-        if let Some(window) = self.items.get_mut(at..end) {
-            window.rotate_right(1);
-            if let Some(slot) = window.first_mut() {
-                *slot = (b, s, i);
+        if let (Some(bw), Some(sw)) = (
+            self.bounds.get_mut(at..end),
+            self.structures.get_mut(at..end),
+        ) {
+            bw.rotate_right(1);
+            sw.rotate_right(1);
+            if let (Some(bs), Some(ss)) = (bw.first_mut(), sw.first_mut()) {
+                *bs = b;
+                *ss = s;
                 self.len = end;
             }
+        }
+    }
+}
+
+/// The best candidate of a search so far, and the counts of its [`Selection`].
+struct Tally<T: Real> {
+    best: Option<(Fit<T>, T)>,
+    evaluated: u16,
+    skipped: u16,
+}
+
+impl<T: Real> Tally<T> {
+    /// Counts the outcome of [`Search::evaluate`] and keeps the better of it and the best.
+    fn add(&mut self, outcome: Option<Result<(Fit<T>, T)>>) {
+        let (fit, score) = match outcome {
+            None => {
+                self.skipped += 1;
+                return;
+            }
+            Some(Err(_)) => {
+                self.evaluated += 1;
+                self.skipped += 1;
+                return;
+            }
+            Some(Ok(found)) => {
+                self.evaluated += 1;
+                found
+            }
+        };
+        let wins = match &self.best {
+            None => true,
+            Some((b, bs)) => better(score, fit.layout.structure, *bs, b.layout.structure),
+        };
+        if wins {
+            self.best = Some((fit, score));
         }
     }
 }
