@@ -40,6 +40,11 @@ pub unsafe fn force_off() {
     let (tc4, porth) = unsafe { (&*TC4::ptr(), &*PORTH::ptr()) };
     tc4.ocr4a().write(|w| unsafe { w.bits(0) });
     tc4.tccr4a().write(|w| unsafe { w.bits(0) });
+    drive_low(porth);
+}
+
+/// D6 (PH3) an output driven low: what the pin shows while OC4A is disconnected.
+fn drive_low(porth: &avr_device::atmega2560::porth::RegisterBlock) {
     porth
         .porth()
         .modify(|r, w| unsafe { w.bits(r.bits() & !PIN) });
@@ -59,12 +64,7 @@ impl Pwm4A {
     /// Starts Timer4 at 20 kHz with the output disconnected and D6 driven low (duty 0). Takes
     /// PORTH (D6 is its only pin the board uses).
     pub fn new(tc4: TC4, porth: PORTH) -> Self {
-        porth
-            .porth()
-            .modify(|r, w| unsafe { w.bits(r.bits() & !PIN) });
-        porth
-            .ddrh()
-            .modify(|r, w| unsafe { w.bits(r.bits() | PIN) });
+        drive_low(&*porth);
         tc4.tccr4b().write(|w| unsafe { w.bits(0) }); // stop while configuring
         tc4.tccr4a().write(|w| unsafe { w.bits(TCCR4A_OFF) });
         tc4.icr4().write(|w| unsafe { w.bits(TOP) });
@@ -96,9 +96,7 @@ impl SetDutyCycle for Pwm4A {
                 self.connected = false;
             }
             self.tc4.ocr4a().write(|w| unsafe { w.bits(0) });
-            self.porth
-                .porth()
-                .modify(|r, w| unsafe { w.bits(r.bits() & !PIN) });
+            drive_low(&*self.porth);
         } else {
             // OCR4A is double-buffered in fast PWM: the new value takes effect at TOP.
             self.tc4.ocr4a().write(|w| unsafe { w.bits(duty - 1) });
