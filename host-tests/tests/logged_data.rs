@@ -180,7 +180,12 @@ fn ridge_m_matches_the_explicit_iteration_and_residuals() {
             let s = r.model.structure();
             let (x, yv) = regression(&u, &y, s, offset);
             let intercept = (offset == Offset::Intercept).then_some(x.ncols() - 1);
-            let (w_ref, it_ref) = ridge_m(&x, &yv, intercept, (o.gamma, o.beta, o.tol, o.max_iter));
+            let (w_ref, it_ref) = ridge_m(
+                &x,
+                &yv,
+                intercept,
+                (o.hyper.gamma, o.hyper.beta, o.hyper.tol, o.hyper.max_iter),
+            );
             let w = coefficients(&r);
             assert_eq!(r.iterations, it_ref, "{record} {offset:?}");
             let e = rel(&w, &w_ref);

@@ -8,6 +8,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use ridge_core::{Criterion, Grid, Offset, OrderRange, Structure, D_MAX, P_MAX, Q_MAX};
 
 use super::options::{parse_range, parse_structure, MethodName, Options};
+use super::report::Hyper;
 use super::run;
 
 /// `ridge-id`: identify an ARX model from a logged CSV record.
@@ -115,25 +116,25 @@ pub struct IdentifyArgs {
     #[arg(long, value_enum, default_value = "aic")]
     pub criterion: CriterionArg,
     /// Ridge / Ridge-M regularisation gamma.
-    #[arg(long, value_name = "G", default_value_t = 1000.0)]
+    #[arg(long, value_name = "G", default_value_t = Hyper::default().gamma)]
     pub gamma: f64,
     /// Ridge-M momentum beta, in [0, 1).
-    #[arg(long, value_name = "B", default_value_t = 0.01)]
+    #[arg(long, value_name = "B", default_value_t = Hyper::default().beta)]
     pub beta: f64,
     /// Penalty weight alpha of the paper and aic criteria.
-    #[arg(long, value_name = "A", default_value_t = 12.0)]
+    #[arg(long, value_name = "A", default_value_t = Hyper::default().alpha)]
     pub alpha: f64,
     /// Ridge-M maximum iterations.
-    #[arg(long, value_name = "K", default_value_t = 200)]
+    #[arg(long, value_name = "K", default_value_t = Hyper::default().max_iter)]
     pub max_iter: u32,
     /// Ridge-M stopping tolerance on ‖w_{k+1} − w_k‖.
-    #[arg(long, value_name = "E", default_value_t = 1e-6)]
+    #[arg(long, value_name = "E", default_value_t = Hyper::default().tol)]
     pub tol: f64,
     /// RLS forgetting factor lambda, in (0, 1] (--method rls only).
-    #[arg(long, value_name = "L", default_value_t = 1.0)]
+    #[arg(long, value_name = "L", default_value_t = Hyper::default().lambda)]
     pub lambda: f64,
     /// RLS initial covariance P0 = delta I (--method rls only).
-    #[arg(long, value_name = "D", default_value_t = 1e3)]
+    #[arg(long, value_name = "D", default_value_t = Hyper::default().delta)]
     pub delta: f64,
     /// Autoregressive orders searched: a..=b or a single number.
     #[arg(long = "p", value_name = "RANGE", default_value = "1..=6", value_parser = p_range)]
@@ -166,13 +167,15 @@ impl IdentifyArgs {
             validate: self.validate.clone(),
             method: self.method.into(),
             criterion: self.criterion.into(),
-            gamma: self.gamma,
-            beta: self.beta,
-            alpha: self.alpha,
-            max_iter: self.max_iter,
-            tol: self.tol,
-            lambda: self.lambda,
-            delta: self.delta,
+            hyper: Hyper {
+                gamma: self.gamma,
+                beta: self.beta,
+                alpha: self.alpha,
+                max_iter: self.max_iter,
+                tol: self.tol,
+                lambda: self.lambda,
+                delta: self.delta,
+            },
             grid: Grid {
                 p: self.p,
                 q: self.q,

@@ -113,7 +113,7 @@ fn no_candidate(
 
 /// Runs RLS on the estimation record, one update per sample.
 fn run_rls(opts: &Options, structure: Structure) -> Result<(ArxModel<f64>, u32), IdError> {
-    let mut rls = Rls::new(structure, opts.offset, opts.lambda, opts.delta)
+    let mut rls = Rls::new(structure, opts.offset, opts.hyper.lambda, opts.hyper.delta)
         .map_err(|e| IdError::Usage(format!("rls: {e}")))?;
     for s in CsvRecord::open(&opts.input)? {
         let s = s?;
@@ -158,7 +158,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         grid,
         offset: opts.offset,
         criterion: opts.criterion,
-        alpha: opts.alpha,
+        alpha: opts.hyper.alpha,
         method: opts.core_method(),
         prune: true,
     };
@@ -185,7 +185,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
             let score = match (&val_normal, &val) {
                 (Some(vn), Some(v)) => criterion_value(
                     opts.criterion,
-                    opts.alpha,
+                    opts.hyper.alpha,
                     rss_of(vn, &v.path)?,
                     vn.samples(),
                     structure,
@@ -193,7 +193,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
                 ),
                 _ => criterion_value(
                     opts.criterion,
-                    opts.alpha,
+                    opts.hyper.alpha,
                     rss,
                     est_normal.samples(),
                     structure,
@@ -262,15 +262,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         score,
         iterations,
         rss,
-        hyper: Hyper {
-            gamma: opts.gamma,
-            beta: opts.beta,
-            alpha: opts.alpha,
-            max_iter: opts.max_iter,
-            tol: opts.tol,
-            lambda: opts.lambda,
-            delta: opts.delta,
-        },
+        hyper: opts.hyper,
         search: SearchInfo {
             candidates: sel.candidates,
             evaluated: sel.evaluated,

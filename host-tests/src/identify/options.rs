@@ -11,6 +11,7 @@ use ridge_core::{
 };
 
 use super::error::IdError;
+use super::report::Hyper;
 
 /// The estimator, by its command-line name.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -160,20 +161,8 @@ pub struct Options {
     pub method: MethodName,
     /// Structure criterion (default delay-free AIC, the core's default: SPEC §4).
     pub criterion: Criterion,
-    /// Ridge / Ridge-M regularisation γ (default 1000).
-    pub gamma: f64,
-    /// Ridge-M momentum β (default 0.01).
-    pub beta: f64,
-    /// Penalty weight α of the `paper` and `aic` criteria (default 12).
-    pub alpha: f64,
-    /// Ridge-M maximum iterates (default 200).
-    pub max_iter: u32,
-    /// Ridge-M stopping tolerance ε (default 1e-6).
-    pub tol: f64,
-    /// RLS forgetting factor λ ∈ (0, 1] (default 1).
-    pub lambda: f64,
-    /// RLS initial covariance δ > 0, `P₀ = δI` (default 1e3).
-    pub delta: f64,
+    /// Hyper-parameters (defaults: [`Hyper::default`], the paper's).
+    pub hyper: Hyper,
     /// Search grid (default p 1..=6, q 1..=6, d 0..=6); ignored when `structure` is set.
     pub grid: Grid,
     /// A fixed structure (a single-point grid).
@@ -192,13 +181,7 @@ impl Options {
             validate: None,
             method: MethodName::RidgeM,
             criterion: Criterion::Aic,
-            gamma: 1000.0,
-            beta: 0.01,
-            alpha: 12.0,
-            max_iter: 200,
-            tol: 1e-6,
-            lambda: 1.0,
-            delta: 1e3,
+            hyper: Hyper::default(),
             grid: Grid::default(),
             structure: None,
             offset: Offset::None,
@@ -214,10 +197,10 @@ impl Options {
     /// The Ridge-M estimator of these options.
     pub fn ridge_m(&self) -> RidgeM<f64> {
         RidgeM {
-            gamma: self.gamma,
-            beta: self.beta,
-            tol: self.tol,
-            max_iter: self.max_iter,
+            gamma: self.hyper.gamma,
+            beta: self.hyper.beta,
+            tol: self.hyper.tol,
+            max_iter: self.hyper.max_iter,
         }
     }
 
@@ -226,7 +209,9 @@ impl Options {
     pub fn core_method(&self) -> CoreMethod<f64> {
         match self.method {
             MethodName::RidgeM | MethodName::Rls => CoreMethod::RidgeM(self.ridge_m()),
-            MethodName::Ridge => CoreMethod::Ridge(Ridge { gamma: self.gamma }),
+            MethodName::Ridge => CoreMethod::Ridge(Ridge {
+                gamma: self.hyper.gamma,
+            }),
             MethodName::Ols => CoreMethod::Ols,
             MethodName::AdaptiveLasso => CoreMethod::AdaptiveLasso(AdaptiveLasso::default()),
         }
@@ -235,26 +220,35 @@ impl Options {
     /// Checks values and combinations, with a message naming the option.
     pub fn check(&self) -> Result<(), IdError> {
         let bad = |m: String| Err(IdError::Usage(m));
-        if !(self.gamma.is_finite() && self.gamma > 0.0) {
-            return bad(format!("--gamma {}: must be a number above 0", self.gamma));
+        if !(self.hyper.gamma.is_finite() && self.hyper.gamma > 0.0) {
+            return bad(format!(
+                "--gamma {}: must be a number above 0",
+                self.hyper.gamma
+            ));
         }
-        if !(self.beta.is_finite() && (0.0..1.0).contains(&self.beta)) {
-            return bad(format!("--beta {}: must be in [0, 1)", self.beta));
+        if !(self.hyper.beta.is_finite() && (0.0..1.0).contains(&self.hyper.beta)) {
+            return bad(format!("--beta {}: must be in [0, 1)", self.hyper.beta));
         }
-        if !(self.alpha.is_finite() && self.alpha >= 0.0) {
-            return bad(format!("--alpha {}: must be a number ≥ 0", self.alpha));
+        if !(self.hyper.alpha.is_finite() && self.hyper.alpha >= 0.0) {
+            return bad(format!(
+                "--alpha {}: must be a number ≥ 0",
+                self.hyper.alpha
+            ));
         }
-        if self.max_iter == 0 {
+        if self.hyper.max_iter == 0 {
             return bad("--max-iter 0: must be at least 1".into());
         }
-        if !(self.tol.is_finite() && self.tol >= 0.0) {
-            return bad(format!("--tol {}: must be a number ≥ 0", self.tol));
+        if !(self.hyper.tol.is_finite() && self.hyper.tol >= 0.0) {
+            return bad(format!("--tol {}: must be a number ≥ 0", self.hyper.tol));
         }
-        if !(self.lambda.is_finite() && self.lambda > 0.0 && self.lambda <= 1.0) {
-            return bad(format!("--lambda {}: must be in (0, 1]", self.lambda));
+        if !(self.hyper.lambda.is_finite() && self.hyper.lambda > 0.0 && self.hyper.lambda <= 1.0) {
+            return bad(format!("--lambda {}: must be in (0, 1]", self.hyper.lambda));
         }
-        if !(self.delta.is_finite() && self.delta > 0.0) {
-            return bad(format!("--delta {}: must be a number above 0", self.delta));
+        if !(self.hyper.delta.is_finite() && self.hyper.delta > 0.0) {
+            return bad(format!(
+                "--delta {}: must be a number above 0",
+                self.hyper.delta
+            ));
         }
         if self.criterion == Criterion::Validation && self.validate.is_none() {
             return bad(
@@ -309,7 +303,7 @@ mod tests {
         o.criterion = Criterion::Validation;
         assert!(o.check().unwrap_err().to_string().contains("--validate"));
         let mut o = Options::new("x.csv");
-        o.beta = 1.0;
+        o.hyper.beta = 1.0;
         assert!(o.check().unwrap_err().to_string().starts_with("--beta"));
     }
 }
