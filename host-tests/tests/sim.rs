@@ -47,17 +47,6 @@ fn same_seed_same_log_different_seed_different_noise() {
 #[test]
 fn logs_follow_the_excitation() {
     let p = PumpParams::default();
-    for duty in [3_000u16, 6_000, 9_000] {
-        let truth = p.steady_state_flow(f64::from(duty) / 10_000.0);
-        let mut rig = Rig::new(p.clone(), Sfm3300Params::default(), 99);
-        let log = rig.run(std::iter::repeat_n(duty, 6_000));
-        let (m, s) = mean_std(&log.y[1_000..]);
-        println!(
-            "default at {}%: true {truth:.2} slm, measured mean {m:.3}, std {s:.3} ({:.2} % of reading)",
-            duty / 100,
-            100.0 * s / truth
-        );
-    }
     for r in Record::ALL {
         let log = record(r, &p, 1);
         assert_eq!(log.len(), r.len_samples() as usize);
