@@ -98,8 +98,6 @@ pub struct App<I, P, W> {
     lost: u16,
     reported: (u16, u16),
     summary_in: u8,
-    /// A fault the guard found during a blocking search, for the state machine after it.
-    guard_fault: Option<FaultReason>,
     /// `(ticks, lost)` of the last search, for its `SEARCH` line in the next pass.
     search_lines: Option<(u16, u16)>,
 }
@@ -124,7 +122,6 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             lost: 0,
             reported: (0, 0),
             summary_in: SUMMARY_TICKS,
-            guard_fault: None,
             search_lines: None,
         }
     }
@@ -168,8 +165,8 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             self.judge(board);
         }
         if self.sid.needs_search() {
-            let (event, ticks, lost) = self.search(board);
-            self.after_search(board, event, ticks, lost);
+            let end = self.search(board);
+            self.after_search(board, end);
         }
     }
 
@@ -225,18 +222,23 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
         }
     }
 
-    /// Runs the search (ticking from its `pet` calls if the board does); returns its event
-    /// and the ticks handled and lost meanwhile.
+    /// Runs the search (ticking from its `pet` calls if the board does).
     ///
     /// Never inlined: the search's locals (the job with its statistics, the normal equations,
     /// the candidate systems: several KB on the ATmega2560) must only be on the stack while it
     /// runs, not in the frame of the endless loop, nor under the catch-up tick that follows.
     #[inline(never)]
-    fn search<B: Board>(&mut self, board: &mut B) -> (Option<Event>, u16, u16) {
+    fn search<B: Board>(&mut self, board: &mut B) -> SearchEnd {
         let (mut ticks, mut lost) = (0u16, 0u16);
+        let mut fault = None;
         let event = if B::TICK_DURING_SEARCH {
             let Some(job) = self.sid.take_search() else {
-                return (None, ticks, lost);
+                return SearchEnd {
+                    event: None,
+                    fault,
+                    ticks,
+                    lost,
+                };
             };
             let outcome = job.run(|| {
                 board.pet();
@@ -255,8 +257,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             let mut guard = self.sid.guard();
             let applied = self.pump.applied();
             let (sensor, pump) = (&mut self.sensor, &mut self.pump);
-            let mut fault = None;
-            let event = self.sid.search(|| {
+            self.sid.search(|| {
                 board.pet();
                 if let Some(elapsed) = board.poll_tick() {
                     ticks = ticks.saturating_add(1);
@@ -269,28 +270,31 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
                         }
                     }
                 }
-            });
-            self.guard_fault = fault;
-            event
+            })
         };
-        (event, ticks, lost)
+        SearchEnd {
+            event,
+            fault,
+            ticks,
+            lost,
+        }
     }
 
     /// After a search (its frame is gone): its event (and a fault the guard found), then the
     /// catch-up tick. The `SEARCH` / `STACK` lines wait for the next pass, right after its
     /// tick, so that printing them cannot run into the next tick boundary.
-    fn after_search(
-        &mut self,
-        board: &mut impl Board,
-        event: Option<Event>,
-        mut ticks: u16,
-        mut lost: u16,
-    ) {
+    fn after_search(&mut self, board: &mut impl Board, end: SearchEnd) {
+        let SearchEnd {
+            event,
+            fault,
+            mut ticks,
+            mut lost,
+        } = end;
         if let Some(event) = event {
             self.stop_on_fault();
             self.report(board, &event);
         }
-        if let Some(reason) = self.guard_fault.take() {
+        if let Some(reason) = fault {
             let event = self.sid.fault_detected(reason);
             self.report(board, &event);
         }
@@ -325,6 +329,18 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             }
         }
     }
+}
+
+/// How a search ended, for [`App::after_search`].
+struct SearchEnd {
+    /// The search's event (`ID` or `REJECT`), if it was not stale.
+    event: Option<Event>,
+    /// A fault the guard found while the search blocked the state machine.
+    fault: Option<FaultReason>,
+    /// Tick boundaries handled meanwhile.
+    ticks: u16,
+    /// Tick boundaries skipped meanwhile.
+    lost: u16,
 }
 
 /// Waits for the next tick boundary: `(boundaries passed, already passed on entry)`.
