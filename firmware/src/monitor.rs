@@ -17,7 +17,7 @@
 //! healthy one-step RMS is 3.5 % of the flow on the simulated pumps) and catches noisier or
 //! faster-changing flow; the mean residual (bias) averages the noise out and catches a
 //! changed gain, which the one-step residual sees only through `(1 − Σθ)` of the static error.
-//! Defaults from the simulated pumps (`host-tests`, default/small/sluggish, 25..90 % duty):
+//! Defaults from the simulated pumps (`pump-sim`, default/small/sluggish, 25..90 % duty):
 //! healthy windows stay below 5.5 % + 0.46 slm RMS and 1.4 % + 0.37 slm bias (the nonlinear
 //! fan curve against a linear model); a 30 % gain loss at 50 % duty gives a bias of
 //! 1.8..3.6 slm against a limit of about 1.3 slm.

@@ -2,7 +2,7 @@
 //! structure search (252 candidates) from a 3000-sample simulated pump record.
 //! `cargo bench -p host-tests --bench core`; figures are quoted in the README.
 use criterion::{criterion_group, criterion_main, Criterion};
-use host_tests::sim::{record, PumpParams, Record};
+use pump_sim::{record, PumpParams, Record};
 use ridge_core::{FloatGram, IntGram, Scale, Search};
 use std::hint::black_box;
 

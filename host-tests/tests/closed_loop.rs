@@ -9,8 +9,8 @@
 //! result matches ridge-core's `f64` search on the very samples the device recorded. In run
 //! mode, a changed plant raises a drift, a stall stops the pump.
 
-use host_tests::sim::{Pump, PumpParams, Rig, Sfm3300Params};
 use nalgebra::DMatrix;
+use pump_sim::{Pump, PumpParams, Rig, Sfm3300Params};
 use ridge_core::{IntGram, Offset, Regressor, Scale, Search, Structure};
 use ridge_pump_firmware::event::{Event, LINE_MAX};
 use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, SETTLE_MEAN_TICKS};

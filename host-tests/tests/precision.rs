@@ -1,9 +1,9 @@
 //! f32 against f64 on realistic data: the simulated pump through exact integer statistics
 //! (the device path), and the float statistics path (the host path).
-use host_tests::sim::{record, PumpParams, Record};
+use pump_sim::{record, PumpParams, Record};
 use ridge_core::{FloatGram, IntGram, Normal, Scale, Search, Structure};
 
-fn int_gram(log: &host_tests::sim::Log) -> IntGram {
+fn int_gram(log: &pump_sim::Log) -> IntGram {
     let mut g = IntGram::new();
     for (&u, &y) in log.raw_u.iter().zip(&log.raw_y) {
         g.push(i32::from(u), i32::from(y) - 32768).unwrap();

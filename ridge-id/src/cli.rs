@@ -7,9 +7,9 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use ridge_core::{Criterion, Grid, Offset, OrderRange, Structure, D_MAX, P_MAX, Q_MAX};
 
-use super::options::{parse_range, parse_structure, MethodName, Options};
-use super::report::Hyper;
-use super::run;
+use crate::options::{parse_range, parse_structure, MethodName, Options};
+use crate::report::Hyper;
+use crate::run;
 
 /// `ridge-id`: identify an ARX model from a logged CSV record.
 #[derive(Debug, Parser)]

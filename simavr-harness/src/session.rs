@@ -17,13 +17,13 @@ use std::time::Instant;
 use ridge_core::excitation::{Record, DUTY_FULL_SCALE};
 use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Real, Scale, Search};
 
-use super::firmware::{self, Sizes};
-use super::report::{Line, Report};
-use super::rig::{Rig, RigConfig, RunEnd, TickTiming, SUBSTEPS};
-use crate::identify::eval::Trace;
-use crate::identify::plot::{write_png, Panel};
-use crate::sim::sfm3300::OFFSET_RAW;
-use crate::sim::{Pump, PumpParams, Sfm3300, Sfm3300Params};
+use crate::firmware::{self, Sizes};
+use crate::report::{Line, Report};
+use crate::rig::{Rig, RigConfig, RunEnd, TickTiming, SUBSTEPS};
+use pump_sim::sfm3300::OFFSET_RAW;
+use pump_sim::{Pump, PumpParams, Sfm3300, Sfm3300Params};
+use ridge_id::eval::Trace;
+use ridge_id::plot::{write_png, Panel};
 
 /// Timer TOP + 1 of the board's pump PWM (OC4A, 20 kHz): `max_duty_cycle()`.
 pub const PWM_MAX: u32 = 800;
@@ -527,7 +527,7 @@ pub fn score(model: &ArxModel<f64>, samples: &Samples) -> (Option<f64>, Option<f
     let mut trace = Trace::new(samples.len() as u64, 2000);
     for (i, (&u, &raw)) in samples.u.iter().zip(&samples.raw).enumerate() {
         let uf = f64::from(u) / f64::from(DUTY_FULL_SCALE);
-        let y = crate::sim::sfm3300::raw_to_flow(raw);
+        let y = pump_sim::sfm3300::raw_to_flow(raw);
         let p = ev.push(uf, y);
         trace.push(i as u64, y, p);
     }

@@ -1,5 +1,5 @@
 //! The ATmega2560 firmware's release ELF in simavr (16 MHz), closed loop with the simulated
-//! SFM3300 and blower (`host_tests::simavr`). The ELF is brought up to date first (one
+//! SFM3300 and blower (`simavr_harness`). The ELF is brought up to date first (one
 //! incremental nightly avr-none build per test process); a failed build fails the tests.
 //!
 //! Budgets checked: tick control work (ISR → sensor read → statistics → PWM written) < 1.6 ms
@@ -8,13 +8,13 @@
 //! validation signal ≥ [`MIN_FRESH_FIT`] %; the firmware's result equal to ridge-core's on the
 //! host from the same samples (same structure, coefficients within [`COEF_TOL`]).
 
-use host_tests::sim::sfm3300::flow_to_raw;
-use host_tests::sim::PumpParams;
-use host_tests::simavr::firmware;
-use host_tests::simavr::rig::{Action, Rig, RigConfig};
-use host_tests::simavr::sensor::Fault;
-use host_tests::simavr::session::{self, Outcome, SessionConfig, TICK_CYCLES};
+use pump_sim::sfm3300::flow_to_raw;
+use pump_sim::PumpParams;
 use ridge_core::excitation::Record;
+use simavr_harness::firmware;
+use simavr_harness::rig::{Action, Rig, RigConfig};
+use simavr_harness::sensor::Fault;
+use simavr_harness::session::{self, Outcome, SessionConfig, TICK_CYCLES};
 
 /// Tick budget, cycles (1.6 ms at 16 MHz).
 const TICK_BUDGET: u64 = 25_600;
@@ -116,7 +116,7 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
             ));
         }
         // The worst case over every path (call graph), not only those this run took.
-        match host_tests::simavr::stack::analyze_elf(&elf()) {
+        match simavr_harness::stack::analyze_elf(&elf()) {
             Ok(r) if !r.complete() => bad.push(format!("stack bound incomplete: {r:?}")),
             Ok(r) if o.sizes.ram() + r.worst() >= RAM_BUDGET => bad.push(format!(
                 "static RAM {} B + worst-case stack {} B ≥ {RAM_BUDGET} B",
@@ -332,7 +332,7 @@ fn inject(actions: &[(f64, Action)], within_s: f64) -> (Rig, Option<usize>) {
     let until = actions.iter().map(|(t, _)| *t).fold(0.0, f64::max) + within_s;
     let end = rig.run_until(until, |l| l.text.starts_with("FAULT"));
     let idx = match end {
-        host_tests::simavr::rig::RunEnd::Line(i) => Some(i),
+        simavr_harness::rig::RunEnd::Line(i) => Some(i),
         _ => None,
     };
     if idx.is_some() {
@@ -486,8 +486,8 @@ fn fault_sensor_absent_during_the_search_stops_pump_before_it_ends() {
 #[test]
 fn avr_tester_runs_the_firmware_with_the_sfm3300_slave() {
     use avr_tester::AvrTester;
-    use host_tests::sim::{Sfm3300, Sfm3300Params};
-    use host_tests::simavr::sensor::{SensorState, Sfm3300Slave};
+    use pump_sim::{Sfm3300, Sfm3300Params};
+    use simavr_harness::sensor::{SensorState, Sfm3300Slave};
     use std::cell::{Cell, RefCell};
     use std::rc::Rc;
 

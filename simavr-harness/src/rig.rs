@@ -2,7 +2,7 @@
 //! PWM the firmware actually programs.
 //!
 //! Every 0.5 ms of simulated time (the SFM3300's update period) the rig reads the PWM duty from
-//! the timer registers ([`pwm`](super::pwm)), steps the blower model by 0.5 ms with it and
+//! the timer registers ([`pwm`](crate::pwm)), steps the blower model by 0.5 ms with it and
 //! hands the new flow to the sensor. The blower is `sim::Pump` with its 100 Hz parameters
 //! sub-stepped 20× (time constants are exact under zero-order hold; the transport delay is
 //! kept in time, 20 sub-steps per 10 ms sample).
@@ -27,11 +27,11 @@ use std::collections::HashMap;
 use std::path::PathBuf;
 use std::rc::Rc;
 
-use super::machine::{Halt, IrqEvent, Machine, UartByte};
-use super::pwm::{self, Channel};
-use super::report::{Line, LineSplitter};
-use super::sensor::{Fault, SensorState, Sfm3300Slave};
-use crate::sim::{Pump, PumpParams, Sfm3300, Sfm3300Params};
+use crate::machine::{Halt, IrqEvent, Machine, UartByte};
+use crate::pwm::{self, Channel};
+use crate::report::{Line, LineSplitter};
+use crate::sensor::{Fault, SensorState, Sfm3300Slave};
+use pump_sim::{Pump, PumpParams, Sfm3300, Sfm3300Params};
 
 /// Plant sub-steps per 10 ms sample (0.5 ms each: the SFM3300 update period).
 pub const SUBSTEPS: usize = 20;

@@ -10,8 +10,8 @@ use std::sync::Once;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 
-use super::error::IdError;
-use super::eval::Trace;
+use crate::error::IdError;
+use crate::eval::Trace;
 
 /// One panel: a title and the decimated signals of one record.
 #[derive(Debug, Clone)]

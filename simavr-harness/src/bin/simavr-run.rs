@@ -6,10 +6,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, ValueEnum};
-use host_tests::sim::PumpParams;
-use host_tests::simavr::firmware;
-use host_tests::simavr::session::{self, IdLine, Outcome, SessionConfig, TICK_CYCLES};
+use pump_sim::PumpParams;
 use ridge_core::excitation::Record;
+use simavr_harness::firmware;
+use simavr_harness::session::{self, IdLine, Outcome, SessionConfig, TICK_CYCLES};
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum Plant {
@@ -325,7 +325,7 @@ fn report(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
             .map_or_else(|| "n/a".into(), |v| v.to_string()),
         s.ram() + rig.stack_used().or(out.stack_used).unwrap_or(0)
     );
-    match host_tests::simavr::stack::analyze_elf(&cfg.rig.elf) {
+    match simavr_harness::stack::analyze_elf(&cfg.rig.elf) {
         Ok(r) => println!(
             "  worst-case stack over every path (call graph): {} B (main {} + interrupt {})  ->  static RAM + stack {} B (budget 6144){}",
             r.worst(),

@@ -1,4 +1,4 @@
-//! ridge-id's code path ([`host_tests::identify::run`]) on the two real records of
+//! ridge-id's code path ([`ridge_id::run`]) on the two real records of
 //! `shared/data/` (SPEC §9), checked against an independent computation: the explicit
 //! zero-padded regression matrix of eq. (6) built with nalgebra from the raw CSV rows,
 //! least squares by SVD, the Ridge-M iteration written out, and one-step / free-run
@@ -27,9 +27,9 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use host_tests::identify::{run, Figures, MethodName, Options, Report};
 use nalgebra::{DMatrix, DVector};
 use ridge_core::{Offset, Structure};
+use ridge_id::{run, Figures, MethodName, Options, Report};
 
 fn data(record: &str, half: &str) -> PathBuf {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -341,7 +341,7 @@ fn adaptive_lasso_default_converges_on_real_records() {
         ("cascaded-tanks", Structure::new(3, 4, 0).unwrap()),
         ("buck-converter", Structure::new(2, 3, 0).unwrap()),
     ] {
-        let stats = host_tests::identify::read_record(data(record, "estimation")).unwrap();
+        let stats = ridge_id::read_record(data(record, "estimation")).unwrap();
         let normal = stats.normal().unwrap();
         let sys = normal.system(s, Offset::None).unwrap();
         let default = AdaptiveLasso::default();

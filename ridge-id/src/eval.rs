@@ -13,8 +13,8 @@ use ridge_core::{
     Structure,
 };
 
-use super::csv::{CsvRecord, Sample};
-use super::error::IdError;
+use crate::csv::{CsvRecord, Sample};
+use crate::error::IdError;
 
 /// The statistics of one record after a streaming pass, plus what is needed to explain
 /// a problem with it.

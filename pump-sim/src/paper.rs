@@ -1,6 +1,6 @@
 //! The paper's experiments (section 3, Tables 1–5) on simulated pump records.
 //!
-//! Every record is simulated by [`crate::sim::record`] on the reference blower
+//! Every record is simulated by [`crate::record`] on the reference blower
 //! ([`PumpParams::default`]: true transport delay 3 samples, dead zone, convex fan curve)
 //! and fed to the statistics exactly as the firmware will: an [`IntGram`] of
 //! `(raw_u, raw_y − 32768)` with [`Scale::SFM3300_DUTY_10K`], solved in `f64` (and in `f32`
@@ -22,7 +22,7 @@ use ridge_core::{
 };
 pub use ridge_core::{Offset, Result};
 
-use crate::sim::{record, Log, PumpParams, Record, Sfm3300Params};
+use crate::{record, Log, PumpParams, Record, Sfm3300Params};
 
 /// Default noise seed of `paper-tables`.
 pub const DEFAULT_SEED: u64 = 20_250_601;
@@ -1140,7 +1140,7 @@ pub fn render_markdown(r: &Report) -> String {
     let _ = writeln!(
         out,
         "## Paper tables on the simulated pump (seed {})\n\n\
-         Records: `host_tests::sim::record(Record::…, &PumpParams::default(), {})`, 3000 samples \
+         Records: `pump_sim::record(Record::…, &PumpParams::default(), {})`, 3000 samples \
          at 100 Hz each (reference blower: dead zone 12–15 % duty, τ = 0.15 s, flow ∝ speed^1.3, \
          150 slm at full duty, transport delay 3 samples; SFM3300 noise 3 % of reading). \
          Statistics: `IntGram::push(raw_u, raw_y − 32768)`, `Scale::SFM3300_DUTY_10K`, solved \

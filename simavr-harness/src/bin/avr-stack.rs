@@ -1,11 +1,11 @@
 //! Worst-case stack of an AVR ELF by static analysis (call graph of `avr-objdump -d`, see
-//! `host_tests::simavr::stack`), and the SRAM budget check: static RAM + worst-case stack.
+//! `simavr_harness::stack`), and the SRAM budget check: static RAM + worst-case stack.
 //!
 //! Usage: `avr-stack ELF [--budget BYTES] [--path]`; exits 1 when static RAM + stack exceeds
 //! the budget (default 6144) or the analysis is incomplete (recursion, indirect calls).
 
-use host_tests::simavr::firmware::sizes;
-use host_tests::simavr::stack::analyze_elf;
+use simavr_harness::firmware::sizes;
+use simavr_harness::stack::analyze_elf;
 use std::path::PathBuf;
 use std::process::ExitCode;
 

@@ -10,8 +10,8 @@ use ridge_core::{
     Structure, D_MAX, P_MAX, Q_MAX,
 };
 
-use super::error::IdError;
-use super::report::Hyper;
+use crate::error::IdError;
+use crate::report::Hyper;
 
 /// The estimator, by its command-line name.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -14,8 +14,8 @@ use std::rc::Rc;
 
 use avr_tester::{TwiPacket, TwiSlave};
 
-use crate::sim::sfm3300::{crc8, frame};
-use crate::sim::Sfm3300;
+use pump_sim::sfm3300::{crc8, frame};
+use pump_sim::Sfm3300;
 
 /// 7-bit address.
 pub const ADDRESS: u8 = 0x40;
@@ -74,7 +74,7 @@ pub enum Event {
 pub struct SensorState {
     /// Core cycle of the packet being handled (set by [`Machine::attach_twi`]).
     ///
-    /// [`Machine::attach_twi`]: super::machine::Machine::attach_twi
+    /// [`Machine::attach_twi`]: crate::machine::Machine::attach_twi
     pub clock: Rc<Cell<u64>>,
     now: u64,
     /// True flow at the sensor now, slm (updated by the harness at every plant step).

@@ -2,7 +2,7 @@
 //! straight from their registers: waveform mode → TOP, compare-output mode, OCR, clock select
 //! and the pin's data direction. Nothing here depends on how the firmware sets them up.
 
-use super::machine::Machine;
+use crate::machine::Machine;
 
 /// One output-compare channel of a 16-bit timer: timer 1, 3, 4 or 5, channel 'A', 'B' or 'C'.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -1,12 +1,12 @@
-//! The paper experiments (`host_tests::paper`) checked against independent truth: the
+//! The paper experiments (`pump_sim::paper`) checked against independent truth: the
 //! simulator's true transport delay, the nesting argument behind the paper criterion's flaw,
 //! the closed-form convergence of Ridge-M to least squares, and the RLS/Ridge identity.
 
-use host_tests::paper::{
+use pump_sim::paper::{
     comparison, convergence, gamma_sweep, gram_matrix, int_gram, precision, pruning,
     ridge_m_residual_factor, rls, search, Algorithm, Dataset, DEFAULT_SEED, RLS_DELTA,
 };
-use host_tests::sim::{record, PumpParams, Record};
+use pump_sim::{record, PumpParams, Record};
 use ridge_core::{
     ArxModel, Criterion, Estimator, Grid, Method, Normal, Offset, Ols, Ridge, RidgeM, Scale,
     Search, Structure, Q_MAX,
@@ -266,7 +266,7 @@ fn ridge_m_iterates_converge_monotonically_to_least_squares() {
         }
         // Closed form: ‖w_k − w_LS‖ ≤ max_i γ/(λ_i+γ) ρ_i^{k−1} ‖w_LS‖, largest at λ_min.
         let g = gram_matrix(&n.system(s, Offset::None).unwrap());
-        let lmin = host_tests::paper::symmetric_eigenvalues(&g)[0];
+        let lmin = pump_sim::paper::symmetric_eigenvalues(&g)[0];
         assert!(cholesky_ok(&g, 0.99 * lmin) && !cholesky_ok(&g, 1.01 * lmin));
         let bound = ridge_m_residual_factor(lmin, gamma, 0.01, 180) * norm(&ls);
         assert!(

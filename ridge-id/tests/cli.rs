@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use host_tests::sim::arx::simulate_arx;
+use pump_sim::arx::simulate_arx;
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_ridge-id");

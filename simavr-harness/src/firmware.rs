@@ -3,11 +3,11 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// Workspace root (parent of `host-tests/`).
+/// Workspace root (parent of `simavr-harness/`).
 pub fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
-        .expect("host-tests lives in the workspace")
+        .expect("simavr-harness lives in the workspace")
         .to_path_buf()
 }
 

@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use ridge_core::{ArxModel, Criterion, Offset};
 use serde::Serialize;
 
-use super::eval::Figures;
-use super::options::{criterion_name, offset_name, MethodName};
+use crate::eval::Figures;
+use crate::options::{criterion_name, offset_name, MethodName};
 
 /// Hyper-parameters of a run (all of them, whether the method uses them or not).
 #[derive(Debug, Clone, Copy, PartialEq)]

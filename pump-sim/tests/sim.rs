@@ -1,8 +1,8 @@
-//! Properties of the rig simulator (host-tests::sim): determinism, dead zone, static
+//! Properties of the rig simulator (`pump-sim`): determinism, dead zone, static
 //! nonlinearity, transport delay, sensor noise, fault injection and CSV output.
 
-use host_tests::sim::sfm3300::{raw_to_flow, Sfm3300Params};
-use host_tests::sim::{record, record_with, Pump, PumpParams, Record, Rig};
+use pump_sim::sfm3300::{raw_to_flow, Sfm3300Params};
+use pump_sim::{record, record_with, Pump, PumpParams, Record, Rig};
 
 fn presets() -> [(&'static str, PumpParams); 3] {
     [
@@ -224,7 +224,7 @@ fn csv_has_header_time_and_round_trips() {
     assert!(rows[1].starts_with("0.01,"));
 }
 
-/// Prints the plant facts quoted in reports (`cargo test -p host-tests --test sim -- --nocapture facts`).
+/// Prints the plant facts quoted in reports (`cargo test -p pump-sim --test sim -- --nocapture facts`).
 #[test]
 fn facts() {
     for (name, p) in presets() {

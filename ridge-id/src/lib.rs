@@ -1,6 +1,6 @@
 //! `ridge-id`: ARX identification of a logged `u`/`y` record (CSV), as a library.
 //!
-//! The binary `ridge-id` (`src/bin/ridge-id.rs`) only parses the command line
+//! The binary `ridge-id` (`src/main.rs`) only parses the command line
 //! ([`cli`]) and prints a [`Report`]; everything else is here so that other programs
 //! (e.g. the paper tables) can reuse the pieces:
 //! - [`csv::CsvRecord`]: streaming CSV reader with line-numbered errors.

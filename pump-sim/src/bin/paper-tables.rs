@@ -1,15 +1,15 @@
 //! Prints the analogues of the paper's Tables 1–5 on simulated pump records, as markdown.
 //!
 //! ```text
-//! cargo run --release -p host-tests --bin paper-tables -- [--seed N] [--markdown-out PATH]
+//! cargo run --release -p pump-sim --bin paper-tables -- [--seed N] [--markdown-out PATH]
 //! ```
 //!
-//! The computations live in `host_tests::paper`; this binary only parses flags and prints.
+//! The computations live in `pump_sim::paper`; this binary only parses flags and prints.
 
 use std::process::ExitCode;
 use std::time::Instant;
 
-use host_tests::paper::{render_markdown, run, DEFAULT_SEED};
+use pump_sim::paper::{render_markdown, run, DEFAULT_SEED};
 
 const USAGE: &str = "usage: paper-tables [--seed N] [--markdown-out PATH]";
 

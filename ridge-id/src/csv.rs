@@ -18,7 +18,7 @@ use std::fs::File;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 
-use super::error::IdError;
+use crate::error::IdError;
 
 /// One `(u_t, y_t)` sample and the line it came from.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -35,14 +35,14 @@ pub struct Sample {
 /// [module docs](self) for the format).
 ///
 /// ```no_run
-/// use host_tests::identify::csv::CsvRecord;
+/// use ridge_id::csv::CsvRecord;
 /// let mut n = 0;
 /// for sample in CsvRecord::open("LOG.csv")? {
 ///     let s = sample?; // line-numbered error on a bad row
 ///     n += 1;
 ///     let _ = (s.u, s.y);
 /// }
-/// # Ok::<(), host_tests::identify::IdError>(())
+/// # Ok::<(), ridge_id::IdError>(())
 /// ```
 #[derive(Debug)]
 pub struct CsvRecord<R: BufRead = BufReader<File>> {
