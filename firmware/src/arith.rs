@@ -108,7 +108,7 @@ pub fn write<W: ufmt::uWrite>(w: &mut W) {
             );
         }
     }
-    let Ok(mut nn) = g.normal::<f32>(Scale::SFM3300_DUTY_10K) else {
+    let Ok(mut nn) = g.normal::<f32>(crate::units::SCALE) else {
         let _ = ufmt::uwriteln!(w, "normal error");
         return;
     };

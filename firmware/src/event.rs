@@ -19,7 +19,7 @@
 //! | [`Event::Drift`] | `DRIFT rms=3.200 mean=-2.997 flow=35.400 s=3 reid=0` |
 //! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125` |
 
-use ridge_core::excitation::Record;
+use crate::excitation::Record;
 use ridge_core::{ArxModel, Error as CoreError, Offset};
 use ufmt::{uDisplay, uWrite, Formatter};
 

@@ -6,9 +6,11 @@
 
 pub mod arith;
 pub mod event;
+pub mod excitation;
 pub mod monitor;
 pub mod persist;
 pub mod pump;
 pub mod report;
 pub mod selfid;
 pub mod sfm3300;
+pub mod units;

@@ -35,11 +35,7 @@
 use ridge_core::{ArxModel, Mode, Predictor, Real};
 
 use crate::event::Event;
-
-/// Slm per SFM3300 count.
-pub(crate) const SLM_PER_COUNT: f32 = 1.0 / 120.0;
-/// Duty fraction per duty unit (1/10 000).
-pub(crate) const FRACTION_PER_DUTY: f32 = 1.0 / 10_000.0;
+use crate::units::{FRACTION_PER_DUTY, SLM_PER_COUNT};
 
 /// Settings of the run-mode monitor.
 #[derive(Debug, Clone, Copy, PartialEq)]

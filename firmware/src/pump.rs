@@ -43,8 +43,7 @@
 
 use embedded_hal::pwm::SetDutyCycle;
 
-/// Full-scale duty in command units: `10_000` = 100 % (1 unit = 0.01 %).
-pub const DUTY_FULL_SCALE: u16 = 10_000;
+use crate::units::DUTY_FULL_SCALE;
 
 /// A ramp limit this large (or larger) means "no ramp limit": one step covers the whole scale.
 pub const NO_RAMP_LIMIT: u16 = DUTY_FULL_SCALE;

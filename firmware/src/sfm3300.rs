@@ -39,21 +39,10 @@
 
 use embedded_hal::i2c::{ErrorKind, I2c};
 
+use crate::units::{FLOW_RANGE_SLM, FLOW_SCALE};
+
 /// 7-bit I2C address of the SFM3300 (fixed; SFM3xxx I2C functional description, SPEC §7).
 pub const ADDRESS: u8 = 0x40;
-
-/// Raw flow word that corresponds to zero flow, in raw counts
-/// (SFM3300 datasheet "offset flow" = 32768, SPEC §7).
-pub const FLOW_OFFSET: u16 = 32_768;
-
-/// Scale factor of the SFM3300 (-D and -AW), in counts per slm
-/// (datasheet "scale factor flow" = 120, SPEC §7): 1 count = 1/120 slm.
-pub const FLOW_SCALE: u16 = 120;
-
-/// Calibrated measurement range of the SFM3300, ± this many slm (datasheet, SPEC §7).
-///
-/// In counts that is ±30 000 around [`FLOW_OFFSET`]; see [`in_range`].
-pub const FLOW_RANGE_SLM: u16 = 250;
 
 /// Default number of read attempts per measurement (first try included) before a NACKed read
 /// is reported as [`Error::NotReady`].

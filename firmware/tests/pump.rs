@@ -7,7 +7,8 @@ use std::rc::Rc;
 use embedded_hal::pwm::{ErrorKind, ErrorType, SetDutyCycle};
 use embedded_hal_mock::eh1::pwm::{Mock, Transaction};
 use embedded_hal_mock::eh1::MockError;
-use ridge_pump_firmware::pump::{duty_to_counts, Error, Pump, DUTY_FULL_SCALE, NO_RAMP_LIMIT};
+use ridge_pump_firmware::pump::{duty_to_counts, Error, Pump, NO_RAMP_LIMIT};
+use ridge_pump_firmware::units::DUTY_FULL_SCALE;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct FakeError;

@@ -3,11 +3,12 @@
 
 use std::collections::VecDeque;
 
-use ridge_core::excitation::Record;
-use ridge_core::{ArxModel, IntGram, Method, Offset, RidgeM, Scale, Search, Structure};
+use ridge_core::{ArxModel, IntGram, Method, Offset, RidgeM, Search, Structure};
 use ridge_pump_firmware::event::{Event, FaultReason, RejectReason, SearchStats, SensorFault};
+use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
 use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, Tick};
+use ridge_pump_firmware::units::SCALE;
 
 /// A linear first-order ARX plant with transport delay, in physical units:
 /// `y_t = a y_{t-1} + b u_{t-d} + c + e_t` (slm, duty fraction), computed in SFM3300 counts
@@ -1079,7 +1080,7 @@ fn host_search_on_the_same_record_agrees() {
         }
     }
     let sel = Search::<f64>::default()
-        .run(&gram.normal::<f64>(Scale::SFM3300_DUTY_10K).unwrap(), None)
+        .run(&gram.normal::<f64>(SCALE).unwrap(), None)
         .unwrap();
     let m64 = sel.fit.model();
     let m32 = rig.sm.model().unwrap();

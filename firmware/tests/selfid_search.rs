@@ -5,11 +5,12 @@
 use std::cell::Cell;
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
 
-use ridge_core::excitation::Record;
 use ridge_core::{
     AdaptiveLasso, Criterion, Error, Grid, IntGram, Method, Normal, Offset, OrderRange, Real,
-    Ridge, RidgeM, Scale, Search,
+    Ridge, RidgeM, Search,
 };
+use ridge_pump_firmware::excitation::Record;
+use ridge_pump_firmware::units::SCALE;
 
 /// What the tests compare of a search result.
 #[derive(Debug)]
@@ -158,8 +159,8 @@ fn check_same<T: Real>(normal: &Normal<T>, search: &Search<T>) {
 #[test]
 fn identical_to_ridge_core_search_in_f32_and_f64() {
     for gram in records() {
-        let n32 = gram.normal::<f32>(Scale::SFM3300_DUTY_10K).unwrap();
-        let n64 = gram.normal::<f64>(Scale::SFM3300_DUTY_10K).unwrap();
+        let n32 = gram.normal::<f32>(SCALE).unwrap();
+        let n64 = gram.normal::<f64>(SCALE).unwrap();
         for s in searches::<f32>() {
             check_same(&n32, &s);
         }
@@ -172,7 +173,7 @@ fn identical_to_ridge_core_search_in_f32_and_f64() {
 #[test]
 fn bad_configurations_fail_like_ridge_core() {
     let gram = &records()[0];
-    let n = gram.normal::<f32>(Scale::SFM3300_DUTY_10K).unwrap();
+    let n = gram.normal::<f32>(SCALE).unwrap();
     let bad = [
         Search {
             criterion: Criterion::Validation,
@@ -207,7 +208,7 @@ fn bad_configurations_fail_like_ridge_core() {
     for t in 0..3 {
         short.push(t * 100, (t * t) % 7).unwrap();
     }
-    let n = short.normal::<f32>(Scale::SFM3300_DUTY_10K).unwrap();
+    let n = short.normal::<f32>(SCALE).unwrap();
     let s = Search::<f32>::default();
     assert_eq!(
         search_with_pet(&s, &n, &mut || {}).err(),
@@ -348,7 +349,7 @@ fn work_between_two_pets_is_bounded() {
     const WATCHDOG_CYCLES: u64 = 16_000_000 / 4; // 250 ms at 16 MHz
     let mut worst_gap = 0;
     for (i, gram) in records().iter().enumerate() {
-        let n = gram.normal::<C>(Scale::SFM3300_DUTY_10K).unwrap();
+        let n = gram.normal::<C>(SCALE).unwrap();
         for (name, search) in [
             ("default", Search::<C>::default()),
             (

@@ -2,8 +2,10 @@
 //! structure search (252 candidates) from a 3000-sample simulated pump record.
 //! `cargo bench -p host-tests --bench core`; figures are quoted in the README.
 use criterion::{criterion_group, criterion_main, Criterion};
-use pump_sim::{record, PumpParams, Record};
-use ridge_core::{FloatGram, IntGram, Scale, Search};
+use pump_sim::{record, PumpParams};
+use ridge_core::{FloatGram, IntGram, Search};
+use ridge_pump_firmware::excitation::Record;
+use ridge_pump_firmware::units::SCALE;
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {
@@ -41,14 +43,10 @@ fn bench(c: &mut Criterion) {
         g.push(u, y).unwrap();
     }
     c.bench_function("Gram::normal::<f32> (3000 samples)", |b| {
-        b.iter(|| {
-            black_box(&g)
-                .normal::<f32>(Scale::SFM3300_DUTY_10K)
-                .unwrap()
-        })
+        b.iter(|| black_box(&g).normal::<f32>(SCALE).unwrap())
     });
-    let n32 = g.normal::<f32>(Scale::SFM3300_DUTY_10K).unwrap();
-    let n64 = g.normal::<f64>(Scale::SFM3300_DUTY_10K).unwrap();
+    let n32 = g.normal::<f32>(SCALE).unwrap();
+    let n64 = g.normal::<f64>(SCALE).unwrap();
     for prune in [true, false] {
         let label = if prune { "pruned" } else { "exhaustive" };
         c.bench_function(&format!("search f32 {label} (252 candidates)"), |b| {

@@ -11,10 +11,11 @@
 
 use nalgebra::DMatrix;
 use pump_sim::{Pump, PumpParams, Rig, Sfm3300Params};
-use ridge_core::{IntGram, Offset, Regressor, Scale, Search, Structure};
+use ridge_core::{IntGram, Offset, Regressor, Search, Structure};
 use ridge_pump_firmware::event::{Event, LINE_MAX};
 use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, SETTLE_MEAN_TICKS};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
+use ridge_pump_firmware::units::SCALE;
 
 /// The closed loop and everything it recorded.
 struct Loop {
@@ -139,7 +140,7 @@ fn identify(pump: PumpParams, seed: u64) -> Loop {
 /// OLS t-statistic of the coefficient of `u_{t-k}` in `structure` (noise variance from the
 /// least-squares residual), from the exact statistics.
 fn t_statistic(gram: &IntGram, structure: Structure, k: u8) -> f64 {
-    let normal = gram.normal::<f64>(Scale::SFM3300_DUTY_10K).unwrap();
+    let normal = gram.normal::<f64>(SCALE).unwrap();
     let sys = normal.system(structure, Offset::None).unwrap();
     let n = sys.params();
     let xtx = DMatrix::from_fn(n, n, |i, j| sys.augmented(i, j));
@@ -189,12 +190,7 @@ fn identifies_every_preset_and_matches_the_host_search() {
         // ridge-core in f64 on the same samples: same structure, same coefficients to f32
         // precision of the solve.
         let sel = Search::<f64>::default()
-            .run(
-                &lp.recorded_gram()
-                    .normal::<f64>(Scale::SFM3300_DUTY_10K)
-                    .unwrap(),
-                None,
-            )
+            .run(&lp.recorded_gram().normal::<f64>(SCALE).unwrap(), None)
             .unwrap();
         let host = sel.fit.model();
         assert_eq!(host.structure(), s, "{name}");

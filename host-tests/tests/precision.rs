@@ -1,7 +1,9 @@
 //! f32 against f64 on realistic data: the simulated pump through exact integer statistics
 //! (the device path), and the float statistics path (the host path).
-use pump_sim::{record, PumpParams, Record};
+use pump_sim::{record, PumpParams};
 use ridge_core::{FloatGram, IntGram, Normal, Scale, Search, Structure};
+use ridge_pump_firmware::excitation::Record;
+use ridge_pump_firmware::units::SCALE;
 
 fn int_gram(log: &pump_sim::Log) -> IntGram {
     let mut g = IntGram::new();
@@ -45,8 +47,8 @@ fn f32_and_f64_agree_on_the_simulated_pump() {
         ] {
             let log = record(rec, &params, 40 + k as u64);
             let g = int_gram(&log);
-            let n32 = g.normal::<f32>(Scale::SFM3300_DUTY_10K).unwrap();
-            let n64 = g.normal::<f64>(Scale::SFM3300_DUTY_10K).unwrap();
+            let n32 = g.normal::<f32>(SCALE).unwrap();
+            let n64 = g.normal::<f64>(SCALE).unwrap();
             let (s32, t32, p32, rss32) = pick(&n32);
             let (s64, t64, p64, rss64) = pick(&n64);
             assert_eq!(s32, s64, "{rec:?}: f32 and f64 pick different structures");
@@ -76,9 +78,7 @@ fn float_statistics_agree_with_exact_statistics() {
     // The host path (f64 sums of physical values) against the device path (exact integer
     // sums, scaled at solve time): same pick, same coefficients.
     let log = record(Record::AMultistep, &PumpParams::default(), 7);
-    let exact = int_gram(&log)
-        .normal::<f64>(Scale::SFM3300_DUTY_10K)
-        .unwrap();
+    let exact = int_gram(&log).normal::<f64>(SCALE).unwrap();
     let mut f = FloatGram::new();
     for (&u, &y) in log.u.iter().zip(&log.y) {
         f.push(u, y).unwrap();

@@ -21,13 +21,15 @@ use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::Path;
 
+use ridge_pump_firmware::excitation::Record;
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, SAMPLE_RATE_HZ};
+
 pub use arx::simulate_arx;
 pub use pump::{Pump, PumpParams};
-pub use ridge_core::excitation::{Record, DUTY_FULL_SCALE};
 pub use sfm3300::{Sfm3300, Sfm3300Params};
 
-/// Sample period of the rig, seconds (100 Hz).
-pub const TS_S: f64 = 0.01;
+/// Sample period of the rig, seconds (1 / [`SAMPLE_RATE_HZ`]).
+pub const TS_S: f64 = 1.0 / SAMPLE_RATE_HZ as f64;
 
 /// Duty counts (units of 1/[`DUTY_FULL_SCALE`]) → duty fraction 0..1.
 pub fn duty_to_f64(duty: u16) -> f64 {

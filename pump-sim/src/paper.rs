@@ -3,7 +3,7 @@
 //! Every record is simulated by [`crate::record`] on the reference blower
 //! ([`PumpParams::default`]: true transport delay 3 samples, dead zone, convex fan curve)
 //! and fed to the statistics exactly as the firmware will: an [`IntGram`] of
-//! `(raw_u, raw_y − 32768)` with [`Scale::SFM3300_DUTY_10K`], solved in `f64` (and in `f32`
+//! `(raw_u, raw_y − 32768)` with [`SCALE`], solved in `f64` (and in `f32`
 //! for the precision check). Models are therefore in duty fraction (0..1) and slm.
 //!
 //! Models are scored with [`Evaluation`]: one-step-ahead and free-run RMSE, both seeded with
@@ -18,11 +18,13 @@ use std::fmt::Write as _;
 
 use ridge_core::{
     AdaptiveLasso, ArxModel, Criterion, Error, Estimator, Evaluation, IntGram, Method, Normal, Ols,
-    Real, Regressor, Ridge, RidgeM, Rls, Scale, Search, Structure, System,
+    Real, Regressor, Ridge, RidgeM, Rls, Search, Structure, System,
 };
 pub use ridge_core::{Offset, Result};
+use ridge_pump_firmware::units::SCALE;
 
-use crate::{record, Log, PumpParams, Record, Sfm3300Params};
+use crate::{record, Log, PumpParams, Sfm3300Params};
+use ridge_pump_firmware::excitation::Record;
 
 /// Default noise seed of `paper-tables`.
 pub const DEFAULT_SEED: u64 = 20_250_601;
@@ -100,7 +102,7 @@ impl Dataset {
         record_index(r)
             .and_then(|i| self.grams.get(i))
             .ok_or(Error::InvalidParameter)?
-            .normal(Scale::SFM3300_DUTY_10K)
+            .normal(SCALE)
     }
 }
 
@@ -760,7 +762,7 @@ pub fn census(r: Record, first: u64, seeds: u32) -> Result<Vec<CensusRow>> {
     let mut picks: Vec<Vec<Structure>> = vec![Vec::new(); CENSUS_SEARCHES.len()];
     for i in 0..seeds {
         let log = record(r, &params, first.wrapping_add(u64::from(i)));
-        let normal = int_gram(&log)?.normal::<f64>(Scale::SFM3300_DUTY_10K)?;
+        let normal = int_gram(&log)?.normal::<f64>(SCALE)?;
         for (k, &(c, o, ols)) in CENSUS_SEARCHES.iter().enumerate() {
             let method = if ols {
                 Method::Ols
@@ -1143,7 +1145,7 @@ pub fn render_markdown(r: &Report) -> String {
          Records: `pump_sim::record(Record::…, &PumpParams::default(), {})`, 3000 samples \
          at 100 Hz each (reference blower: dead zone 12–15 % duty, τ = 0.15 s, flow ∝ speed^1.3, \
          150 slm at full duty, transport delay 3 samples; SFM3300 noise 3 % of reading). \
-         Statistics: `IntGram::push(raw_u, raw_y − 32768)`, `Scale::SFM3300_DUTY_10K`, solved \
+         Statistics: `IntGram::push(raw_u, raw_y − 32768)`, `SCALE`, solved \
          in f64. Coefficients in slm and duty fraction (0..1). Grid p ∈ 1..6, q ∈ 1..6, \
          d ∈ 0..6 (252 candidates).\n",
         r.seed, r.seed

@@ -13,11 +13,8 @@
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::{RngExt, SeedableRng};
 use rand_distr::StandardNormal;
+use ridge_pump_firmware::units::{FLOW_OFFSET, FLOW_SCALE};
 
-/// Scale factor of the SFM3300 (-D, -AW): raw counts per slm.
-pub const SCALE_FACTOR: f64 = 120.0;
-/// Offset of the SFM3300: the raw word at zero flow.
-pub const OFFSET_RAW: u16 = 32_768;
 /// 7-bit I2C address.
 pub const I2C_ADDRESS: u8 = 0x40;
 /// Command: start continuous measurement.
@@ -33,16 +30,16 @@ pub const CRC_INIT: u8 = 0x00;
 /// `0..=65535` (NaN → 32768, i.e. zero flow).
 pub fn flow_to_raw(flow_slm: f64) -> u16 {
     if flow_slm.is_nan() {
-        return OFFSET_RAW;
+        return FLOW_OFFSET;
     }
-    let counts = (flow_slm * SCALE_FACTOR).round() + f64::from(OFFSET_RAW);
+    let counts = (flow_slm * f64::from(FLOW_SCALE)).round() + f64::from(FLOW_OFFSET);
     // `as` saturates for floats; the clamp makes the range explicit.
     counts.clamp(0.0, f64::from(u16::MAX)) as u16
 }
 
 /// Raw word → flow in slm: `(raw − 32768) / 120`.
 pub fn raw_to_flow(raw: u16) -> f64 {
-    (f64::from(raw) - f64::from(OFFSET_RAW)) / SCALE_FACTOR
+    (f64::from(raw) - f64::from(FLOW_OFFSET)) / f64::from(FLOW_SCALE)
 }
 
 /// CRC-8 as the SFM3300 computes it: polynomial 0x31, init 0x00, MSB first, no final XOR.
@@ -193,7 +190,7 @@ mod tests {
         let mut s = Sfm3300::new(Sfm3300Params::ideal(), 1);
         for q in [0.0, 0.004, 12.3456, 99.99, 150.0] {
             let raw = s.measure_raw(q);
-            assert!((raw_to_flow(raw) - q).abs() <= 0.5 / SCALE_FACTOR + 1e-12);
+            assert!((raw_to_flow(raw) - q).abs() <= 0.5 / f64::from(FLOW_SCALE) + 1e-12);
         }
     }
 

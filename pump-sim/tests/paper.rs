@@ -6,21 +6,20 @@ use pump_sim::paper::{
     comparison, convergence, gamma_sweep, gram_matrix, int_gram, precision, pruning,
     ridge_m_residual_factor, rls, search, Algorithm, Dataset, DEFAULT_SEED, RLS_DELTA,
 };
-use pump_sim::{record, PumpParams, Record};
+use pump_sim::{record, PumpParams};
 use ridge_core::{
-    ArxModel, Criterion, Estimator, Grid, Method, Normal, Offset, Ols, Ridge, RidgeM, Scale,
-    Search, Structure, Q_MAX,
+    ArxModel, Criterion, Estimator, Grid, Method, Normal, Offset, Ols, Ridge, RidgeM, Search,
+    Structure, Q_MAX,
 };
+use ridge_pump_firmware::excitation::Record;
+use ridge_pump_firmware::units::SCALE;
 
 /// The simulator's transport delay: the independent truth for the delay picks.
 const TRUE_DELAY: u8 = 3;
 
 fn normal_of(r: Record, seed: u64) -> Normal<f64> {
     let log = record(r, &PumpParams::default(), seed);
-    int_gram(&log)
-        .unwrap()
-        .normal::<f64>(Scale::SFM3300_DUTY_10K)
-        .unwrap()
+    int_gram(&log).unwrap().normal::<f64>(SCALE).unwrap()
 }
 
 fn ridge_m_pick(n: &Normal<f64>, c: Criterion, o: Offset) -> Structure {

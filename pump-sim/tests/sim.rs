@@ -2,7 +2,8 @@
 //! nonlinearity, transport delay, sensor noise, fault injection and CSV output.
 
 use pump_sim::sfm3300::{raw_to_flow, Sfm3300Params};
-use pump_sim::{record, record_with, Pump, PumpParams, Record, Rig};
+use pump_sim::{record, record_with, Pump, PumpParams, Rig};
+use ridge_pump_firmware::excitation::Record;
 
 fn presets() -> [(&'static str, PumpParams); 3] {
     [

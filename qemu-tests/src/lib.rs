@@ -44,11 +44,12 @@ impl Rng {
     }
 }
 
-/// Physical units per count: duty in 1/10 000 of full scale, SFM3300 flow in 1/120 slm
-/// (the same as `ridge_core::Scale::SFM3300_DUTY_10K`, restated here as truth).
-pub const DUTY_PER_COUNT: f64 = 1e-4;
-/// SFM3300: 120 counts per slm.
-pub const SLM_PER_COUNT: f64 = 1.0 / 120.0;
+use ridge_pump_firmware::units::SCALE;
+
+/// Duty fraction per count (duty in 1/10 000 of full scale): the rig's `units::SCALE.u`.
+pub const DUTY_PER_COUNT: f64 = SCALE.u;
+/// Slm per SFM3300 count: the rig's `units::SCALE.y`.
+pub const SLM_PER_COUNT: f64 = SCALE.y;
 
 /// A known ARX plant `y_t = θ₁ y_{t-1} + θ₂ y_{t-2} + φ₀ u_{t-d} + φ₁ u_{t-d-1} + e_t`
 /// in physical units (slm, duty fraction).

@@ -53,7 +53,7 @@ macro_rules! must {
     };
 }
 
-const SCALE: Scale = Scale::SFM3300_DUTY_10K;
+use ridge_pump_firmware::units::SCALE;
 const SEED: u32 = 0x5EED_0223;
 
 /// Shared by all tests: one 3000-sample record of the known plant and its statistics.

@@ -31,7 +31,8 @@ use crate::{L_MAX, P_MAX};
 /// Physical units per raw count for the input and the output.
 ///
 /// Example: SFM3300 flow in slm from `raw − 32768` counts is `1/120` slm per count;
-/// a duty given in 1/10 000 of full scale is `1e-4` per count.
+/// a duty given in 1/10 000 of full scale is `1e-4` per count (the pump's scale is
+/// `ridge_pump_firmware::units::SCALE`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Scale {
     /// Input units per count (e.g. duty fraction per PWM count).
@@ -43,12 +44,6 @@ pub struct Scale {
 impl Scale {
     /// No conversion: the samples already are physical values.
     pub const UNIT: Scale = Scale { u: 1.0, y: 1.0 };
-
-    /// SFM3300 counts (`raw − 32768`, 1/120 slm each) and duty in 1/10 000 of full scale.
-    pub const SFM3300_DUTY_10K: Scale = Scale {
-        u: 1.0 / 10_000.0,
-        y: 1.0 / 120.0,
-    };
 }
 
 mod sealed {
@@ -275,7 +270,8 @@ pub(crate) enum Col {
 ///     let y = 0; // SFM3300 counts, raw − 32768 (a real sensor goes here)
 ///     gram.push(u, y + (t % 7) * 40)?;
 /// }
-/// let normal = gram.normal::<f32>(Scale::SFM3300_DUTY_10K)?;
+/// // Duty fraction per count, slm per count.
+/// let normal = gram.normal::<f32>(Scale { u: 1e-4, y: 1.0 / 120.0 })?;
 /// let system = normal.system(Structure::new(2, 2, 1)?, Offset::None)?;
 /// assert_eq!(system.samples(), 400);
 /// # Ok::<(), ridge_core::Error>(())

@@ -14,27 +14,29 @@
 use std::path::Path;
 use std::time::Instant;
 
-use ridge_core::excitation::{Record, DUTY_FULL_SCALE};
-use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Real, Scale, Search};
+use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Real, Search};
 
 use crate::firmware::{self, Sizes};
 use crate::report::{Line, Report};
 use crate::rig::{Rig, RigConfig, RunEnd, TickTiming, SUBSTEPS};
-use pump_sim::sfm3300::OFFSET_RAW;
 use pump_sim::{Pump, PumpParams, Sfm3300, Sfm3300Params};
 use ridge_id::eval::Trace;
 use ridge_id::plot::{write_png, Panel};
+use ridge_pump_firmware::excitation::Record;
+use ridge_pump_firmware::pump::duty_to_counts;
+use ridge_pump_firmware::selfid::absolute_model;
+use ridge_pump_firmware::sfm3300::raw_to_counts;
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, SCALE};
 
 /// Timer TOP + 1 of the board's pump PWM (OC4A, 20 kHz): `max_duty_cycle()`.
 pub const PWM_MAX: u32 = 800;
 /// One tick, cycles (10 ms at 16 MHz).
 pub const TICK_CYCLES: u64 = 160_000;
 
-/// Timer count (`OCR4A + 1`, 0 = off) the board writes for a duty in 1/10 000
-/// (`ridge_pump_firmware::pump::duty_to_counts`, rounded to nearest).
+/// Timer count (`OCR4A + 1`, 0 = off) the board writes for a duty in 1/10 000: the pump
+/// driver's [`duty_to_counts`] with `max_duty_cycle() = PWM_MAX`.
 pub fn duty_counts(duty: u16) -> u32 {
-    let d = u32::from(duty.min(DUTY_FULL_SCALE));
-    (d * PWM_MAX + u32::from(DUTY_FULL_SCALE) / 2) / u32::from(DUTY_FULL_SCALE)
+    u32::from(duty_to_counts(duty, PWM_MAX as u16))
 }
 
 /// The model of an `ID` / `LOADED` line.
@@ -402,7 +404,7 @@ fn timing(
 /// Rebuilds the record announced by line `idx` (`EXCITE <name> n=..` / `VALIDATE <name> n=..`)
 /// from the frames served and the PWM log, aligned on the generator's duty sequence.
 pub fn rebuild(rig: &Rig, idx: usize, r: &Report) -> Option<Samples> {
-    let record = r.words.iter().find_map(|w| Record::from_name(w))?;
+    let record = r.words.iter().find_map(|w| w.parse::<Record>().ok())?;
     let n = r
         .int("n")
         .map_or(record.len_samples() as usize, |v| v as usize);
@@ -426,14 +428,16 @@ pub fn rebuild(rig: &Rig, idx: usize, r: &Report) -> Option<Samples> {
             let y0_frames = (k >= 50).then(|| {
                 let sum: i32 = frames[k - 50..k]
                     .iter()
-                    .map(|(_, raw)| i32::from(*raw) - i32::from(OFFSET_RAW))
+                    .map(|(_, raw)| i32::from(raw_to_counts(*raw)))
                     .sum();
                 let half = if sum >= 0 { 25 } else { -25 };
                 ((sum + half) / 50) as i16
             });
             let mut s = Samples {
                 u0: r.num("u0").map_or(0, |v| (v * 100.0).round() as u16),
-                y0: r.num("y0").map_or(0, |v| (v * 120.0).round() as i16),
+                y0: r
+                    .num("y0")
+                    .map_or(0, |v| (v * f64::from(FLOW_SCALE)).round() as i16),
                 y0_frames,
                 ..Samples::default()
             };
@@ -468,26 +472,19 @@ pub fn host_search_in<T: Real>(samples: &Samples) -> Result<IdLine, String> {
     let mut g = IntGram::new();
     let (u0, y0) = (i32::from(samples.u0), i32::from(samples.y0));
     for (&u, &raw) in samples.u.iter().zip(&samples.raw) {
-        g.push(
-            i32::from(u) - u0,
-            i32::from(raw) - i32::from(OFFSET_RAW) - y0,
-        )
-        .map_err(|e| format!("{e:?}"))?;
+        g.push(i32::from(u) - u0, i32::from(raw_to_counts(raw)) - y0)
+            .map_err(|e| format!("{e:?}"))?;
     }
-    let normal = g
-        .normal::<T>(Scale::SFM3300_DUTY_10K)
-        .map_err(|e| format!("{e:?}"))?;
+    let normal = g.normal::<T>(SCALE).map_err(|e| format!("{e:?}"))?;
     let sel = firmware_search::<T>()
         .run(&normal, None)
         .map_err(|e| format!("{e:?}"))?;
-    let m = sel.fit.model();
+    let m =
+        absolute_model(&sel.fit.model(), samples.u0, samples.y0).map_err(|e| format!("{e:?}"))?;
     let s = m.structure();
     let theta: Vec<f64> = m.theta().iter().map(|v| v.to_f64()).collect();
     let phi: Vec<f64> = m.phi().iter().map(|v| v.to_f64()).collect();
-    let sum_theta: f64 = theta.iter().sum();
-    let sum_phi: f64 = phi.iter().sum();
-    let c = m.intercept().to_f64() + f64::from(y0) / 120.0 * (1.0 - sum_theta)
-        - f64::from(u0) / f64::from(DUTY_FULL_SCALE) * sum_phi;
+    let c = m.intercept().to_f64();
     Ok(IdLine {
         p: s.p,
         q: s.q,

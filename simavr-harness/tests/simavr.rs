@@ -10,7 +10,7 @@
 
 use pump_sim::sfm3300::flow_to_raw;
 use pump_sim::PumpParams;
-use ridge_core::excitation::Record;
+use ridge_pump_firmware::excitation::Record;
 use simavr_harness::firmware;
 use simavr_harness::rig::{Action, Rig, RigConfig};
 use simavr_harness::sensor::Fault;

@@ -53,12 +53,14 @@
 //! previous reading is used (counted as a gap, at most [`Config::max_gaps`] per record), in run
 //! mode the tick is not scored.
 
-use ridge_core::excitation::{Excitation, Record, DUTY_FULL_SCALE};
-use ridge_core::{ArxModel, Evaluation, IntGram, Normal, Offset, Scale, Search};
+use ridge_core::excitation::Excitation;
+use ridge_core::{ArxModel, Evaluation, IntGram, Normal, Offset, Real, Search};
 
 use crate::event::{Event, FaultReason, RejectReason, SearchStats, SensorFault};
-use crate::monitor::{Monitor, MonitorConfig, FRACTION_PER_DUTY, SLM_PER_COUNT};
+use crate::excitation::Record;
+use crate::monitor::{Monitor, MonitorConfig};
 use crate::persist::{self, PersistError, RECORD_LEN};
+use crate::units::{DUTY_FULL_SCALE, FRACTION_PER_DUTY, SCALE, SLM_PER_COUNT};
 
 /// Settings of the state machine. Duties in 1/10 000 of full scale, flows in SFM3300 counts
 /// (1/120 slm), times in ticks of 10 ms.
@@ -271,23 +273,26 @@ pub const SETTLE_MEAN_TICKS: u16 = 50;
 /// Converts a model identified on deviations from the operating point `(u0, y0)` (duty
 /// 1/10 000, flow counts) into the absolute model with an intercept (physical units):
 /// `c = c_dev + y0 (1 − Σθ) − u0 Σφ` (slm, with `y0` in slm and `u0` as a fraction).
+/// Generic so that host tools check the device's `f32` result with the same conversion in
+/// `f64`.
 ///
 /// Errors: [`ridge_core::Error::NonFinite`] for non-finite coefficients.
-pub fn absolute_model(
-    dev: &ArxModel<f32>,
+pub fn absolute_model<T: Real>(
+    dev: &ArxModel<T>,
     u0: u16,
     y0: i16,
-) -> Result<ArxModel<f32>, ridge_core::Error> {
-    let mut sum_theta = 0.0f32;
+) -> Result<ArxModel<T>, ridge_core::Error> {
+    let mut sum_theta = T::ZERO;
     for t in dev.theta() {
         sum_theta += *t;
     }
-    let mut sum_phi = 0.0f32;
+    let mut sum_phi = T::ZERO;
     for f in dev.phi() {
         sum_phi += *f;
     }
-    let c = dev.intercept() + f32::from(y0) * SLM_PER_COUNT * (1.0 - sum_theta)
-        - f32::from(u0) * FRACTION_PER_DUTY * sum_phi;
+    let c = dev.intercept()
+        + T::from_i64(i64::from(y0)) * T::from_f64(SCALE.y) * (T::ONE - sum_theta)
+        - T::from_u32(u32::from(u0)) * T::from_f64(SCALE.u) * sum_phi;
     ArxModel::new(
         dev.theta(),
         dev.phi(),
@@ -442,7 +447,7 @@ fn evaluate(
     // cost a second copy on the ATmega2560's stack.
     let mut normal = Normal::<f32>::empty();
     rec.gram
-        .normal_into(&Scale::SFM3300_DUTY_10K, &mut normal)
+        .normal_into(&SCALE, &mut normal)
         .map_err(|e| match e {
             ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
             e => RejectReason::Search(e),

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, ValueEnum};
 use pump_sim::PumpParams;
-use ridge_core::excitation::Record;
+use ridge_pump_firmware::excitation::Record;
 use simavr_harness::firmware;
 use simavr_harness::session::{self, IdLine, Outcome, SessionConfig, TICK_CYCLES};
 
