@@ -55,5 +55,66 @@ impl fmt::Display for Error {
     }
 }
 
+/// A name that no variant of an enum carries: the error of `FromStr` for [`crate::Criterion`],
+/// [`crate::Offset`] and [`crate::MethodKind`]. Each of those enums has one name table, its
+/// `name()`; `FromStr` reads exactly those names and this error lists them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct UnknownName {
+    /// What was being named (`"criterion"`, `"offset"`, `"method"`).
+    pub what: &'static str,
+    /// The accepted names, in the enum's order.
+    pub expected: &'static [&'static str],
+}
+
+impl fmt::Display for UnknownName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "unknown {} (expected ", self.what)?;
+        let n = self.expected.len();
+        for (i, name) in self.expected.iter().enumerate() {
+            let sep = match (i, n - i) {
+                (0, _) => "",
+                (_, 1) => " or ",
+                _ => ", ",
+            };
+            write!(f, "{sep}{name}")?;
+        }
+        f.write_str(")")
+    }
+}
+
+impl core::error::Error for UnknownName {}
+
+/// Parses `s` as the variant of `all` whose `name` it is (exactly, case-sensitive).
+pub(crate) fn parse_name<T: Copy>(
+    s: &str,
+    all: &[T],
+    name: fn(T) -> &'static str,
+    what: &'static str,
+    expected: &'static [&'static str],
+) -> core::result::Result<T, UnknownName> {
+    all.iter()
+        .copied()
+        .find(|v| name(*v) == s)
+        .ok_or(UnknownName { what, expected })
+}
+
+impl fmt::Display for crate::Criterion {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl fmt::Display for crate::Offset {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl fmt::Display for crate::MethodKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Result alias of the crate.
 pub type Result<T> = core::result::Result<T, Error>;

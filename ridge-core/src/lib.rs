@@ -50,7 +50,7 @@ pub mod structure;
 #[doc(hidden)]
 pub mod wide;
 
-pub use error::{Error, Result};
+pub use error::{Error, Result, UnknownName};
 pub use estimate::{Estimator, Fit, Ols, Ridge, RidgeM};
 pub use gram::{Accumulator, FloatGram, Gram, IntGram, Scale};
 #[cfg(feature = "alasso")]
@@ -59,7 +59,7 @@ pub use model::{ArxModel, Evaluation, Metrics, Mode, Predictor, Score};
 pub use normal::{Factor, Normal, Regressor, System};
 pub use real::Real;
 pub use rls::Rls;
-pub use search::{Criterion, Method, Search, Selection};
+pub use search::{Criterion, Method, MethodKind, Search, Selection};
 pub use structure::{Grid, Offset, OrderRange, Structure, GRID_MAX};
 
 /// Largest autoregressive order `p`.

@@ -42,6 +42,117 @@ pub enum Criterion {
     Validation,
 }
 
+impl Criterion {
+    /// All criteria, in declaration order.
+    pub const ALL: [Criterion; 4] = [
+        Criterion::Paper,
+        Criterion::Aic,
+        Criterion::Bic,
+        Criterion::Validation,
+    ];
+
+    /// The name used on command lines and in reports: `paper`, `aic`, `bic`, `validation`
+    /// (the one name table; [`FromStr`](core::str::FromStr) reads the same names).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Criterion::Paper => "paper",
+            Criterion::Aic => "aic",
+            Criterion::Bic => "bic",
+            Criterion::Validation => "validation",
+        }
+    }
+
+    /// The criterion value of a candidate: `N ln(RSS/N) + penalty`, with `N = samples`,
+    /// `k = p + q (+1 with an intercept)` and the penalty `α (k + d)` ([`Paper`]), `α k`
+    /// ([`Aic`]), `ln(N) k` ([`Bic`]) or none ([`Validation`], whose `rss` and `samples` are
+    /// the validation record's). Smaller is better. The one definition the search and every
+    /// report use.
+    ///
+    /// [`Paper`]: Criterion::Paper
+    /// [`Aic`]: Criterion::Aic
+    /// [`Bic`]: Criterion::Bic
+    /// [`Validation`]: Criterion::Validation
+    pub fn value<T: Real>(self, alpha: T, rss: T, samples: u32, s: Structure, offset: Offset) -> T {
+        let n = T::from_u32(samples);
+        let k = T::from_u32(u32::from(s.p) + u32::from(s.q) + offset.params() as u32);
+        let fit = n * (rss / n).ln();
+        match self {
+            Criterion::Paper => fit + alpha * (k + T::from_u32(u32::from(s.d))),
+            Criterion::Aic => fit + alpha * k,
+            Criterion::Bic => fit + n.ln() * k,
+            Criterion::Validation => fit,
+        }
+    }
+}
+
+impl core::str::FromStr for Criterion {
+    type Err = crate::error::UnknownName;
+    fn from_str(s: &str) -> core::result::Result<Self, Self::Err> {
+        const NAMES: [&str; 4] = [
+            Criterion::Paper.name(),
+            Criterion::Aic.name(),
+            Criterion::Bic.name(),
+            Criterion::Validation.name(),
+        ];
+        crate::error::parse_name(s, &Criterion::ALL, Criterion::name, "criterion", &NAMES)
+    }
+}
+
+/// The estimators of the crate, by kind (without their hyper-parameters): what a command line
+/// or a report names. [`Method`] carries the hyper-parameters of the ones the search can run;
+/// [`MethodKind::Rls`] runs sample by sample ([`crate::Rls`]) on a chosen structure.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MethodKind {
+    /// Ridge with momentum (the paper's method), [`RidgeM`].
+    #[default]
+    RidgeM,
+    /// Plain Ridge, [`Ridge`] (one Ridge-M iterate).
+    Ridge,
+    /// Ordinary least squares, [`crate::Ols`].
+    Ols,
+    /// Recursive least squares, [`crate::Rls`].
+    Rls,
+    /// Adaptive LASSO (cargo feature `alasso`).
+    AdaptiveLasso,
+}
+
+impl MethodKind {
+    /// All kinds, in declaration order.
+    pub const ALL: [MethodKind; 5] = [
+        MethodKind::RidgeM,
+        MethodKind::Ridge,
+        MethodKind::Ols,
+        MethodKind::Rls,
+        MethodKind::AdaptiveLasso,
+    ];
+
+    /// The name used on command lines and in reports: `ridge-m`, `ridge`, `ols`, `rls`,
+    /// `alasso` (the one name table; [`FromStr`](core::str::FromStr) reads the same names).
+    pub const fn name(self) -> &'static str {
+        match self {
+            MethodKind::RidgeM => "ridge-m",
+            MethodKind::Ridge => "ridge",
+            MethodKind::Ols => "ols",
+            MethodKind::Rls => "rls",
+            MethodKind::AdaptiveLasso => "alasso",
+        }
+    }
+}
+
+impl core::str::FromStr for MethodKind {
+    type Err = crate::error::UnknownName;
+    fn from_str(s: &str) -> core::result::Result<Self, Self::Err> {
+        const NAMES: [&str; 5] = [
+            MethodKind::RidgeM.name(),
+            MethodKind::Ridge.name(),
+            MethodKind::Ols.name(),
+            MethodKind::Rls.name(),
+            MethodKind::AdaptiveLasso.name(),
+        ];
+        crate::error::parse_name(s, &MethodKind::ALL, MethodKind::name, "method", &NAMES)
+    }
+}
+
 /// The estimator run on each candidate.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Method<T> {
@@ -54,6 +165,19 @@ pub enum Method<T> {
     /// Adaptive LASSO (cargo feature `alasso`).
     #[cfg(feature = "alasso")]
     AdaptiveLasso(AdaptiveLasso<T>),
+}
+
+impl<T: Real> Method<T> {
+    /// Which estimator this is.
+    pub fn kind(&self) -> MethodKind {
+        match self {
+            Method::RidgeM(_) => MethodKind::RidgeM,
+            Method::Ridge(_) => MethodKind::Ridge,
+            Method::Ols => MethodKind::Ols,
+            #[cfg(feature = "alasso")]
+            Method::AdaptiveLasso(_) => MethodKind::AdaptiveLasso,
+        }
+    }
 }
 
 impl<T: Real> Default for Method<T> {
@@ -140,17 +264,10 @@ impl<T: Real> Search<T> {
         Ok(())
     }
 
-    /// `N ln(RSS/N) + penalty` of a structure.
+    /// [`Criterion::value`] of a structure with this search's criterion, `α` and offset.
     fn criterion(&self, rss: T, samples: u32, s: Structure) -> T {
-        let n = T::from_u32(samples);
-        let k = T::from_u32(u32::from(s.p) + u32::from(s.q) + self.offset.params() as u32);
-        let fit = n * (rss / n).ln();
-        match self.criterion {
-            Criterion::Paper => fit + self.alpha * (k + T::from_u32(u32::from(s.d))),
-            Criterion::Aic => fit + self.alpha * k,
-            Criterion::Bic => fit + n.ln() * k,
-            Criterion::Validation => fit,
-        }
+        self.criterion
+            .value(self.alpha, rss, samples, s, self.offset)
     }
 
     /// Forms candidate `s`: its system (a view into `est`), its least-squares factor in

@@ -67,12 +67,32 @@ pub enum Offset {
 }
 
 impl Offset {
+    /// Both choices, in declaration order.
+    pub const ALL: [Offset; 2] = [Offset::None, Offset::Intercept];
+
+    /// The name used on command lines and in reports: `none`, `intercept` (the one name table;
+    /// [`FromStr`](core::str::FromStr) reads the same names).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Offset::None => "none",
+            Offset::Intercept => "intercept",
+        }
+    }
+
     /// 1 with an intercept, else 0.
     pub fn params(self) -> usize {
         match self {
             Offset::None => 0,
             Offset::Intercept => 1,
         }
+    }
+}
+
+impl core::str::FromStr for Offset {
+    type Err = crate::error::UnknownName;
+    fn from_str(s: &str) -> core::result::Result<Self, Self::Err> {
+        const NAMES: [&str; 2] = [Offset::None.name(), Offset::Intercept.name()];
+        crate::error::parse_name(s, &Offset::ALL, Offset::name, "offset", &NAMES)
     }
 }
 
