@@ -1,9 +1,24 @@
 #![cfg_attr(not(test), no_std)]
 #![warn(missing_docs)]
-#![forbid(unsafe_code)]
-//! ridge-pump firmware: SFM3300 flow-sensor driver, pump PWM control and report formatting for
-//! the on-device self-identification loop (ATmega2560 and STM32F411).
+#![deny(unsafe_code)]
+//! ridge-pump firmware: everything the pump runs, as a `no_std` library that is tested on the
+//! host, plus thin board images (`src/bin/`, board glue in `src/board/`).
+//!
+//! | module | what |
+//! |---|---|
+//! | [`app`] | the 100 Hz loop both boards run, over a [`app::Board`] (tick, watchdog, storage) |
+//! | [`selfid`] | the power-up self-identification state machine |
+//! | [`monitor`] | run-mode residual monitor and drift detection |
+//! | [`sfm3300`] | SFM3300 flow-sensor driver (embedded-hal I2C) |
+//! | [`pump`] | blower PWM output with limits and a ramp limit (embedded-hal PWM) |
+//! | [`persist`] | the stored model record (magic, version, CRC-32) |
+//! | [`event`], [`report`] | report lines and their fixed-point formatting (ufmt) |
+//! | [`units`] | the rig's units: duty scale, SFM3300 encoding, loop rate, [`units::SCALE`] |
+//! | [`excitation`] | the pump's excitation presets ([`excitation::Record`]) |
+//! | [`ring`] | the lock-free UART transmit queue (the crate's only `unsafe`) |
+//! | [`arith`] | a fixed computation for `scripts/avr-arith-check` |
 
+pub mod app;
 pub mod arith;
 pub mod event;
 pub mod excitation;
@@ -11,6 +26,9 @@ pub mod monitor;
 pub mod persist;
 pub mod pump;
 pub mod report;
+// The one module with `unsafe`: a lock-free SPSC byte queue for UART interrupts.
+#[allow(unsafe_code)]
+pub mod ring;
 pub mod selfid;
 pub mod sfm3300;
 pub mod units;

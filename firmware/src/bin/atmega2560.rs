@@ -23,11 +23,11 @@ fn main() {
 
 #[cfg(target_arch = "avr")]
 mod image {
-    use super::board::app::{App, Board};
-    use super::board::avr::{eeprom, pwm, stack, timer, twi, usart, watchdog};
+    use super::board::arduino_mega2560::{eeprom, pwm, stack, timer, twi, usart, watchdog};
     use avr_device::atmega2560 as pac;
     use core::mem::MaybeUninit;
     use core::ptr::addr_of_mut;
+    use ridge_pump_firmware::app::{App, Board};
     use ridge_pump_firmware::persist::RECORD_LEN;
     use ridge_pump_firmware::pump::Pump;
     use ridge_pump_firmware::selfid::{Config, SelfIdentification};

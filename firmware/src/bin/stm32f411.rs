@@ -19,9 +19,9 @@ fn main() {
 
 #[cfg(all(target_arch = "arm", target_os = "none"))]
 mod image {
-    use super::board::app::{App, Board};
-    use super::board::stm32f411::{self as bp, FlashStore, Ticker, Uart, WATCHDOG_MS};
+    use super::board::blackpill_f411::{self as bp, FlashStore, Ticker, Uart, WATCHDOG_MS};
     use cortex_m_rt::entry;
+    use ridge_pump_firmware::app::{App, Board};
     use ridge_pump_firmware::persist::RECORD_LEN;
     use ridge_pump_firmware::pump::Pump;
     use ridge_pump_firmware::selfid::{Config, SelfIdentification};

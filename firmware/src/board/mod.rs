@@ -1,15 +1,16 @@
-//! Board glue, compiled into the board binaries (`src/bin/*.rs` include it with `#[path]`), not
-//! into the library: the library stays `forbid(unsafe_code)` and hardware-agnostic.
+//! Board glue, compiled into the board images (`src/bin/*.rs` include it with `#[path]`), not
+//! into the library: the library stays hardware-agnostic and testable on the host. One folder
+//! or file per board, named after the board:
 //!
-//! - [`app`]: the 100 Hz loop shared by both boards (sensor, state machine, pump, reports).
-//! - [`ring`]: the lock-free UART transmit queue.
-//! - `avr`: ATmega2560 register-level adapters (built for `target_arch = "avr"` only).
-//! - `stm32f411`: STM32F411 glue on stm32f4xx-hal (built for Cortex-M only).
-
-pub mod app;
-pub mod ring;
+//! - `arduino_mega2560`: Arduino Mega 2560 (ATmega2560) register-level adapters on
+//!   `avr-device` (built for `target_arch = "avr"` only).
+//! - `blackpill_f411`: WeAct "Black Pill" STM32F411 glue on stm32f4xx-hal (built for Cortex-M
+//!   only).
+//!
+//! The 100 Hz loop both boards run is the library's [`ridge_pump_firmware::app`]; the UART
+//! transmit queues are its [`ridge_pump_firmware::ring::Ring`].
 
 #[cfg(target_arch = "avr")]
-pub mod avr;
+pub mod arduino_mega2560;
 #[cfg(all(target_arch = "arm", target_os = "none"))]
-pub mod stm32f411;
+pub mod blackpill_f411;

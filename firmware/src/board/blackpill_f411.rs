@@ -19,7 +19,7 @@ use stm32f4xx_hal::pac::{self, interrupt, FLASH, TIM5, USART1};
 use stm32f4xx_hal::timer::Counter;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-use super::ring::Ring;
+use ridge_pump_firmware::ring::Ring;
 
 /// Frequency of the TIM5 tick counter.
 pub const COUNTER_HZ: u32 = 10_000;

@@ -10,9 +10,9 @@
 //! bytes) fits. When the queue is full the writer waits for room (≤ 22 ms for a whole queue);
 //! with interrupts disabled it sends directly instead.
 
-use super::super::ring::Ring;
 use avr_device::atmega2560::USART0;
 use core::convert::Infallible;
+use ridge_pump_firmware::ring::Ring;
 
 /// The baud rate set by [`Usart0::new`].
 pub const BAUD: u32 = 115_200;

@@ -24,6 +24,12 @@ pub struct Ring<const N: usize> {
 // `push` and `pop`).
 unsafe impl<const N: usize> Sync for Ring<N> {}
 
+impl<const N: usize> Default for Ring<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl<const N: usize> Ring<N> {
     const MASK: u8 = {
         assert!(N.is_power_of_two() && N >= 2 && N <= 256);

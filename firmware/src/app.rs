@@ -1,6 +1,6 @@
 //! The 100 Hz main loop shared by both boards: wait for the tick, pet the watchdog, read the
 //! SFM3300 (I2C in the main loop, never in an interrupt), step the self-identification state
-//! machine ([`ridge_pump_firmware::selfid`]), apply its duty to the pump, print its events,
+//! machine ([`crate::selfid`]), apply its duty to the pump, print its events,
 //! persist its record when an event asks for it, and — after the PWM write — judge the
 //! validation record and run the structure search when they are due.
 //!
@@ -17,7 +17,7 @@
 //! Either way the search's ticks are counted on the `SEARCH` line, not in `MISSED`.
 //!
 //! Report lines written here (`\n`-terminated ASCII), besides the state machine's events (see
-//! [`ridge_pump_firmware::event`]):
+//! [`crate::event`]):
 //!
 //! | line | when |
 //! |---|---|
@@ -28,12 +28,12 @@
 //! | `PERSIST saved` / `PERSIST failed` | a record write finished |
 //! | `PUMP error` | the PWM channel refused a duty: the pump is stopped |
 
+use crate::event::{Event, FaultReason, SensorFault};
+use crate::pump::Pump;
+use crate::selfid::SelfIdentification;
+use crate::sfm3300::Sfm3300;
 use embedded_hal::i2c::I2c;
 use embedded_hal::pwm::SetDutyCycle;
-use ridge_pump_firmware::event::{Event, FaultReason, SensorFault};
-use ridge_pump_firmware::pump::Pump;
-use ridge_pump_firmware::selfid::SelfIdentification;
-use ridge_pump_firmware::sfm3300::Sfm3300;
 use ufmt::{uWrite, uwriteln};
 
 /// Ticks over which [`App::start`] retries *start continuous measurement* (1 s: covers the
@@ -124,6 +124,16 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             summary_in: SUMMARY_TICKS,
             search_lines: None,
         }
+    }
+
+    /// The state machine (for status lines and host tests).
+    pub fn selfid(&self) -> &SelfIdentification {
+        &self.sid
+    }
+
+    /// The pump driver (its applied and commanded duty).
+    pub fn pump(&self) -> &Pump<P> {
+        &self.pump
     }
 
     /// Starts continuous measurement, retrying once per tick for up to [`START_TICKS`] ticks

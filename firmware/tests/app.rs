@@ -1,0 +1,587 @@
+//! The 100 Hz application loop (`ridge_pump_firmware::app`) on the host, with fakes of what a
+//! board provides: an SFM3300 on an embedded-hal I2C bus serving the readings of a simulated
+//! plant, a PWM channel that drives that plant, a UART that collects the lines, and a [`Board`]
+//! with a simulated clock (every `poll_tick` costs [`POLL_US`], every sensor read the time the
+//! test gives it), a watchdog counter and a record store.
+//!
+//! Checked: tick accounting (late passes, lost ticks, the `MISSED` line), the event lines of a
+//! whole identification, the persistence request and its `PERSIST` line, the search in both
+//! modes (ticking from the search's progress calls, and blocking with the guard), a sensor fault
+//! during the search (pump stopped before the search returns), a PWM error, a sensor that never
+//! starts, and that the watchdog is petted through the long search.
+
+mod common;
+
+use std::cell::RefCell;
+use std::rc::Rc;
+
+use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, NoAcknowledgeSource, Operation};
+use embedded_hal::pwm::{self, SetDutyCycle};
+use ridge_pump_firmware::app::{App, Board, START_TICKS};
+use ridge_pump_firmware::persist;
+use ridge_pump_firmware::pump::Pump;
+use ridge_pump_firmware::selfid::{Config, SelfIdentification, State};
+use ridge_pump_firmware::sfm3300::{crc8, Sfm3300, ADDRESS};
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_OFFSET};
+
+use common::Plant;
+
+/// Simulated time one `poll_tick` call costs, µs.
+const POLL_US: u64 = 500;
+/// Tick period, µs.
+const TICK_US: u64 = 10_000;
+/// Resolution of the fake PWM channel (`max_duty_cycle`).
+const PWM_MAX: u16 = 1000;
+
+/// Everything the fakes share: the plant, the clock and the fault switches.
+struct World {
+    plant: Plant,
+    /// Simulated time, µs.
+    clock: u64,
+    /// Clock at the last tick boundary handed out by `poll_tick`.
+    last_boundary: u64,
+    /// The latest reading (counts), advanced once per tick boundary.
+    reading: i16,
+    /// PWM counts written last.
+    pwm: u16,
+    /// `(clock, counts)` of every PWM write.
+    pwm_log: Vec<(u64, u16)>,
+    /// The sensor acknowledges nothing (absent or dead) while this is set.
+    sensor_dead: bool,
+    /// The sensor acknowledged `start continuous measurement`.
+    started: bool,
+    /// The first frame after the start is discarded by the driver: served once.
+    first_frame: bool,
+    /// Extra simulated time of the next sensor read, µs (a slow tick), then 0.
+    next_read_us: u64,
+    /// The PWM channel refuses writes while this is set.
+    pwm_broken: bool,
+    /// `pet` calls.
+    pets: u64,
+    /// Largest simulated time between two `pet` calls, µs.
+    longest_unpetted: u64,
+    last_pet: u64,
+}
+
+type Shared = Rc<RefCell<World>>;
+
+fn world(plant: Plant) -> Shared {
+    Rc::new(RefCell::new(World {
+        plant,
+        clock: 0,
+        last_boundary: 0,
+        reading: 0,
+        pwm: 0,
+        pwm_log: Vec::new(),
+        sensor_dead: false,
+        started: false,
+        first_frame: true,
+        next_read_us: 0,
+        pwm_broken: false,
+        pets: 0,
+        longest_unpetted: 0,
+        last_pet: 0,
+    }))
+}
+
+/// The SFM3300 on the bus: `0x1000` starts it, every read returns the latest reading as
+/// `[MSB, LSB, CRC]` (datasheet frame; CRC-8 poly 0x31, init 0x00).
+struct FakeSensor(Shared);
+
+impl ErrorType for FakeSensor {
+    type Error = ErrorKind;
+}
+
+impl I2c for FakeSensor {
+    fn transaction(&mut self, address: u8, ops: &mut [Operation<'_>]) -> Result<(), ErrorKind> {
+        let mut w = self.0.borrow_mut();
+        if w.sensor_dead || address != ADDRESS {
+            return Err(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address));
+        }
+        for op in ops {
+            match op {
+                Operation::Write(bytes) => {
+                    if *bytes == [0x10, 0x00] {
+                        w.started = true;
+                        w.first_frame = true;
+                    }
+                }
+                Operation::Read(buf) => {
+                    if !w.started {
+                        return Err(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address));
+                    }
+                    w.clock += std::mem::take(&mut w.next_read_us);
+                    let raw = if std::mem::take(&mut w.first_frame) {
+                        0xFFFF
+                    } else {
+                        (i32::from(w.reading) + i32::from(FLOW_OFFSET)) as u16
+                    };
+                    let [hi, lo] = raw.to_be_bytes();
+                    let frame = [hi, lo, crc8(&[hi, lo])];
+                    for (b, f) in buf.iter_mut().zip(frame) {
+                        *b = f;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A PWM channel of [`PWM_MAX`] counts.
+struct FakePwm(Shared);
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct PwmBroken;
+
+impl pwm::Error for PwmBroken {
+    fn kind(&self) -> pwm::ErrorKind {
+        pwm::ErrorKind::Other
+    }
+}
+
+impl pwm::ErrorType for FakePwm {
+    type Error = PwmBroken;
+}
+
+impl SetDutyCycle for FakePwm {
+    fn max_duty_cycle(&self) -> u16 {
+        PWM_MAX
+    }
+    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), PwmBroken> {
+        let mut w = self.0.borrow_mut();
+        if w.pwm_broken {
+            return Err(PwmBroken);
+        }
+        w.pwm = duty;
+        let t = w.clock;
+        w.pwm_log.push((t, duty));
+        Ok(())
+    }
+}
+
+/// The UART: every line the loop prints.
+#[derive(Clone, Default)]
+struct Uart(Rc<RefCell<String>>);
+
+impl ufmt::uWrite for Uart {
+    type Error = core::convert::Infallible;
+    fn write_str(&mut self, s: &str) -> Result<(), Self::Error> {
+        self.0.borrow_mut().push_str(s);
+        Ok(())
+    }
+}
+
+impl Uart {
+    fn lines(&self) -> Vec<String> {
+        self.0.borrow().lines().map(str::to_owned).collect()
+    }
+}
+
+/// A board whose search mode is `TICKING`, with a record store that finishes a write
+/// [`STORE_TICKS`] polls after it was asked for.
+struct FakeBoard<const TICKING: bool> {
+    w: Shared,
+    saves: Vec<Vec<u8>>,
+    store_in: Option<u32>,
+    store_ok: bool,
+}
+
+const STORE_TICKS: u32 = 30;
+
+impl<const TICKING: bool> FakeBoard<TICKING> {
+    fn new(w: &Shared) -> Self {
+        FakeBoard {
+            w: w.clone(),
+            saves: Vec::new(),
+            store_in: None,
+            store_ok: true,
+        }
+    }
+}
+
+impl<const TICKING: bool> Board for FakeBoard<TICKING> {
+    const TICK_DURING_SEARCH: bool = TICKING;
+
+    fn poll_tick(&mut self) -> Option<u16> {
+        let mut w = self.w.borrow_mut();
+        w.clock += POLL_US;
+        let elapsed = (w.clock - w.last_boundary) / TICK_US;
+        if elapsed == 0 {
+            return None;
+        }
+        w.last_boundary += elapsed * TICK_US;
+        // The plant runs for each interval at the duty the PWM holds; the reading is the flow
+        // at the end of the last one.
+        for _ in 0..elapsed {
+            let duty = (u32::from(w.pwm) * u32::from(DUTY_FULL_SCALE) / u32::from(PWM_MAX)) as u16;
+            w.reading = w.plant.step(duty);
+        }
+        Some(elapsed as u16)
+    }
+
+    fn pet(&mut self) {
+        let mut w = self.w.borrow_mut();
+        let gap = w.clock - w.last_pet;
+        w.longest_unpetted = w.longest_unpetted.max(gap);
+        w.last_pet = w.clock;
+        w.pets += 1;
+    }
+
+    fn save(&mut self, record: &[u8]) {
+        self.saves.push(record.to_vec());
+        self.store_in = Some(STORE_TICKS);
+    }
+
+    fn poll_store(&mut self) -> Option<bool> {
+        let left = self.store_in.as_mut()?;
+        *left -= 1;
+        if *left == 0 {
+            self.store_in = None;
+            return Some(self.store_ok);
+        }
+        None
+    }
+
+    fn stack(&self) -> Option<(u16, u16)> {
+        TICKING.then_some((1234, 4321))
+    }
+}
+
+type TestApp = App<FakeSensor, FakePwm, Uart>;
+
+fn app(w: &Shared, uart: &Uart) -> TestApp {
+    let sensor = Sfm3300::new(FakeSensor(w.clone()));
+    let pump = Pump::new(FakePwm(w.clone())).unwrap();
+    let sid = SelfIdentification::new(Config::default(), None);
+    App::new(sensor, pump, uart.clone(), sid, 400_000)
+}
+
+/// Steps the loop until `until` holds or `max_steps` passes ran; returns the passes run.
+fn run_until<const T: bool>(
+    app: &mut TestApp,
+    board: &mut FakeBoard<T>,
+    max_steps: usize,
+    until: impl Fn(&TestApp) -> bool,
+) -> usize {
+    for i in 0..max_steps {
+        if until(app) {
+            return i;
+        }
+        app.step(board);
+    }
+    panic!("condition not reached in {max_steps} passes");
+}
+
+/// Whether the next pass ends the estimation record, and therefore runs the search.
+fn search_is_next(a: &TestApp) -> bool {
+    let n = Config::default().excitation.len_samples();
+    a.selfid().gram().is_some_and(|g| g.len() + 1 == n)
+}
+
+fn count(lines: &[String], prefix: &str) -> usize {
+    lines.iter().filter(|l| l.starts_with(prefix)).count()
+}
+
+fn field<'a>(line: &'a str, key: &str) -> &'a str {
+    let pat = format!("{key}=");
+    let at = line
+        .split(' ')
+        .find_map(|w| w.strip_prefix(pat.as_str()))
+        .unwrap_or_else(|| panic!("{key} in {line}"));
+    at
+}
+
+/// A whole power-up identification, in either search mode: the expected lines in order,
+/// the search's tick accounting, the record handed to the store (decodes to the model the
+/// state machine runs), `PERSIST saved`, and the loop never left the watchdog unpetted for
+/// more than a tick and a poll, not even during the search.
+fn identifies<const TICKING: bool>() {
+    let w = world(Plant::reference());
+    let uart = Uart::default();
+    let mut board = FakeBoard::<TICKING>::new(&w);
+    let mut app = app(&w, &uart);
+    app.start(&mut board);
+    run_until(&mut app, &mut board, 8_000, |a| {
+        a.selfid().state() == State::Run
+    });
+    run_until(&mut app, &mut board, 100, |_| board_saved(&uart));
+    let lines = uart.lines();
+    let order = [
+        "SENSOR ready tries=",
+        "EXCITE A-Multistep",
+        "ID p=",
+        "VALIDATE B-Multistep",
+        "SEARCH ticks=",
+        "ACCEPT fit=",
+        "PERSIST saved",
+    ];
+    let mut at = 0;
+    for prefix in order {
+        let pos = lines[at..]
+            .iter()
+            .position(|l| l.starts_with(prefix))
+            .unwrap_or_else(|| panic!("{prefix} after line {at} in {lines:#?}"));
+        at += pos + 1;
+    }
+    // The reference plant is first order with 3 samples of transport delay.
+    let id = lines.iter().find(|l| l.starts_with("ID ")).unwrap();
+    assert_eq!(field(id, "d"), "3", "{id}");
+    assert!(field(id, "p").parse::<u8>().unwrap() >= 1);
+    // Tick boundaries the search saw: the search takes many polls of simulated time.
+    let search = lines.iter().find(|l| l.starts_with("SEARCH ")).unwrap();
+    let ticks: u32 = field(search, "ticks").parse().unwrap();
+    assert!(ticks >= 2, "{search}");
+    assert_eq!(field(search, "lost"), "0", "{search}");
+    // Only the ticking board reports its stack (the fake's figures).
+    assert_eq!(
+        count(&lines, "STACK used=1234 free=4321"),
+        usize::from(TICKING)
+    );
+    // One record stored, and it is the model in use with its fit.
+    assert_eq!(board.saves.len(), 1);
+    let (model, fit) = persist::decode(&board.saves[0]).unwrap();
+    assert_eq!(Some(&model), app.selfid().model());
+    assert_eq!(Some(fit), app.selfid().fit());
+    // No late passes or lost ticks in normal operation.
+    assert_eq!(count(&lines, "MISSED"), 0, "{lines:#?}");
+    // The watchdog: petted every pass and through the search.
+    let w = w.borrow();
+    assert!(
+        w.longest_unpetted <= TICK_US + POLL_US,
+        "{}",
+        w.longest_unpetted
+    );
+}
+
+fn board_saved(uart: &Uart) -> bool {
+    uart.lines().iter().any(|l| l.starts_with("PERSIST"))
+}
+
+#[test]
+fn identifies_with_a_blocking_search() {
+    identifies::<false>();
+}
+
+#[test]
+fn identifies_with_a_ticking_search() {
+    identifies::<true>();
+}
+
+/// A ticking search keeps the state machine running: the pump holds the base duty through it
+/// (the PWM is written at every tick boundary the search's progress calls see).
+#[test]
+fn ticking_search_keeps_writing_the_pump() {
+    let w = world(Plant::reference());
+    let uart = Uart::default();
+    let mut board = FakeBoard::<true>::new(&w);
+    let mut app = app(&w, &uart);
+    app.start(&mut board);
+    run_until(&mut app, &mut board, 8_000, search_is_next);
+    let (t0, writes0) = {
+        let w = w.borrow();
+        (w.clock, w.pwm_log.len())
+    };
+    app.step(&mut board); // the tick, then the whole search
+    let w = w.borrow();
+    let during: Vec<_> = w.pwm_log[writes0..]
+        .iter()
+        .filter(|(t, _)| *t > t0)
+        .collect();
+    let boundaries = (w.clock - t0) / TICK_US;
+    assert!(
+        boundaries >= 3,
+        "search took {boundaries} ticks of simulated time"
+    );
+    assert!(
+        during.len() as u64 >= boundaries,
+        "{} writes, {boundaries} ticks",
+        during.len()
+    );
+    let base = Config::default().base_duty;
+    let counts = (u32::from(base) * u32::from(PWM_MAX) / u32::from(DUTY_FULL_SCALE)) as u16;
+    assert!(during.iter().all(|(_, c)| *c == counts), "{during:?}");
+}
+
+/// Tick accounting: a pass whose work overruns into the next period is late; one that overruns
+/// by more than a period also loses the ticks it skipped. `MISSED` reports the totals once a
+/// second, only when they changed.
+#[test]
+fn late_passes_and_lost_ticks_are_counted_and_reported() {
+    let w = world(Plant::reference());
+    let uart = Uart::default();
+    let mut board = FakeBoard::<false>::new(&w);
+    let mut app = app(&w, &uart);
+    app.start(&mut board);
+    for _ in 0..150 {
+        app.step(&mut board);
+    }
+    assert_eq!(count(&uart.lines(), "MISSED"), 0);
+    // One read that takes 12 ms: the next boundary has passed when the loop comes back (late),
+    // none was skipped. Later one of 35 ms: late, and of the three boundaries that passed
+    // (+10, +20, +30 ms) the loop handles the last, so two ticks are lost.
+    w.borrow_mut().next_read_us = 12_000;
+    for _ in 0..50 {
+        app.step(&mut board);
+    }
+    w.borrow_mut().next_read_us = 35_000;
+    for _ in 0..300 {
+        app.step(&mut board);
+    }
+    let missed: Vec<_> = uart
+        .lines()
+        .into_iter()
+        .filter(|l| l.starts_with("MISSED"))
+        .collect();
+    assert_eq!(
+        missed,
+        ["MISSED late=1 lost=0", "MISSED late=2 lost=2"],
+        "{:#?}",
+        uart.lines()
+    );
+}
+
+/// A sensor that dies while the blocking search runs: the guard reads it at the tick
+/// boundaries the search's progress calls see and stops the pump after the fault limit, long
+/// before the search returns; the fault is reported after the search and latched.
+#[test]
+fn sensor_fault_during_the_blocking_search_stops_the_pump_at_once() {
+    let w = world(Plant::reference());
+    let uart = Uart::default();
+    let mut board = FakeBoard::<false>::new(&w);
+    let mut app = app(&w, &uart);
+    app.start(&mut board);
+    run_until(&mut app, &mut board, 8_000, search_is_next);
+    let t0 = {
+        let mut w = w.borrow_mut();
+        w.sensor_dead = true;
+        w.clock
+    };
+    app.step(&mut board); // the tick, then the search
+    let w_ = w.borrow();
+    let stop = w_
+        .pwm_log
+        .iter()
+        .find(|(t, c)| *t >= t0 && *c == 0)
+        .expect("the pump was stopped");
+    let limit = u64::from(Config::default().sensor_fault_limit);
+    // Stopped within the fault limit's ticks (plus one for the boundary in progress) ...
+    assert!(
+        stop.0 - t0 <= (limit + 1) * TICK_US,
+        "stopped after {} µs",
+        stop.0 - t0
+    );
+    // ... while the search went on for much longer.
+    assert!(
+        w_.clock - t0 > 3 * (limit + 1) * TICK_US,
+        "search {} µs",
+        w_.clock - t0
+    );
+    drop(w_);
+    let lines = uart.lines();
+    let fault = lines
+        .iter()
+        .find(|l| l.starts_with("FAULT"))
+        .expect("FAULT line");
+    assert!(fault.starts_with("FAULT sensor"), "{fault}");
+    assert_eq!(app.selfid().state(), State::Fault);
+    for _ in 0..20 {
+        app.step(&mut board);
+    }
+    assert_eq!(w.borrow().pwm, 0);
+    assert_eq!(count(&uart.lines(), "FAULT"), 1, "reported once");
+}
+
+/// The same fault while a ticking search runs: the state machine's own tick checks latch it
+/// and the pump is stopped within the fault limit.
+#[test]
+fn sensor_fault_during_the_ticking_search_stops_the_pump_at_once() {
+    let w = world(Plant::reference());
+    let uart = Uart::default();
+    let mut board = FakeBoard::<true>::new(&w);
+    let mut app = app(&w, &uart);
+    app.start(&mut board);
+    run_until(&mut app, &mut board, 8_000, search_is_next);
+    let t0 = {
+        let mut w = w.borrow_mut();
+        w.sensor_dead = true;
+        w.clock
+    };
+    app.step(&mut board);
+    let w_ = w.borrow();
+    let stop = w_
+        .pwm_log
+        .iter()
+        .find(|(t, c)| *t >= t0 && *c == 0)
+        .expect("the pump was stopped");
+    let limit = u64::from(Config::default().sensor_fault_limit);
+    assert!(
+        stop.0 - t0 <= (limit + 1) * TICK_US,
+        "stopped after {} µs",
+        stop.0 - t0
+    );
+    drop(w_);
+    assert_eq!(app.selfid().state(), State::Fault);
+    assert_eq!(
+        count(&uart.lines(), "FAULT sensor"),
+        1,
+        "{:#?}",
+        uart.lines()
+    );
+}
+
+/// A PWM channel that refuses a duty: `PUMP error`, and the loop carries on.
+#[test]
+fn pwm_error_is_reported() {
+    let w = world(Plant::reference());
+    let uart = Uart::default();
+    let mut board = FakeBoard::<false>::new(&w);
+    let mut app = app(&w, &uart);
+    app.start(&mut board);
+    for _ in 0..10 {
+        app.step(&mut board);
+    }
+    w.borrow_mut().pwm_broken = true;
+    app.step(&mut board);
+    assert_eq!(count(&uart.lines(), "PUMP error"), 1);
+}
+
+/// A sensor that never acknowledges: the start is retried once per tick for
+/// [`START_TICKS`] ticks, then `SENSOR start failed`, and the state machine's fault checks
+/// latch the sensor fault with the pump stopped.
+#[test]
+fn absent_sensor_fails_the_start_and_faults() {
+    let w = world(Plant::reference());
+    w.borrow_mut().sensor_dead = true;
+    let uart = Uart::default();
+    let mut board = FakeBoard::<false>::new(&w);
+    let mut app = app(&w, &uart);
+    app.start(&mut board);
+    assert_eq!(uart.lines(), ["SENSOR start failed"]);
+    assert_eq!(w.borrow().clock / TICK_US, u64::from(START_TICKS));
+    for _ in 0..10 {
+        app.step(&mut board);
+    }
+    assert_eq!(app.selfid().state(), State::Fault);
+    assert!(w.borrow().pwm_log.iter().all(|(_, c)| *c == 0));
+    assert_eq!(
+        count(&uart.lines(), "FAULT sensor"),
+        1,
+        "{:#?}",
+        uart.lines()
+    );
+}
+
+/// A failed record write is reported as such.
+#[test]
+fn failed_store_is_reported() {
+    let w = world(Plant::reference());
+    let uart = Uart::default();
+    let mut board = FakeBoard::<false>::new(&w);
+    board.store_ok = false;
+    let mut app = app(&w, &uart);
+    app.start(&mut board);
+    run_until(&mut app, &mut board, 8_000, |_| board_saved(&uart));
+    assert_eq!(count(&uart.lines(), "PERSIST failed"), 1);
+    assert_eq!(count(&uart.lines(), "PERSIST saved"), 0);
+}
