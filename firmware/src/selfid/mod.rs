@@ -52,154 +52,34 @@
 //! Sensor errors shorter than [`Config::sensor_fault_limit`] are bridged: during a record the
 //! previous reading is used (counted as a gap, at most [`Config::max_gaps`] per record), in run
 //! mode the tick is not scored.
+//!
+//! | file | what |
+//! |---|---|
+//! | `mod.rs` | the machine: phases, [`SelfIdentification::tick`], validation, run mode, faults |
+//! | `config.rs` | [`Config`] and its defaults |
+//! | `guard.rs` | [`Guard`]: the fault checks of every tick |
+//! | `recording.rs` | the estimation record's statistics around the operating point, and [`absolute_model`] |
+//! | `search.rs` | the structure search: blocking, or as a [`SearchJob`] while ticks go on |
+
+mod config;
+mod guard;
+mod recording;
+mod search;
+
+pub use config::Config;
+pub use guard::Guard;
+pub use recording::{absolute_model, SETTLE_MEAN_TICKS};
+pub use search::{SearchJob, SearchOutcome};
 
 use ridge_core::excitation::Excitation;
-use ridge_core::{ArxModel, Evaluation, IntGram, Normal, Offset, Real, Search};
+use ridge_core::{ArxModel, Evaluation, IntGram};
 
-use crate::event::{Event, FaultReason, RejectReason, SearchStats, SensorFault};
-use crate::excitation::Record;
-use crate::monitor::{Monitor, MonitorConfig};
+use crate::event::{Event, FaultReason, RejectReason, SensorFault};
+use crate::monitor::Monitor;
 use crate::persist::{self, PersistError, RECORD_LEN};
-use crate::units::{DUTY_FULL_SCALE, FRACTION_PER_DUTY, SCALE, SLM_PER_COUNT};
+use crate::units::{DUTY_FULL_SCALE, FRACTION_PER_DUTY, SLM_PER_COUNT};
 
-/// Settings of the state machine. Duties in 1/10 000 of full scale, flows in SFM3300 counts
-/// (1/120 slm), times in ticks of 10 ms.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Config {
-    /// Duty while settling, searching and between attempts (default 3000 = 30 %).
-    pub base_duty: u16,
-    /// Ticks at the base duty before a record or before run mode (default 200 = 2 s).
-    pub settle_ticks: u16,
-    /// Estimation record (default A-Multistep, 3000 samples).
-    pub excitation: Record,
-    /// Validation record (default B-Multistep, 3000 samples).
-    pub validation: Record,
-    /// Structure search on the deviations from the operating point. Default: ridge-core's
-    /// `Search::default()` (Ridge-M γ = 1000, β = 0.01, 200 iterates, delay-free AIC with
-    /// α = 12, the 252-candidate grid, exact pruning, no offset).
-    /// [`ridge_core::Criterion::Validation`] is not supported here.
-    pub search: Search<f32>,
-    /// Smallest accepted free-run fit on the validation record, percent (default 70).
-    pub min_fit: f32,
-    /// Smallest RMS deviation of the flow from its mean over the estimation record, slm
-    /// (default 1.0): below it the record is "not excited".
-    pub min_response: f32,
-    /// Largest number of sensor errors bridged within one record (default 10).
-    pub max_gaps: u16,
-    /// Identification attempts before the fault state (default 3).
-    pub attempts: u8,
-    /// Consecutive sensor errors that raise a fault (default 5).
-    pub sensor_fault_limit: u8,
-    /// Largest |flow| accepted, counts (default 30 000 = 250 slm).
-    pub flow_limit: i16,
-    /// Stall detection: at a duty of at least `stall_duty` (default 4000 = 40 %) ...
-    pub stall_duty: u16,
-    /// ... a flow below `stall_flow` counts (default 240 = 2 slm) ...
-    pub stall_flow: i16,
-    /// ... for `stall_ticks` consecutive ticks (default 50 = 0.5 s) is a stall.
-    pub stall_ticks: u16,
-    /// Duty held in run mode (default 3000 = 30 %).
-    pub run_duty: u16,
-    /// Run-mode monitor.
-    pub monitor: MonitorConfig,
-}
-
-impl Default for Config {
-    fn default() -> Self {
-        Config {
-            base_duty: 3_000,
-            settle_ticks: 200,
-            excitation: Record::AMultistep,
-            validation: Record::BMultistep,
-            search: Search::default(),
-            min_fit: 70.0,
-            min_response: 1.0,
-            max_gaps: 10,
-            attempts: 3,
-            sensor_fault_limit: 5,
-            flow_limit: 30_000,
-            stall_duty: 4_000,
-            stall_flow: 240,
-            stall_ticks: 50,
-            run_duty: 3_000,
-            monitor: MonitorConfig::default(),
-        }
-    }
-}
-
-/// The fault checks of every tick, with their counters: [`Config::sensor_fault_limit`]
-/// consecutive sensor errors, a reading beyond [`Config::flow_limit`], and a stall
-/// ([`Config::stall_duty`] or more with a flow below [`Config::stall_flow`] for
-/// [`Config::stall_ticks`] ticks). [`SelfIdentification::tick`] runs them first;
-/// [`SelfIdentification::guard`] hands out a copy for stretches without ticks.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Guard {
-    sensor_fault_limit: u8,
-    flow_limit: i16,
-    stall_duty: u16,
-    stall_flow: i16,
-    stall_ticks: u16,
-    /// Consecutive sensor errors.
-    errors: u8,
-    /// Consecutive ticks meeting the stall condition.
-    stall: u16,
-}
-
-impl Guard {
-    /// The checks of `cfg`, counters at zero.
-    pub fn new(cfg: &Config) -> Self {
-        Guard {
-            sensor_fault_limit: cfg.sensor_fault_limit.max(1),
-            flow_limit: cfg.flow_limit,
-            stall_duty: cfg.stall_duty,
-            stall_flow: cfg.stall_flow,
-            stall_ticks: cfg.stall_ticks.max(1),
-            errors: 0,
-            stall: 0,
-        }
-    }
-
-    /// Checks one tick's sensor result `flow` (counts, 1/120 slm), read after the pump ran at
-    /// `applied` (1/10 000) for the tick. `Ok(Some(counts))`: a good reading; `Ok(None)`: a
-    /// sensor error still within the limit (to be bridged); `Err`: the fault it completes.
-    pub fn check(
-        &mut self,
-        applied: u16,
-        flow: Result<i16, SensorFault>,
-    ) -> Result<Option<i16>, FaultReason> {
-        let c = match flow {
-            Ok(c) => {
-                self.errors = 0;
-                c
-            }
-            Err(error) => {
-                self.errors = self.errors.saturating_add(1);
-                if self.errors >= self.sensor_fault_limit {
-                    return Err(FaultReason::Sensor {
-                        error,
-                        count: self.errors,
-                    });
-                }
-                return Ok(None);
-            }
-        };
-        if i32::from(c).abs() > i32::from(self.flow_limit) {
-            return Err(FaultReason::FlowRange { counts: c });
-        }
-        if applied >= self.stall_duty && c < self.stall_flow {
-            self.stall = self.stall.saturating_add(1);
-            if self.stall >= self.stall_ticks {
-                return Err(FaultReason::Stall {
-                    duty: applied,
-                    counts: c,
-                });
-            }
-        } else {
-            self.stall = 0;
-        }
-        Ok(Some(c))
-    }
-}
+use recording::Recording;
 
 /// The externally visible state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -227,79 +107,6 @@ pub struct Tick {
     pub duty: u16,
     /// At most one event to report.
     pub event: Option<Event>,
-}
-
-/// Statistics of one estimation record.
-#[derive(Debug, Clone)]
-struct Recording {
-    /// Operating point: the base duty (1/10 000) and the mean settled flow (counts).
-    u0: u16,
-    y0: i16,
-    /// Exact statistics of the deviations `(u − u0, y − y0)`.
-    gram: IntGram,
-    /// `Σ y` and `Σ y²` of the flow counts, for the excitation check.
-    sum_y: i64,
-    sum_y2: i64,
-    gaps: u16,
-}
-
-impl Recording {
-    fn new(u0: u16, y0: i16) -> Self {
-        Recording {
-            u0,
-            y0,
-            gram: IntGram::new(),
-            sum_y: 0,
-            sum_y2: 0,
-            gaps: 0,
-        }
-    }
-
-    /// RMS deviation of the flow from its mean, slm (exact integer variance first).
-    fn response_rms(&self) -> f32 {
-        let n = i128::from(self.gram.len());
-        if n == 0 {
-            return 0.0;
-        }
-        let var_n2 = n * i128::from(self.sum_y2) - i128::from(self.sum_y) * i128::from(self.sum_y);
-        let var = var_n2.max(0) as f32 / (n * n) as f32;
-        ridge_core::Real::sqrt(var) * SLM_PER_COUNT
-    }
-}
-
-/// Settle ticks (at the end of the settle phase) whose mean flow is the operating point.
-pub const SETTLE_MEAN_TICKS: u16 = 50;
-
-/// Converts a model identified on deviations from the operating point `(u0, y0)` (duty
-/// 1/10 000, flow counts) into the absolute model with an intercept (physical units):
-/// `c = c_dev + y0 (1 − Σθ) − u0 Σφ` (slm, with `y0` in slm and `u0` as a fraction).
-/// Generic so that host tools check the device's `f32` result with the same conversion in
-/// `f64`.
-///
-/// Errors: [`ridge_core::Error::NonFinite`] for non-finite coefficients.
-pub fn absolute_model<T: Real>(
-    dev: &ArxModel<T>,
-    u0: u16,
-    y0: i16,
-) -> Result<ArxModel<T>, ridge_core::Error> {
-    let mut sum_theta = T::ZERO;
-    for t in dev.theta() {
-        sum_theta += *t;
-    }
-    let mut sum_phi = T::ZERO;
-    for f in dev.phi() {
-        sum_phi += *f;
-    }
-    let c = dev.intercept()
-        + T::from_i64(i64::from(y0)) * T::from_f64(SCALE.y) * (T::ONE - sum_theta)
-        - T::from_u32(u32::from(u0)) * T::from_f64(SCALE.u) * sum_phi;
-    ArxModel::new(
-        dev.theta(),
-        dev.phi(),
-        dev.structure().d,
-        Offset::Intercept,
-        c,
-    )
 }
 
 /// What follows a settle phase.
@@ -383,94 +190,6 @@ pub struct SelfIdentification {
 #[cfg(target_arch = "avr")]
 const _: () = assert!(core::mem::size_of::<SelfIdentification>() <= 640);
 
-/// A structure search taken out of the state machine ([`SelfIdentification::take_search`]),
-/// to run in the main loop while the timer interrupt keeps calling
-/// [`SelfIdentification::tick`].
-#[derive(Debug, Clone)]
-pub struct SearchJob {
-    rec: Recording,
-    search: Search<f32>,
-    min_response: f32,
-    generation: u8,
-}
-
-/// The result of a [`SearchJob`], for [`SelfIdentification::finish_search`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SearchOutcome {
-    result: Result<(ArxModel<f32>, SearchStats), RejectReason>,
-    generation: u8,
-}
-
-impl SearchOutcome {
-    /// The identified model and the search figures, or why the record was refused.
-    pub fn result(&self) -> Result<(ArxModel<f32>, SearchStats), RejectReason> {
-        self.result
-    }
-}
-
-impl SearchJob {
-    /// Samples in the estimation record.
-    pub fn samples(&self) -> u32 {
-        self.rec.gram.len()
-    }
-
-    /// The exact statistics of the estimation record.
-    pub fn gram(&self) -> &IntGram {
-        &self.rec.gram
-    }
-
-    /// Runs the search: the excitation check, `Gram::normal::<f32>`, then the pruned
-    /// structure search ([`ridge_core::Search::run_with_progress`], identical to `Search::run`). Calls `pet` at
-    /// least once per Cholesky factorisation or Ridge-M iterate (see [`ridge_core::Search::run_with_progress`]).
-    pub fn run(&self, mut pet: impl FnMut()) -> SearchOutcome {
-        SearchOutcome {
-            result: evaluate(&self.rec, &self.search, self.min_response, &mut pet),
-            generation: self.generation,
-        }
-    }
-}
-
-/// The excitation check, `Gram::normal::<f32>`, the pruned search and the conversion to the
-/// absolute model, petting the watchdog before, between and after.
-fn evaluate(
-    rec: &Recording,
-    search: &Search<f32>,
-    min_response: f32,
-    pet: &mut impl FnMut(),
-) -> Result<(ArxModel<f32>, SearchStats), RejectReason> {
-    pet();
-    let rms = rec.response_rms();
-    if rms < min_response || rms.is_nan() {
-        return Err(RejectReason::NotExcited { rms });
-    }
-    // Filled in place: `Gram::normal` would return the 840-byte statistics by value and
-    // cost a second copy on the ATmega2560's stack.
-    let mut normal = Normal::<f32>::empty();
-    rec.gram
-        .normal_into(&SCALE, &mut normal)
-        .map_err(|e| match e {
-            ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
-            e => RejectReason::Search(e),
-        })?;
-    pet();
-    let found = search
-        .run_with_progress(&normal, None, pet)
-        .map_err(RejectReason::Search)?;
-    pet();
-    let model = absolute_model(&found.fit.model(), rec.u0, rec.y0).map_err(RejectReason::Search)?;
-    Ok((
-        model,
-        SearchStats {
-            score: found.score,
-            candidates: found.candidates,
-            evaluated: found.evaluated,
-            skipped: found.skipped,
-            iterations: found.fit.iterations,
-            samples: normal.samples(),
-        },
-    ))
-}
-
 impl SelfIdentification {
     /// A state machine with settings `config`. `stored` is the persisted record read from
     /// EEPROM/flash (see [`crate::persist`]) or `None`. A valid record skips identification:
@@ -531,77 +250,6 @@ impl SelfIdentification {
             event,
         }
     }
-
-    /// `true` while the structure search is due: the board should call
-    /// [`search`](Self::search) (or [`take_search`](Self::take_search)) from its main loop.
-    pub fn needs_search(&self) -> bool {
-        matches!(self.phase, Phase::SearchReady { .. })
-    }
-
-    /// Runs the structure search now (blocking; seconds on the ATmega2560), calling `pet`
-    /// often enough for a watchdog of ≥ 250 ms (at least once per ≤ 13 × 13 Cholesky
-    /// factorisation or Ridge-M iterate). Returns the event to report: [`Event::Identified`]
-    /// (validation follows) or [`Event::Rejected`]. `None` when no search was due.
-    ///
-    /// No tick can run meanwhile: the pump keeps the base duty and faults are not detected
-    /// until the search returns. Use [`take_search`](Self::take_search) to keep ticking.
-    pub fn search(&mut self, mut pet: impl FnMut()) -> Option<Event> {
-        // Runs on the statistics in place (no copy of the record on the stack).
-        let Phase::SearchReady { rec } = &self.phase else {
-            return None;
-        };
-        let result = evaluate(rec, &self.cfg.search, self.cfg.min_response, &mut pet);
-        self.phase = Phase::Searching;
-        self.finish_search(SearchOutcome {
-            result,
-            generation: self.generation,
-        })
-    }
-
-    /// Takes the due structure search out of the state machine (`None` when none is due).
-    /// Ticks go on at the base duty, with fault detection, until
-    /// [`finish_search`](Self::finish_search).
-    pub fn take_search(&mut self) -> Option<SearchJob> {
-        if !self.needs_search() {
-            return None;
-        }
-        match core::mem::replace(&mut self.phase, Phase::Searching) {
-            Phase::SearchReady { rec } => Some(SearchJob {
-                rec,
-                search: self.cfg.search,
-                min_response: self.cfg.min_response,
-                generation: self.generation,
-            }),
-            other => {
-                self.phase = other;
-                None
-            }
-        }
-    }
-
-    /// Applies the result of a [`SearchJob`]: starts the validation or handles the
-    /// rejection. Returns the event to report ([`Event::Identified`] or [`Event::Rejected`]),
-    /// or `None` when the outcome is stale (a fault or a re-identification came in between).
-    pub fn finish_search(&mut self, outcome: SearchOutcome) -> Option<Event> {
-        if !matches!(self.phase, Phase::Searching) || outcome.generation != self.generation {
-            return None;
-        }
-        match outcome.result {
-            Ok((model, stats)) => {
-                self.phase = Phase::Validate {
-                    gen: self.cfg.validation.generator(),
-                    eval: Evaluation::new(model),
-                    model,
-                    gaps: 0,
-                    started: false,
-                    complete: false,
-                };
-                Some(Event::Identified { model, stats })
-            }
-            Err(reason) => Some(self.reject(reason)),
-        }
-    }
-
     /// A copy of the tick's fault checks with their current counters, for a board that cannot
     /// tick the state machine for a while (the ATmega2560's blocking search): it reads the
     /// sensor at every tick boundary, stops the pump itself when [`Guard::check`] returns a

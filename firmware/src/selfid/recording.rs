@@ -1,0 +1,79 @@
+//! The estimation record's statistics (exact integers, deviations from the operating point)
+//! and the conversion of the model identified on them to absolute units.
+
+use ridge_core::{ArxModel, IntGram, Offset, Real};
+
+use crate::units::{SCALE, SLM_PER_COUNT};
+
+/// Statistics of one estimation record.
+#[derive(Debug, Clone)]
+pub(super) struct Recording {
+    /// Operating point: the base duty (1/10 000) and the mean settled flow (counts).
+    pub(super) u0: u16,
+    pub(super) y0: i16,
+    /// Exact statistics of the deviations `(u − u0, y − y0)`.
+    pub(super) gram: IntGram,
+    /// `Σ y` and `Σ y²` of the flow counts, for the excitation check.
+    pub(super) sum_y: i64,
+    pub(super) sum_y2: i64,
+    pub(super) gaps: u16,
+}
+
+impl Recording {
+    pub(super) fn new(u0: u16, y0: i16) -> Self {
+        Recording {
+            u0,
+            y0,
+            gram: IntGram::new(),
+            sum_y: 0,
+            sum_y2: 0,
+            gaps: 0,
+        }
+    }
+
+    /// RMS deviation of the flow from its mean, slm (exact integer variance first).
+    pub(super) fn response_rms(&self) -> f32 {
+        let n = i128::from(self.gram.len());
+        if n == 0 {
+            return 0.0;
+        }
+        let var_n2 = n * i128::from(self.sum_y2) - i128::from(self.sum_y) * i128::from(self.sum_y);
+        let var = var_n2.max(0) as f32 / (n * n) as f32;
+        ridge_core::Real::sqrt(var) * SLM_PER_COUNT
+    }
+}
+
+/// Settle ticks (at the end of the settle phase) whose mean flow is the operating point.
+pub const SETTLE_MEAN_TICKS: u16 = 50;
+
+/// Converts a model identified on deviations from the operating point `(u0, y0)` (duty
+/// 1/10 000, flow counts) into the absolute model with an intercept (physical units):
+/// `c = c_dev + y0 (1 − Σθ) − u0 Σφ` (slm, with `y0` in slm and `u0` as a fraction).
+/// Generic so that host tools check the device's `f32` result with the same conversion in
+/// `f64`.
+///
+/// Errors: [`ridge_core::Error::NonFinite`] for non-finite coefficients.
+pub fn absolute_model<T: Real>(
+    dev: &ArxModel<T>,
+    u0: u16,
+    y0: i16,
+) -> Result<ArxModel<T>, ridge_core::Error> {
+    let mut sum_theta = T::ZERO;
+    for t in dev.theta() {
+        sum_theta += *t;
+    }
+    let mut sum_phi = T::ZERO;
+    for f in dev.phi() {
+        sum_phi += *f;
+    }
+    let c = dev.intercept()
+        + T::from_i64(i64::from(y0)) * T::from_f64(SCALE.y) * (T::ONE - sum_theta)
+        - T::from_u32(u32::from(u0)) * T::from_f64(SCALE.u) * sum_phi;
+    ArxModel::new(
+        dev.theta(),
+        dev.phi(),
+        dev.structure().d,
+        Offset::Intercept,
+        c,
+    )
+}

@@ -1,0 +1,172 @@
+//! The structure search on the estimation record: run blocking by the state machine
+//! ([`SelfIdentification::search`]), or taken out as a [`SearchJob`] that the board runs while
+//! the ticks go on ([`SelfIdentification::take_search`] → [`SearchJob::run`] →
+//! [`SelfIdentification::finish_search`]).
+
+use ridge_core::{ArxModel, Evaluation, IntGram, Normal, Search};
+
+use crate::event::{Event, RejectReason, SearchStats};
+use crate::units::SCALE;
+
+use super::recording::{absolute_model, Recording};
+use super::{Phase, SelfIdentification};
+
+/// A structure search taken out of the state machine ([`SelfIdentification::take_search`]),
+/// to run in the main loop while the timer interrupt keeps calling
+/// [`SelfIdentification::tick`].
+#[derive(Debug, Clone)]
+pub struct SearchJob {
+    rec: Recording,
+    search: Search<f32>,
+    min_response: f32,
+    generation: u8,
+}
+
+/// The result of a [`SearchJob`], for [`SelfIdentification::finish_search`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SearchOutcome {
+    result: Result<(ArxModel<f32>, SearchStats), RejectReason>,
+    generation: u8,
+}
+
+impl SearchOutcome {
+    /// The identified model and the search figures, or why the record was refused.
+    pub fn result(&self) -> Result<(ArxModel<f32>, SearchStats), RejectReason> {
+        self.result
+    }
+}
+
+impl SearchJob {
+    /// Samples in the estimation record.
+    pub fn samples(&self) -> u32 {
+        self.rec.gram.len()
+    }
+
+    /// The exact statistics of the estimation record.
+    pub fn gram(&self) -> &IntGram {
+        &self.rec.gram
+    }
+
+    /// Runs the search: the excitation check, `Gram::normal::<f32>`, then the pruned
+    /// structure search ([`ridge_core::Search::run_with_progress`], identical to `Search::run`). Calls `pet` at
+    /// least once per Cholesky factorisation or Ridge-M iterate (see [`ridge_core::Search::run_with_progress`]).
+    pub fn run(&self, mut pet: impl FnMut()) -> SearchOutcome {
+        SearchOutcome {
+            result: evaluate(&self.rec, &self.search, self.min_response, &mut pet),
+            generation: self.generation,
+        }
+    }
+}
+
+/// The excitation check, `Gram::normal::<f32>`, the pruned search and the conversion to the
+/// absolute model, petting the watchdog before, between and after.
+fn evaluate(
+    rec: &Recording,
+    search: &Search<f32>,
+    min_response: f32,
+    pet: &mut impl FnMut(),
+) -> Result<(ArxModel<f32>, SearchStats), RejectReason> {
+    pet();
+    let rms = rec.response_rms();
+    if rms < min_response || rms.is_nan() {
+        return Err(RejectReason::NotExcited { rms });
+    }
+    // Filled in place: `Gram::normal` would return the 840-byte statistics by value and
+    // cost a second copy on the ATmega2560's stack.
+    let mut normal = Normal::<f32>::empty();
+    rec.gram
+        .normal_into(&SCALE, &mut normal)
+        .map_err(|e| match e {
+            ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
+            e => RejectReason::Search(e),
+        })?;
+    pet();
+    let found = search
+        .run_with_progress(&normal, None, pet)
+        .map_err(RejectReason::Search)?;
+    pet();
+    let model = absolute_model(&found.fit.model(), rec.u0, rec.y0).map_err(RejectReason::Search)?;
+    Ok((
+        model,
+        SearchStats {
+            score: found.score,
+            candidates: found.candidates,
+            evaluated: found.evaluated,
+            skipped: found.skipped,
+            iterations: found.fit.iterations,
+            samples: normal.samples(),
+        },
+    ))
+}
+
+impl SelfIdentification {
+    /// `true` while the structure search is due: the board should call
+    /// [`search`](Self::search) (or [`take_search`](Self::take_search)) from its main loop.
+    pub fn needs_search(&self) -> bool {
+        matches!(self.phase, Phase::SearchReady { .. })
+    }
+
+    /// Runs the structure search now (blocking; seconds on the ATmega2560), calling `pet`
+    /// often enough for a watchdog of ≥ 250 ms (at least once per ≤ 13 × 13 Cholesky
+    /// factorisation or Ridge-M iterate). Returns the event to report: [`Event::Identified`]
+    /// (validation follows) or [`Event::Rejected`]. `None` when no search was due.
+    ///
+    /// No tick can run meanwhile: the pump keeps the base duty and faults are not detected
+    /// until the search returns. Use [`take_search`](Self::take_search) to keep ticking.
+    pub fn search(&mut self, mut pet: impl FnMut()) -> Option<Event> {
+        // Runs on the statistics in place (no copy of the record on the stack).
+        let Phase::SearchReady { rec } = &self.phase else {
+            return None;
+        };
+        let result = evaluate(rec, &self.cfg.search, self.cfg.min_response, &mut pet);
+        self.phase = Phase::Searching;
+        self.finish_search(SearchOutcome {
+            result,
+            generation: self.generation,
+        })
+    }
+
+    /// Takes the due structure search out of the state machine (`None` when none is due).
+    /// Ticks go on at the base duty, with fault detection, until
+    /// [`finish_search`](Self::finish_search).
+    pub fn take_search(&mut self) -> Option<SearchJob> {
+        if !self.needs_search() {
+            return None;
+        }
+        match core::mem::replace(&mut self.phase, Phase::Searching) {
+            Phase::SearchReady { rec } => Some(SearchJob {
+                rec,
+                search: self.cfg.search,
+                min_response: self.cfg.min_response,
+                generation: self.generation,
+            }),
+            other => {
+                self.phase = other;
+                None
+            }
+        }
+    }
+
+    /// Applies the result of a [`SearchJob`]: starts the validation or handles the
+    /// rejection. Returns the event to report ([`Event::Identified`] or [`Event::Rejected`]),
+    /// or `None` when the outcome is stale (a fault or a re-identification came in between).
+    pub fn finish_search(&mut self, outcome: SearchOutcome) -> Option<Event> {
+        if !matches!(self.phase, Phase::Searching) || outcome.generation != self.generation {
+            return None;
+        }
+        match outcome.result {
+            Ok((model, stats)) => {
+                self.phase = Phase::Validate {
+                    gen: self.cfg.validation.generator(),
+                    eval: Evaluation::new(model),
+                    model,
+                    gaps: 0,
+                    started: false,
+                    complete: false,
+                };
+                Some(Event::Identified { model, stats })
+            }
+            Err(reason) => Some(self.reject(reason)),
+        }
+    }
+}
