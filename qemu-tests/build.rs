@@ -4,7 +4,7 @@
 //! This works only because this crate is its own workspace: cargo runs the linker in
 //! the workspace root, the linker looks for `memory.x` there before any `-L` path, and
 //! the repository root's `memory.x` (STM32F411, flash at 0x0800_0000) would otherwise
-//! win silently (SPEC §11). Keep no `memory.x` in this directory.
+//! win silently (GNU ld searches the working directory first). Keep no `memory.x` in this directory.
 use std::{env, fs, path::PathBuf};
 
 fn main() {

@@ -190,7 +190,8 @@ pub enum Event {
     /// The model passed validation. **The board must now write
     /// [`SelfIdentification::persist_bytes`](crate::selfid::SelfIdentification::persist_bytes)
     /// to non-volatile memory** ([`Event::persist`] is `true`). Scores are on the
-    /// validation record from sample `m` on, seeded with measured samples (SPEC §6).
+    /// validation record from sample `m` on, seeded with the first `m = max(p, d + q − 1)`
+    /// measured samples (as MATLAB `compare` scores).
     Accepted {
         /// Free-run fit, percent.
         fit: f32,

@@ -1,7 +1,7 @@
 //! Driver for the Sensirion SFM3300 mass-flow sensor over I2C.
 //!
 //! Protocol facts are from the Sensirion *SFM3xxx I2C functional description* and the Sensirion
-//! *SF05 sample code*, as summarised in SPEC §7:
+//! *SF05 sample code* (CRC routine), and the *SFM3300 datasheet* (flow encoding):
 //!
 //! - 7-bit address `0x40`; commands are 16 bits, sent MSB first.
 //! - After *start continuous measurement* (`0x1000`) every plain read returns 3 bytes:
@@ -41,7 +41,7 @@ use embedded_hal::i2c::{ErrorKind, I2c};
 
 use crate::units::{FLOW_RANGE_SLM, FLOW_SCALE};
 
-/// 7-bit I2C address of the SFM3300 (fixed; SFM3xxx I2C functional description, SPEC §7).
+/// 7-bit I2C address of the SFM3300 (fixed; SFM3xxx I2C functional description).
 pub const ADDRESS: u8 = 0x40;
 
 /// Default number of read attempts per measurement (first try included) before a NACKed read
@@ -53,7 +53,7 @@ pub const DEFAULT_READ_ATTEMPTS: u8 = 3;
 const CRC_POLYNOMIAL: u8 = 0x31;
 
 /// CRC-8 initial value for the SFM3300: **0x00** (SF05 sample code). Newer Sensirion parts use
-/// 0xFF, which does not check SFM3300 frames (SPEC §7).
+/// 0xFF (e.g. the `sensirion-i2c` crate hard-codes it), which does not check SFM3300 frames.
 const CRC_INIT: u8 = 0x00;
 
 /// All errors this driver can return.
@@ -67,7 +67,7 @@ pub enum Error<E> {
     NotReady,
 }
 
-/// Commands of the SFM3300 (SFM3xxx I2C functional description, SPEC §7).
+/// Commands of the SFM3300 (SFM3xxx I2C functional description).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Command {
     /// Start continuous measurement; each following read returns a new flow word.
@@ -262,7 +262,8 @@ impl<I2C: I2c> Sfm3300<I2C> {
     /// measurement mode ([`start_continuous`](Sfm3300::start_continuous)).
     pub fn read_raw(&mut self) -> Result<u16, Error<I2C::Error>> {
         if self.discard_next {
-            // First frame after the start may be invalid (SPEC §7): read it, ignore its content.
+            // The first frame after the start may be invalid (SFM3xxx I2C functional
+            // description): read it, ignore its content.
             self.read_frame()?;
             self.discard_next = false;
         }

@@ -1,7 +1,8 @@
 //! SFM3300 driver against a scripted I2C bus (`embedded-hal-mock`).
 //!
 //! Every expected CRC byte and flow value below was computed by hand from the datasheet facts in
-//! SPEC §7 (CRC-8 poly 0x31, init 0x00; flow = (raw − 32768) / 120 slm), not from the driver.
+//! Sensirion's documents (SFM3xxx I2C functional description and SF05 sample code: CRC-8 poly 0x31,
+//! init 0x00; SFM3300 datasheet: flow = (raw − 32768) / 120 slm), not from the driver.
 
 use embedded_hal::i2c::{ErrorKind, NoAcknowledgeSource};
 use embedded_hal_mock::eh1::i2c::{Mock, Transaction};

@@ -94,7 +94,7 @@ fn float_statistics_agree_with_exact_statistics() {
 
 #[test]
 fn f32_float_accumulation_would_not_be_exact() {
-    // Why the device accumulates integers (SPEC §2): summing the same products in f32
+    // Why the device accumulates integers: summing the same products in f32
     // loses digits that the i64 sums keep. Measured here on Σy² of a 30 000-sample record.
     let mut y_counts = Vec::new();
     for seed in 0..10 {

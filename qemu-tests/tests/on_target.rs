@@ -632,7 +632,7 @@ fn bench(c: &Ctx) -> Outcome {
     Ok(())
 }
 
-// The FPU's square root, for comparison with libm's (SPEC §11). Hard-float ABI: the
+// The FPU's square root (`vsqrt.f32`), for comparison with libm's software one. Hard-float ABI: the
 // argument and the result are in s0. `asm!` cannot name FPU registers here (the
 // register class wants a `vfp2` target feature), a global_asm! function can.
 core::arch::global_asm!(

@@ -1,4 +1,4 @@
-//! Exact streaming statistics of an input/output record (SPEC §2).
+//! Exact streaming statistics of an input/output record.
 //!
 //! A [`Gram`] takes one `(u_t, y_t)` sample at a time and keeps everything needed to
 //! form `XᵀX`, `Xᵀy` and `yᵀy` of the zero-padded regression matrix of eq. (6) for

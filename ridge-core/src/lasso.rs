@@ -1,4 +1,4 @@
-//! Adaptive LASSO on the normal equations (SPEC §5).
+//! Adaptive LASSO on the normal equations: one of the paper's baselines.
 //!
 //! Minimises `½‖y − Xw‖² + λ Σ_j ω_j |w_j|` with weights `ω_j = 1/|ŵ_j|^g` from the
 //! least-squares estimate `ŵ` (Zou 2006), by cyclic coordinate descent on `XᵀX` and

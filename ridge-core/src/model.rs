@@ -1,4 +1,5 @@
-//! Identified ARX models, streaming predictors and scores (SPEC §6).
+//! Identified ARX models, streaming predictors and scores (RMSE, eq. 16 of the paper; fit %
+//! as MATLAB reports it).
 
 use crate::error::{Error, Result};
 use crate::gram::Col;
@@ -158,7 +159,7 @@ pub enum Mode {
 /// A streaming predictor: feed `(u_t, y_t)` samples, get `ŷ_t`.
 ///
 /// The first `m = max(p, d + q − 1)` samples seed the history with measured values and
-/// produce no prediction (SPEC §6), so a model is never charged for a start-up
+/// produce no prediction (as MATLAB `compare` and SysIdentPy seed them), so a model is never charged for a start-up
 /// transient it cannot know. Memory: the last 6 outputs and 12 inputs.
 #[derive(Debug, Clone)]
 pub struct Predictor<T: Real> {

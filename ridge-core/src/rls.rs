@@ -1,4 +1,5 @@
-//! Recursive least squares for a fixed structure (SPEC §5), sample by sample.
+//! Recursive least squares for a fixed structure, sample by sample (`P₀ = δI`, forgetting
+//! factor λ): one of the paper's baselines.
 
 use crate::cholesky::{packed, packed_len};
 use crate::error::{Error, Result};

@@ -1,4 +1,4 @@
-//! Bounded structure search (eq. 13–15, SPEC §4).
+//! Bounded structure search (the paper's eq. 13–15).
 //!
 //! Every candidate `(p, q, d)` of a [`Grid`] is scored by a [`Criterion`] of its
 //! residual sum of squares. With `prune` on (the default) the search is exact but cheap:

@@ -42,7 +42,7 @@ impl Structure {
     }
 
     /// Samples a predictor must be seeded with before it can predict from measured
-    /// history: `m = max(p, d + q − 1)` (SPEC §6).
+    /// history: `m = max(p, d + q − 1)`.
     pub fn seed_len(&self) -> usize {
         let p = usize::from(self.p);
         let lag = usize::from(self.d) + usize::from(self.q) - 1;
@@ -54,7 +54,7 @@ impl Structure {
     }
 }
 
-/// Whether the model carries a constant term (SPEC §6).
+/// Whether the model carries a constant term (a pump dead zone, a sensor zero offset).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum Offset {
     /// No constant term: the paper's model.

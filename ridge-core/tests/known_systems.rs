@@ -158,7 +158,7 @@ fn ridge_m_defaults_recover_noisy_plants_at_pump_scale() {
 
 #[test]
 fn papers_criterion_trades_delay_for_input_lags() {
-    // SPEC §4: on a true (2,2,3) plant eq. (14) prefers (2,5,0), which contains every
+    // On a true (2,2,3) plant the paper's eq. (14) prefers (2,5,0), which contains every
     // regressor of (2,2,3) at the same penalty.
     let (u, y) = record(&PLANTS[1], 0.05, 300);
     let normal = gram(&u, &y);

@@ -41,7 +41,7 @@
 //! records are exactly the ARX regression of eq. (6), and ridge-core's default search
 //! (no offset) applies as is; the operating point becomes the intercept of the stored model.
 //! - **Validate**: the [`Config::validation`] record, scored with a streaming
-//!   [`Evaluation<f32>`] in physical units (seeded with measured samples, SPEC §6); a model with
+//!   [`Evaluation<f32>`] in physical units (seeded with the first `m` measured samples); a model with
 //!   a free-run fit below [`Config::min_fit`] is rejected by [`SelfIdentification::judge`]
 //!   (base duty from the end of the record until then).
 //! - **Run**: [`Config::run_duty`] ([`SelfIdentification::set_run_duty`]), with the one-step
