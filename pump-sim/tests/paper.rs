@@ -2,9 +2,11 @@
 //! simulator's true transport delay, the nesting argument behind the paper criterion's flaw,
 //! the closed-form convergence of Ridge-M to least squares, and the RLS/Ridge identity.
 
+use nalgebra::{DMatrix, DVector};
 use pump_sim::paper::{
     comparison, convergence, gamma_sweep, gram_matrix, int_gram, precision, pruning,
-    ridge_m_residual_factor, rls, search, Algorithm, Dataset, DEFAULT_SEED, RLS_DELTA,
+    ridge_m_residual_factor, rls, search, symmetric_eigenvalues, Algorithm, Dataset, DEFAULT_SEED,
+    RLS_DELTA,
 };
 use pump_sim::{record, PumpParams};
 use ridge_core::{
@@ -214,12 +216,14 @@ fn gamma_sweep_small_gamma_is_least_squares_and_momentum_pick_is_ols_while_conve
     }
 }
 
-fn cholesky_ok(a: &[Vec<f64>], shift: f64) -> bool {
-    let n = a.len();
+/// Whether `a − shift·I` is positive definite: a plain Cholesky factorisation, independent of
+/// the eigen-solver.
+fn cholesky_ok(a: &DMatrix<f64>, shift: f64) -> bool {
+    let n = a.nrows();
     let mut l = vec![vec![0.0; n]; n];
     for i in 0..n {
         for j in 0..=i {
-            let mut s = a[i][j] - if i == j { shift } else { 0.0 };
+            let mut s = a[(i, j)] - if i == j { shift } else { 0.0 };
             s -= (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
             if i == j {
                 if s <= 0.0 {
@@ -232,6 +236,32 @@ fn cholesky_ok(a: &[Vec<f64>], shift: f64) -> bool {
         }
     }
     true
+}
+
+/// The eigen-solver on matrices whose eigenvalues are known by construction:
+/// `A = H Λ H` with a Householder reflection `H = I − 2vvᵀ/(vᵀv)` (symmetric, orthogonal), so
+/// the eigenvalues of `A` are the diagonal of `Λ`. The spread 0.5 … 8e7 is that of the pump's
+/// Gram matrices (smallest eigenvalue ~0.5, largest ~1e8).
+#[test]
+fn symmetric_eigenvalues_recovers_known_eigenvalues() {
+    let lambda = [8e7, 0.5, 2e5, 3.0, 1e3, 40.0, 0.5];
+    let n = lambda.len();
+    let v = DVector::from_fn(n, |i, _| {
+        1.0 + i as f64 * 0.7 - if i % 2 == 1 { 2.5 } else { 0.0 }
+    });
+    let h = DMatrix::<f64>::identity(n, n) - &v * v.transpose() * (2.0 / v.dot(&v));
+    let a = &h * DMatrix::from_diagonal(&DVector::from_row_slice(&lambda)) * &h;
+    let got = symmetric_eigenvalues(&a);
+    let mut want = lambda.to_vec();
+    want.sort_by(f64::total_cmp);
+    assert_eq!(got.len(), n);
+    for (g, w) in got.iter().zip(&want) {
+        // Backward-stable solver: absolute error ~ ε · ‖A‖ = 2e-16 · 8e7.
+        assert!((g - w).abs() < 1e-6 * w.max(1.0), "{got:?} vs {want:?}");
+    }
+    // A diagonal matrix, given unsorted: its diagonal, ascending.
+    let d = DMatrix::from_diagonal(&DVector::from_row_slice(&[3.0, -1.0, 2.0]));
+    assert_eq!(symmetric_eigenvalues(&d), vec![-1.0, 2.0, 3.0]);
 }
 
 /// (4) Tables 2–3: iterates settle (late steps smaller than early ones) and approach least
@@ -265,7 +295,7 @@ fn ridge_m_iterates_converge_monotonically_to_least_squares() {
         }
         // Closed form: ‖w_k − w_LS‖ ≤ max_i γ/(λ_i+γ) ρ_i^{k−1} ‖w_LS‖, largest at λ_min.
         let g = gram_matrix(&n.system(s, Offset::None).unwrap());
-        let lmin = pump_sim::paper::symmetric_eigenvalues(&g)[0];
+        let lmin = symmetric_eigenvalues(&g)[0];
         assert!(cholesky_ok(&g, 0.99 * lmin) && !cholesky_ok(&g, 1.01 * lmin));
         let bound = ridge_m_residual_factor(lmin, gamma, 0.01, 180) * norm(&ls);
         assert!(
