@@ -477,10 +477,31 @@ fn binary_prints_markdown_and_honours_flags() {
     ] {
         assert!(stdout.contains(needle), "missing {needle}");
     }
-    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_paper-tables"))
-        .args(["--seed", "x"])
+    // Usage errors: exit status 2 (clap's convention), nothing on standard output.
+    for args in [&["--seed", "x"][..], &["--seed"], &["--no-such-flag"]] {
+        let bad = std::process::Command::new(env!("CARGO_BIN_EXE_paper-tables"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert_eq!(bad.status.code(), Some(2), "{args:?}");
+        assert!(bad.stdout.is_empty(), "{args:?}");
+    }
+    // `--seed=N` is the same flag; `--help` lists both options and succeeds.
+    let eq = std::process::Command::new(env!("CARGO_BIN_EXE_paper-tables"))
+        .arg("--seed=7")
         .output()
         .unwrap();
-    assert!(!bad.status.success());
+    assert!(eq.status.success());
+    assert_eq!(String::from_utf8(eq.stdout).unwrap(), stdout);
+    let help = std::process::Command::new(env!("CARGO_BIN_EXE_paper-tables"))
+        .arg("--help")
+        .output()
+        .unwrap();
+    assert!(help.status.success());
+    let help = String::from_utf8(help.stdout).unwrap();
+    assert!(
+        help.contains("--seed") && help.contains("--markdown-out"),
+        "{help}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
