@@ -11,7 +11,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::Parser;
-use pump_sim::paper::{render_markdown, run, DEFAULT_SEED};
+use pump_sim::paper::{Tables, DEFAULT_SEED};
 
 /// Prints the analogues of the paper's Tables 1–5 (and the checks with no paper counterpart)
 /// computed on records of the simulated pump, as markdown on standard output.
@@ -29,14 +29,14 @@ struct Args {
 fn main() -> ExitCode {
     let args = Args::parse();
     let start = Instant::now();
-    let report = match run(args.seed) {
-        Ok(r) => r,
+    let tables = match Tables::compute(args.seed) {
+        Ok(t) => t,
         Err(e) => {
             eprintln!("paper-tables: {e}");
             return ExitCode::FAILURE;
         }
     };
-    let md = render_markdown(&report);
+    let md = tables.to_markdown();
     print!("{md}");
     if let Some(path) = &args.markdown_out {
         if let Err(e) = std::fs::write(path, &md) {

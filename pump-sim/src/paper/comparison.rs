@@ -6,9 +6,7 @@ use ridge_core::{
 };
 use ridge_pump_firmware::excitation::Record;
 
-use super::{
-    evaluate, mean_rmse, ridge_m, rls, search, Dataset, Rmse, GAMMA, RLS_DELTA, RLS_LAMBDA,
-};
+use super::{ridge_m, rls, search, Dataset, Rmse, GAMMA, RLS_DELTA, RLS_LAMBDA};
 
 /// The estimators compared in Tables 1 and 5 (plus least squares as a reference).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,14 +64,14 @@ pub struct Comparison {
     pub ridge_m_iterations: u32,
     /// The model of each algorithm, in [`Algorithm::ALL`] order.
     pub models: Vec<(Algorithm, ArxModel<f64>)>,
-    /// `rmse[a][r]`: algorithm `a` ([`Algorithm::ALL`]) on record `r` ([`RECORDS`]).
+    /// `rmse[a][r]`: algorithm `a` ([`Algorithm::ALL`]) on record `r` ([`RECORDS`](super::RECORDS)).
     pub rmse: Vec<Vec<Rmse>>,
 }
 
 impl Comparison {
     /// Mean over the four records for algorithm index `a`.
     pub fn average(&self, a: usize) -> Rmse {
-        mean_rmse(&self.rmse[a])
+        Rmse::mean(&self.rmse[a])
     }
 
     /// The model of one algorithm.
@@ -108,7 +106,7 @@ pub fn comparison(
     }
     let rmse = models
         .iter()
-        .map(|(_, m)| data.logs.iter().map(|l| evaluate(m, l)).collect())
+        .map(|(_, m)| data.logs.iter().map(|l| Rmse::of(m, l)).collect())
         .collect::<Result<Vec<Vec<Rmse>>>>()?;
     Ok(Comparison {
         identification,

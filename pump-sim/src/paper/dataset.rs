@@ -65,7 +65,7 @@ impl Dataset {
 
 /// Summary of one simulated record (for the scale of the RMSE figures).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RecordStats {
+pub struct RecordSummary {
     /// Record.
     pub record: Record,
     /// Samples.
@@ -87,32 +87,34 @@ pub struct RecordStats {
     pub noise_rms: f64,
 }
 
-/// Summarises a log.
-pub fn record_stats(r: Record, log: &Log) -> RecordStats {
-    let n = log.len().max(1) as f64;
-    let sensor = Sfm3300Params::default();
-    let mean = log.y.iter().sum::<f64>() / n;
-    let var = log.y.iter().map(|y| (y - mean).powi(2)).sum::<f64>() / n;
-    let range = |v: &[f64]| {
-        v.iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
-                (a.min(x), b.max(x))
-            })
-    };
-    RecordStats {
-        record: r,
-        samples: log.len(),
-        u_range: range(&log.u),
-        u_changes: log.raw_u.windows(2).filter(|w| w[0] != w[1]).count(),
-        y_mean: mean,
-        y_std: var.sqrt(),
-        y_range: range(&log.y),
-        noise_rms: (log
-            .y
-            .iter()
-            .map(|&y| sensor.noise_std(y).powi(2))
-            .sum::<f64>()
-            / n)
-            .sqrt(),
+impl RecordSummary {
+    /// Summarises `log`, a simulation of record `r`.
+    pub fn of(r: Record, log: &Log) -> RecordSummary {
+        let n = log.len().max(1) as f64;
+        let sensor = Sfm3300Params::default();
+        let mean = log.y.iter().sum::<f64>() / n;
+        let var = log.y.iter().map(|y| (y - mean).powi(2)).sum::<f64>() / n;
+        let range = |v: &[f64]| {
+            v.iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                    (a.min(x), b.max(x))
+                })
+        };
+        RecordSummary {
+            record: r,
+            samples: log.len(),
+            u_range: range(&log.u),
+            u_changes: log.raw_u.windows(2).filter(|w| w[0] != w[1]).count(),
+            y_mean: mean,
+            y_std: var.sqrt(),
+            y_range: range(&log.y),
+            noise_rms: (log
+                .y
+                .iter()
+                .map(|&y| sensor.noise_std(y).powi(2))
+                .sum::<f64>()
+                / n)
+                .sqrt(),
+        }
     }
 }

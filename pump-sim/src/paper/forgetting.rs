@@ -4,7 +4,7 @@
 use ridge_core::{Offset, Result, Structure};
 use ridge_pump_firmware::excitation::Record;
 
-use super::{evaluate, mean_rmse, rls, Dataset, Rmse, RLS_DELTA};
+use super::{rls, Dataset, Rmse, RLS_DELTA};
 
 /// Final RLS estimates with forgetting, scored on the four records.
 #[derive(Clone, Debug, PartialEq)]
@@ -29,9 +29,9 @@ pub fn rls_forgetting(data: &Dataset, r: Record, s: Structure) -> Result<Forgett
             let v = data
                 .logs
                 .iter()
-                .map(|x| evaluate(&m, x))
+                .map(|x| Rmse::of(&m, x))
                 .collect::<Result<Vec<_>>>()?;
-            Ok((l, mean_rmse(&v)))
+            Ok((l, Rmse::mean(&v)))
         })
         .collect::<Result<Vec<_>>>()?;
     Ok(Forgetting { structure: s, rows })

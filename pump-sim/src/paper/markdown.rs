@@ -1,11 +1,11 @@
-//! Markdown rendering of a [`Report`]: the tables printed by `paper-tables`.
+//! Markdown rendering of the [`Tables`]: what `paper-tables` prints.
 
 use std::fmt::Write as _;
 
 use ridge_core::{Criterion, Offset, Structure};
 
 use super::{
-    Algorithm, Comparison, Convergence, Report, Rmse, Sweep, ALPHA, GAMMA, RECORDS, RLS_DELTA,
+    Algorithm, Comparison, Convergence, Rmse, Sweep, Tables, ALPHA, GAMMA, RECORDS, RLS_DELTA,
     RLS_LAMBDA,
 };
 
@@ -221,191 +221,194 @@ fn convergence_md(out: &mut String, crit: Criterion, c: &Convergence, table: u8)
     );
 }
 
-/// Renders a [`Report`] as markdown.
-pub fn render_markdown(r: &Report) -> String {
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        "## Paper tables on the simulated pump (seed {})\n\n\
+impl Tables {
+    /// The tables as markdown (what `paper-tables` prints).
+    pub fn to_markdown(&self) -> String {
+        let r = self;
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "## Paper tables on the simulated pump (seed {})\n\n\
          Records: `pump_sim::record(Record::…, &PumpParams::default(), {})`, 3000 samples \
          at 100 Hz each (reference blower: dead zone 12–15 % duty, τ = 0.15 s, flow ∝ speed^1.3, \
          150 slm at full duty, transport delay 3 samples; SFM3300 noise 3 % of reading). \
          Statistics: `IntGram::push(raw_u, raw_y − 32768)`, `SCALE`, solved \
          in f64. Coefficients in slm and duty fraction (0..1). Grid p ∈ 1..6, q ∈ 1..6, \
          d ∈ 0..6 (252 candidates).\n",
-        r.seed, r.seed
-    );
-    let _ = writeln!(out, "### Records\n");
-    let _ = writeln!(
+            r.seed, r.seed
+        );
+        let _ = writeln!(out, "### Records\n");
+        let _ = writeln!(
         out,
         "| Record | N | duty range | duty changes | flow mean (slm) | flow std (slm) | flow range (slm) | sensor noise RMS (slm) |"
     );
-    let _ = writeln!(out, "|---|---:|:---:|---:|---:|---:|:---:|---:|");
-    for x in &r.records {
+        let _ = writeln!(out, "|---|---:|:---:|---:|---:|---:|:---:|---:|");
+        for x in &r.records {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {:.2}–{:.2} | {} | {:.2} | {:.2} | {:.2}–{:.2} | {:.2} |",
+                x.record.name(),
+                x.samples,
+                x.u_range.0,
+                x.u_range.1,
+                x.u_changes,
+                x.y_mean,
+                x.y_std,
+                x.y_range.0,
+                x.y_range.1,
+                x.noise_rms
+            );
+        }
         let _ = writeln!(
-            out,
-            "| {} | {} | {:.2}–{:.2} | {} | {:.2} | {:.2} | {:.2}–{:.2} | {:.2} |",
-            x.record.name(),
-            x.samples,
-            x.u_range.0,
-            x.u_range.1,
-            x.u_changes,
-            x.y_mean,
-            x.y_std,
-            x.y_range.0,
-            x.y_range.1,
-            x.noise_rms
-        );
-    }
-    let _ = writeln!(
         out,
         "\n\"duty changes\": samples with u_t ≠ u_(t−1), the only samples at which delays d and \
          d+1 give different regressors. On a ramp the difference u_(t−d) − u_(t−d−1) is the \
          constant slope almost everywhere, which a neighbouring input lag absorbs: ramps carry \
          almost no information about d.\n"
     );
-    let _ = writeln!(out, "### Structures picked by the Ridge-M search\n");
-    let _ = writeln!(
-        out,
-        "| Identification record | paper criterion | delay-free AIC |"
-    );
-    let _ = writeln!(out, "|---|:---:|:---:|");
-    for (name, t) in [("A-Multistep", &r.table1), ("A-Ramp", &r.table5)] {
+        let _ = writeln!(out, "### Structures picked by the Ridge-M search\n");
         let _ = writeln!(
             out,
-            "| {name} | {} | {} |",
-            st(t[0].structure),
-            st(t[1].structure)
+            "| Identification record | paper criterion | delay-free AIC |"
         );
-    }
-    let _ = writeln!(
-        out,
-        "| A-Multistep, intercept | — | {} |\n\nTrue transport delay of the simulated plant: \
-         d = 3. The paper reports (5, 6, 4) on its A-Multistep and (5, 1, 0) on its A-Ramp.\n",
-        st(r.intercept.structure)
-    );
-    for c in &r.table1 {
-        comparison_md(&mut out, "Table 1", c);
-    }
-    for c in &r.table5 {
-        comparison_md(&mut out, "Table 5", c);
-    }
-    comparison_md(&mut out, "Table 1 with intercept", &r.intercept);
-    for s in &r.table4 {
-        sweep_md(&mut out, s);
-    }
-    for (crit, tables) in &r.convergence {
-        for (c, n) in tables.iter().zip([2u8, 3]) {
-            convergence_md(&mut out, *crit, c, n);
+        let _ = writeln!(out, "|---|:---:|:---:|");
+        for (name, t) in [("A-Multistep", &r.table1), ("A-Ramp", &r.table5)] {
+            let _ = writeln!(
+                out,
+                "| {name} | {} | {} |",
+                st(t[0].structure),
+                st(t[1].structure)
+            );
         }
-    }
-    let _ = writeln!(
-        out,
-        "### Pruned search vs exhaustive grid (A-Multistep, Ridge-M)\n"
-    );
-    let _ = writeln!(
+        let _ = writeln!(
+            out,
+            "| A-Multistep, intercept | — | {} |\n\nTrue transport delay of the simulated plant: \
+         d = 3. The paper reports (5, 6, 4) on its A-Multistep and (5, 1, 0) on its A-Ramp.\n",
+            st(r.intercept.structure)
+        );
+        for c in &r.table1 {
+            comparison_md(&mut out, "Table 1", c);
+        }
+        for c in &r.table5 {
+            comparison_md(&mut out, "Table 5", c);
+        }
+        comparison_md(&mut out, "Table 1 with intercept", &r.intercept);
+        for s in &r.table4 {
+            sweep_md(&mut out, s);
+        }
+        for (crit, tables) in &r.convergence {
+            for (c, n) in tables.iter().zip([2u8, 3]) {
+                convergence_md(&mut out, *crit, c, n);
+            }
+        }
+        let _ = writeln!(
+            out,
+            "### Pruned search vs exhaustive grid (A-Multistep, Ridge-M)\n"
+        );
+        let _ = writeln!(
         out,
         "| Criterion | Offset | pruned pick | Ridge-M runs (pruned) | exhaustive pick | Ridge-M runs (exhaustive) | same score |"
     );
-    let _ = writeln!(out, "|---|---|:---:|---:|:---:|---:|:---:|");
-    for p in &r.pruning {
+        let _ = writeln!(out, "|---|---|:---:|---:|:---:|---:|:---:|");
+        for p in &r.pruning {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} | {} of {} | {} | {} | {} |",
+                short_criterion(p.criterion),
+                offset_name(p.offset),
+                st(p.pruned),
+                p.evaluated,
+                p.candidates,
+                st(p.exhaustive),
+                p.exhaustive_evaluated,
+                if p.same_score { "yes" } else { "no" }
+            );
+        }
+        let _ = writeln!(out);
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} of {} | {} | {} | {} |",
-            short_criterion(p.criterion),
-            offset_name(p.offset),
-            st(p.pruned),
-            p.evaluated,
-            p.candidates,
-            st(p.exhaustive),
-            p.exhaustive_evaluated,
-            if p.same_score { "yes" } else { "no" }
+            "### f32 vs f64 solves on the same integer statistics (A-Multistep, Ridge-M)\n"
         );
-    }
-    let _ = writeln!(out);
-    let _ = writeln!(
-        out,
-        "### f32 vs f64 solves on the same integer statistics (A-Multistep, Ridge-M)\n"
-    );
-    let _ = writeln!(
+        let _ = writeln!(
         out,
         "| Criterion | f64 pick | f32 pick | Ridge-M runs f64 / f32 | max abs coef diff | max abs coef | free-run RMSE f64 / f32 |"
     );
-    let _ = writeln!(out, "|---|:---:|:---:|---:|---:|---:|---:|");
-    for p in &r.precision {
+        let _ = writeln!(out, "|---|:---:|:---:|---:|---:|---:|---:|");
+        for p in &r.precision {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} | {} / {} | {:.3e} | {:.4} | {:.4} / {:.4} |",
+                short_criterion(p.criterion),
+                st(p.structure_f64),
+                st(p.structure_f32),
+                p.evaluated.0,
+                p.evaluated.1,
+                p.max_coef_diff,
+                p.max_coef,
+                p.free_run.0,
+                p.free_run.1
+            );
+        }
         let _ = writeln!(
-            out,
-            "| {} | {} | {} | {} / {} | {:.3e} | {:.4} | {:.4} / {:.4} |",
-            short_criterion(p.criterion),
-            st(p.structure_f64),
-            st(p.structure_f32),
-            p.evaluated.0,
-            p.evaluated.1,
-            p.max_coef_diff,
-            p.max_coef,
-            p.free_run.0,
-            p.free_run.1
-        );
-    }
-    let _ = writeln!(
         out,
         "\nCoefficient difference: Ridge-M fitted in f32 and in f64 on the f64 pick; the f32 model \
          is scored in f64 arithmetic.\n"
     );
-    let f = &r.forgetting;
-    let _ = writeln!(
+        let f = &r.forgetting;
+        let _ = writeln!(
         out,
         "### RLS forgetting factor (A-Multistep, ARX{}, final estimate, mean over the four records)\n",
         st(f.structure)
     );
-    let _ = writeln!(out, "| λ | mean free-run RMSE | mean one-step RMSE |");
-    let _ = writeln!(out, "|---:|---:|---:|");
-    for (l, m) in &f.rows {
-        let _ = writeln!(out, "| {l} | {:.4} | {:.4} |", m.free_run, m.one_step);
-    }
-    let _ = writeln!(out);
-    if let Some(first) = r.census.first() {
+        let _ = writeln!(out, "| λ | mean free-run RMSE | mean one-step RMSE |");
+        let _ = writeln!(out, "|---:|---:|---:|");
+        for (l, m) in &f.rows {
+            let _ = writeln!(out, "| {l} | {:.4} | {:.4} |", m.free_run, m.one_step);
+        }
+        let _ = writeln!(out);
+        if let Some(first) = r.census.first() {
+            let _ = writeln!(
+                out,
+                "### Seed census: picks over {} sensor-noise seeds ({}..{})\n",
+                first.seeds,
+                r.seed,
+                r.seed.wrapping_add(u64::from(first.seeds) - 1)
+            );
+        }
         let _ = writeln!(
-            out,
-            "### Seed census: picks over {} sensor-noise seeds ({}..{})\n",
-            first.seeds,
-            r.seed,
-            r.seed.wrapping_add(u64::from(first.seeds) - 1)
-        );
-    }
-    let _ = writeln!(
         out,
         "| Record | Criterion | Offset | Estimator | d = 0 | 1 | 2 | 3 | 4 | 5 | 6 | d = 0 or q = 6 | most frequent pick |"
     );
-    let _ = writeln!(
-        out,
-        "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|:---|"
-    );
-    for c in &r.census {
-        let _ = write!(
-            out,
-            "| {} | {} | {} | {} |",
-            c.record.name(),
-            short_criterion(c.criterion),
-            offset_name(c.offset),
-            if c.ols { "OLS" } else { "Ridge-M" }
-        );
-        for n in c.d_counts {
-            let _ = write!(out, " {n} |");
-        }
         let _ = writeln!(
             out,
-            " {} of {} | {} ×{} |",
-            c.flaw_pattern,
-            c.seeds,
-            st(c.mode.0),
-            c.mode.1
+            "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|:---|"
         );
-    }
-    let _ = writeln!(
+        for c in &r.census {
+            let _ = write!(
+                out,
+                "| {} | {} | {} | {} |",
+                c.record.name(),
+                short_criterion(c.criterion),
+                offset_name(c.offset),
+                if c.ols { "OLS" } else { "Ridge-M" }
+            );
+            for n in c.d_counts {
+                let _ = write!(out, " {n} |");
+            }
+            let _ = writeln!(
+                out,
+                " {} of {} | {} ×{} |",
+                c.flaw_pattern,
+                c.seeds,
+                st(c.mode.0),
+                c.mode.1
+            );
+        }
+        let _ = writeln!(
         out,
         "\nTrue delay 3. \"d = 0 or q = 6\": the pattern the paper criterion must follow with least \
          squares, since (p, q+d, 0) nests (p, q, d) at the same penalty (SPEC §4).\n"
     );
-    out
+        out
+    }
 }

@@ -1,34 +1,32 @@
 //! The paper's experiments (section 3, Tables 1–5) on simulated pump records.
 //!
 //! Every record is simulated by [`crate::record`] on the reference blower
-//! ([`PumpParams::default`]: true transport delay 3 samples, dead zone, convex fan curve)
-//! and fed to the statistics exactly as the firmware will: an [`IntGram`] of
-//! `(raw_u, raw_y − 32768)` with [`SCALE`], solved in `f64` (and in `f32`
-//! for the precision check). Models are therefore in duty fraction (0..1) and slm.
+//! ([`crate::PumpParams::default`]: true transport delay 3 samples, dead zone, convex fan
+//! curve) and fed to the statistics exactly as the firmware will: a [`ridge_core::IntGram`] of
+//! `(raw_u, raw_y − 32768)` with [`ridge_pump_firmware::units::SCALE`], solved in `f64` (and
+//! in `f32` for the precision check). Models are therefore in duty fraction (0..1) and slm.
 //!
-//! Models are scored with [`Evaluation`]: one-step-ahead and free-run RMSE, both seeded with
-//! the first `m = max(p, d + q − 1)` measured samples and scored on samples `m..N`
+//! Models are scored with [`ridge_core::Evaluation`]: one-step-ahead and free-run RMSE, both
+//! seeded with the first `m = max(p, d + q − 1)` measured samples and scored on samples `m..N`
 //! (SPEC §6). The paper's own RMSE figures (26–40) were obtained on a real pump with an
 //! unknown evaluation protocol; see `docs/results.md` for the reading.
 //!
-//! The functions return plain structs (for the tests); [`render_markdown`] turns a
-//! [`Report`] into the tables printed by the `paper-tables` binary.
-
-//!
+//! The experiments return plain structs (for the tests); [`Tables::compute`] runs them all
+//! and [`Tables::to_markdown`] renders what the `paper-tables` binary prints.
 //! One file per concern:
 //!
-//! - [`dataset`]: the simulated records, their exact statistics and a summary of each;
-//! - [`estimate`]: the structure search with the paper's α, RLS over a log, and models from
+//! - [`dataset`](mod@dataset): the simulated records, their exact statistics and a summary of each;
+//! - [`estimate`](mod@estimate): the structure search with the paper's α, RLS over a log, and models from
 //!   coefficient vectors;
-//! - [`score`]: one-step and free-run RMSE of a model on a log;
-//! - [`comparison`]: Tables 1 and 5 (every estimator on the searched structure);
-//! - [`convergence`]: Tables 2–3 (Ridge-M iterates against the iteration count);
-//! - [`sweep`]: Table 4 (the γ sweep with and without momentum);
-//! - [`spectrum`]: eigenvalues of `XᵀX` and what they imply for Ridge-M after `k` iterates;
-//! - [`pruning`], [`precision`], [`forgetting`], [`census`]: checks with no paper counterpart
+//! - [`score`](mod@score): one-step and free-run RMSE of a model on a log;
+//! - [`comparison`](mod@comparison): Tables 1 and 5 (every estimator on the searched structure);
+//! - [`convergence`](mod@convergence): Tables 2–3 (Ridge-M iterates against the iteration count);
+//! - [`sweep`](mod@sweep): Table 4 (the γ sweep with and without momentum);
+//! - [`spectrum`](mod@spectrum): eigenvalues of `XᵀX` and what they imply for Ridge-M after `k` iterates;
+//! - [`pruning`](mod@pruning), [`precision`](mod@precision), [`forgetting`](mod@forgetting), [`census`](mod@census): checks with no paper counterpart
 //!   (pruned vs exhaustive search, `f32` vs `f64`, RLS forgetting factors, picks over many
 //!   noise seeds);
-//! - [`markdown`]: the rendering printed by `paper-tables`.
+//! - [`markdown`](mod@markdown): the rendering printed by `paper-tables`.
 
 pub mod census;
 pub mod comparison;
@@ -50,13 +48,12 @@ use ridge_pump_firmware::excitation::Record;
 pub use census::{census, CensusRow, CENSUS_RECORDS, CENSUS_SEARCHES, CENSUS_SEEDS};
 pub use comparison::{comparison, Algorithm, Comparison};
 pub use convergence::{convergence, Convergence, ITERATIONS};
-pub use dataset::{int_gram, record_index, record_stats, Dataset, RecordStats};
+pub use dataset::{int_gram, record_index, Dataset, RecordSummary};
 pub use estimate::{model_from_internal, rls, search};
 pub use forgetting::{rls_forgetting, Forgetting, FORGETTING};
-pub use markdown::render_markdown;
 pub use precision::{precision, Precision};
 pub use pruning::{pruning, Pruning};
-pub use score::{evaluate, mean_rmse, Rmse};
+pub use score::Rmse;
 pub use spectrum::{
     gram_matrix, ridge_m_residual_factor, smallest_eigenvalue_over_grid, symmetric_eigenvalues,
 };
@@ -86,13 +83,14 @@ pub fn ridge_m<T: Real>() -> RidgeM<T> {
     RidgeM::default()
 }
 
-/// Everything `paper-tables` prints.
+/// Every table `paper-tables` prints, as numbers: the paper's Tables 1–5 on the simulated
+/// records plus the checks with no paper counterpart.
 #[derive(Clone, Debug)]
-pub struct Report {
+pub struct Tables {
     /// Noise seed.
     pub seed: u64,
     /// The four records.
-    pub records: Vec<RecordStats>,
+    pub records: Vec<RecordSummary>,
     /// Table 1 (A-Multistep), paper criterion then delay-free AIC.
     pub table1: Vec<Comparison>,
     /// Table 5 (A-Ramp), paper criterion then delay-free AIC.
@@ -116,63 +114,65 @@ pub struct Report {
 /// The two criteria compared throughout.
 pub const CRITERIA: [Criterion; 2] = [Criterion::Paper, Criterion::Aic];
 
-/// Runs every experiment.
-pub fn run(seed: u64) -> Result<Report> {
-    let data = Dataset::simulate(seed)?;
-    let table1 = CRITERIA
-        .iter()
-        .map(|&c| comparison(&data, Record::AMultistep, c, Offset::None))
-        .collect::<Result<Vec<_>>>()?;
-    let table5 = CRITERIA
-        .iter()
-        .map(|&c| comparison(&data, Record::ARamp, c, Offset::None))
-        .collect::<Result<Vec<_>>>()?;
-    let intercept = comparison(&data, Record::AMultistep, Criterion::Aic, Offset::Intercept)?;
-    let table4 = CRITERIA
-        .iter()
-        .map(|&c| gamma_sweep(&data, Record::AMultistep, Record::BRamp, c))
-        .collect::<Result<Vec<_>>>()?;
-    let convergence = table1
-        .iter()
-        .map(|t| {
-            let tables = [100.0, 1000.0]
-                .iter()
-                .map(|&g| convergence(&data, Record::AMultistep, t.structure, g, &ITERATIONS))
-                .collect::<Result<Vec<_>>>()?;
-            Ok((t.criterion, tables))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let mut pruning_rows = Vec::new();
-    for c in CRITERIA {
-        for o in [Offset::None, Offset::Intercept] {
-            pruning_rows.push(pruning(&data, Record::AMultistep, c, o)?);
+impl Tables {
+    /// Simulates the records with sensor-noise seed `seed` and runs every experiment.
+    pub fn compute(seed: u64) -> Result<Tables> {
+        let data = Dataset::simulate(seed)?;
+        let table1 = CRITERIA
+            .iter()
+            .map(|&c| comparison(&data, Record::AMultistep, c, Offset::None))
+            .collect::<Result<Vec<_>>>()?;
+        let table5 = CRITERIA
+            .iter()
+            .map(|&c| comparison(&data, Record::ARamp, c, Offset::None))
+            .collect::<Result<Vec<_>>>()?;
+        let intercept = comparison(&data, Record::AMultistep, Criterion::Aic, Offset::Intercept)?;
+        let table4 = CRITERIA
+            .iter()
+            .map(|&c| gamma_sweep(&data, Record::AMultistep, Record::BRamp, c))
+            .collect::<Result<Vec<_>>>()?;
+        let convergence = table1
+            .iter()
+            .map(|t| {
+                let tables = [100.0, 1000.0]
+                    .iter()
+                    .map(|&g| convergence(&data, Record::AMultistep, t.structure, g, &ITERATIONS))
+                    .collect::<Result<Vec<_>>>()?;
+                Ok((t.criterion, tables))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let mut pruning_rows = Vec::new();
+        for c in CRITERIA {
+            for o in [Offset::None, Offset::Intercept] {
+                pruning_rows.push(pruning(&data, Record::AMultistep, c, o)?);
+            }
         }
+        let precision = CRITERIA
+            .iter()
+            .map(|&c| precision(&data, Record::AMultistep, c))
+            .collect::<Result<Vec<_>>>()?;
+        let forgetting = rls_forgetting(&data, Record::AMultistep, table1[1].structure)?;
+        let mut census_rows = Vec::new();
+        for r in CENSUS_RECORDS {
+            census_rows.extend(census(r, seed, CENSUS_SEEDS)?);
+        }
+        let records = RECORDS
+            .iter()
+            .zip(&data.logs)
+            .map(|(&r, l)| RecordSummary::of(r, l))
+            .collect();
+        Ok(Tables {
+            seed,
+            records,
+            table1,
+            table5,
+            intercept,
+            table4,
+            convergence,
+            pruning: pruning_rows,
+            precision,
+            forgetting,
+            census: census_rows,
+        })
     }
-    let precision = CRITERIA
-        .iter()
-        .map(|&c| precision(&data, Record::AMultistep, c))
-        .collect::<Result<Vec<_>>>()?;
-    let forgetting = rls_forgetting(&data, Record::AMultistep, table1[1].structure)?;
-    let mut census_rows = Vec::new();
-    for r in CENSUS_RECORDS {
-        census_rows.extend(census(r, seed, CENSUS_SEEDS)?);
-    }
-    let records = RECORDS
-        .iter()
-        .zip(&data.logs)
-        .map(|(&r, l)| record_stats(r, l))
-        .collect();
-    Ok(Report {
-        seed,
-        records,
-        table1,
-        table5,
-        intercept,
-        table4,
-        convergence,
-        pruning: pruning_rows,
-        precision,
-        forgetting,
-        census: census_rows,
-    })
 }

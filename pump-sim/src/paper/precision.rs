@@ -3,7 +3,7 @@
 use ridge_core::{ArxModel, Criterion, Estimator, Method, Offset, Result, Structure};
 use ridge_pump_firmware::excitation::Record;
 
-use super::{evaluate, ridge_m, search, Dataset};
+use super::{ridge_m, search, Dataset, Rmse};
 
 /// `f32` vs `f64` solve on the same exact statistics.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -84,6 +84,6 @@ pub fn precision(data: &Dataset, r: Record, criterion: Criterion) -> Result<Prec
         evaluated: (s64.evaluated, s32.evaluated),
         max_coef_diff,
         max_coef,
-        free_run: (evaluate(&m64, log)?.free_run, evaluate(&m32, log)?.free_run),
+        free_run: (Rmse::of(&m64, log)?.free_run, Rmse::of(&m32, log)?.free_run),
     })
 }

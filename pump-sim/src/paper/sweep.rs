@@ -5,8 +5,7 @@ use ridge_core::{Criterion, Method, Normal, Offset, Result, Ridge, RidgeM, Struc
 use ridge_pump_firmware::excitation::Record;
 
 use super::{
-    evaluate, ridge_m, ridge_m_residual_factor, search, smallest_eigenvalue_over_grid, Dataset,
-    Rmse,
+    ridge_m, ridge_m_residual_factor, search, smallest_eigenvalue_over_grid, Dataset, Rmse,
 };
 use crate::Log;
 
@@ -66,7 +65,7 @@ fn pick(
     let sel = search(normal, criterion, Offset::None, method, true)?;
     Ok(SweepPick {
         structure: sel.structure(),
-        rmse: evaluate(&sel.fit.model(), val)?,
+        rmse: Rmse::of(&sel.fit.model(), val)?,
         evaluated: sel.evaluated,
         iterations: sel.fit.iterations,
     })
