@@ -5,13 +5,13 @@
 use nalgebra::{DMatrix, DVector};
 use pump_sim::paper::{
     comparison, convergence, gamma_sweep, gram_matrix, int_gram, precision, pruning,
-    ridge_m_residual_factor, rls, search, symmetric_eigenvalues, Algorithm, Dataset, DEFAULT_SEED,
-    RLS_DELTA,
+    ridge_m_residual_factor, rls, search, symmetric_eigenvalues, Comparison, Dataset, COMPARED,
+    DEFAULT_SEED, RLS_DELTA,
 };
 use pump_sim::{record, PumpParams};
 use ridge_core::{
-    ArxModel, Criterion, Estimator, Grid, Method, Normal, Offset, Ols, Ridge, RidgeM, Search,
-    Structure, Q_MAX,
+    ArxModel, Criterion, Estimator, Grid, Method, MethodKind, Normal, Offset, Ols, Ridge, RidgeM,
+    Search, Structure, Q_MAX,
 };
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::units::SCALE;
@@ -353,11 +353,8 @@ fn rls_without_forgetting_is_ridge_with_gamma_one_over_delta_and_ends_at_least_s
     }
     // In Table 1 the RLS column equals the OLS reference.
     let c = comparison(&data, Record::AMultistep, Criterion::Aic, Offset::None).unwrap();
-    let ai = |a: Algorithm| Algorithm::ALL.iter().position(|&x| x == a).unwrap();
-    for (x, y) in c.rmse[ai(Algorithm::Rls)]
-        .iter()
-        .zip(&c.rmse[ai(Algorithm::Ols)])
-    {
+    let rmse = |m: MethodKind| &c.estimate(m).unwrap().rmse;
+    for (x, y) in rmse(MethodKind::Rls).iter().zip(rmse(MethodKind::Ols)) {
         assert!(rel(x.free_run, y.free_run) < 1e-4 && rel(x.one_step, y.one_step) < 1e-4);
     }
 }
@@ -380,29 +377,32 @@ fn table_one_estimators_agree_with_the_theory_of_each() {
     let data = Dataset::simulate(DEFAULT_SEED).unwrap();
     for c in [Criterion::Paper, Criterion::Aic] {
         let t = comparison(&data, Record::AMultistep, c, Offset::None).unwrap();
-        let ai = |a: Algorithm| Algorithm::ALL.iter().position(|&x| x == a).unwrap();
-        let avg = |a: Algorithm| t.average(ai(a));
+        let avg = |a: MethodKind| t.estimate(a).unwrap().average();
         // One-step: least squares minimises the identification record's one-step error.
-        let ident = |a: Algorithm| t.rmse[ai(a)][0].one_step;
-        for a in Algorithm::ALL {
+        let ident = |a: MethodKind| t.estimate(a).unwrap().rmse[0].one_step;
+        for a in COMPARED {
             assert!(
-                ident(Algorithm::Ols) <= ident(a) * (1.0 + 1e-9),
+                ident(MethodKind::Ols) <= ident(a) * (1.0 + 1e-9),
                 "{c:?} {a:?}"
             );
         }
         // Plain Ridge at γ = 1000 shrinks the input coefficients (Σu² ≈ 1e3 per column):
         // clearly worse free-run than the others.
-        for a in [Algorithm::Rls, Algorithm::Alasso, Algorithm::RidgeM] {
+        for a in [
+            MethodKind::Rls,
+            MethodKind::AdaptiveLasso,
+            MethodKind::RidgeM,
+        ] {
             assert!(
-                avg(Algorithm::Ridge).free_run > 1.3 * avg(a).free_run,
+                avg(MethodKind::Ridge).free_run > 1.3 * avg(a).free_run,
                 "{c:?} {a:?}"
             );
         }
         // A proportional model's static gain is below the plant's secant slope (the map
         // does not pass through the origin) but of the right size.
-        for (a, m) in &t.models {
-            let g = m.static_gain();
-            assert!((100.0..160.0).contains(&g), "{c:?} {a:?} gain {g}");
+        for e in &t.estimates {
+            let g = e.model.static_gain();
+            assert!((100.0..160.0).contains(&g), "{c:?} {:?} gain {g}", e.method);
         }
     }
     // With an intercept the static gain of the least-squares-like estimators is the secant
@@ -412,20 +412,17 @@ fn table_one_estimators_agree_with_the_theory_of_each() {
     let secant = (pump.steady_state_flow(0.9) - pump.steady_state_flow(0.2)) / 0.7;
     let with = comparison(&data, Record::AMultistep, Criterion::Aic, Offset::Intercept).unwrap();
     for a in [
-        Algorithm::Rls,
-        Algorithm::Alasso,
-        Algorithm::RidgeM,
-        Algorithm::Ols,
+        MethodKind::Rls,
+        MethodKind::AdaptiveLasso,
+        MethodKind::RidgeM,
+        MethodKind::Ols,
     ] {
-        let g = with.model(a).unwrap().static_gain();
+        let g = with.estimate(a).unwrap().model.static_gain();
         assert!(rel(g, secant) < 0.1, "{a:?}: gain {g} vs secant {secant}");
     }
     let without = comparison(&data, Record::AMultistep, Criterion::Aic, Offset::None).unwrap();
-    let rm = Algorithm::ALL
-        .iter()
-        .position(|&x| x == Algorithm::RidgeM)
-        .unwrap();
-    assert!(with.average(rm).free_run * 2.0 < without.average(rm).free_run);
+    let ridge_m = |c: &Comparison| c.estimate(MethodKind::RidgeM).unwrap().average().free_run;
+    assert!(ridge_m(&with) * 2.0 < ridge_m(&without));
 }
 
 #[test]

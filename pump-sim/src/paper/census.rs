@@ -1,7 +1,7 @@
 //! Seed census (no paper counterpart): how often each delay is picked when a record is
 //! re-simulated with many sensor-noise seeds.
 
-use ridge_core::{Criterion, Method, Offset, Result, Structure};
+use ridge_core::{Criterion, Error, Method, MethodKind, Offset, Result, Structure};
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::units::SCALE;
 
@@ -17,8 +17,9 @@ pub struct CensusRow {
     pub criterion: Criterion,
     /// Constant term.
     pub offset: Offset,
-    /// `true`: least squares in the search; `false`: Ridge-M (paper defaults).
-    pub ols: bool,
+    /// Estimator run on every candidate of the search: [`MethodKind::RidgeM`] (the paper's
+    /// hyper-parameters) or [`MethodKind::Ols`].
+    pub method: MethodKind,
     /// `d_counts[d]`: seeds whose pick has delay `d`.
     pub d_counts: [u32; 7],
     /// Seeds whose pick has `d = 0` or `q = 6` (the paper-criterion flaw pattern).
@@ -29,14 +30,14 @@ pub struct CensusRow {
     pub seeds: u32,
 }
 
-/// The searches of the census: (criterion, offset, least squares?).
-pub const CENSUS_SEARCHES: [(Criterion, Offset, bool); 6] = [
-    (Criterion::Paper, Offset::None, false),
-    (Criterion::Paper, Offset::None, true),
-    (Criterion::Paper, Offset::Intercept, false),
-    (Criterion::Paper, Offset::Intercept, true),
-    (Criterion::Aic, Offset::None, false),
-    (Criterion::Aic, Offset::Intercept, false),
+/// The searches of the census: (criterion, offset, estimator on every candidate).
+pub const CENSUS_SEARCHES: [(Criterion, Offset, MethodKind); 6] = [
+    (Criterion::Paper, Offset::None, MethodKind::RidgeM),
+    (Criterion::Paper, Offset::None, MethodKind::Ols),
+    (Criterion::Paper, Offset::Intercept, MethodKind::RidgeM),
+    (Criterion::Paper, Offset::Intercept, MethodKind::Ols),
+    (Criterion::Aic, Offset::None, MethodKind::RidgeM),
+    (Criterion::Aic, Offset::Intercept, MethodKind::RidgeM),
 ];
 
 /// Records of the census.
@@ -50,11 +51,11 @@ pub fn census(r: Record, first: u64, seeds: u32) -> Result<Vec<CensusRow>> {
     for i in 0..seeds {
         let log = record(r, &params, first.wrapping_add(u64::from(i)));
         let normal = int_gram(&log)?.normal::<f64>(SCALE)?;
-        for (k, &(c, o, ols)) in CENSUS_SEARCHES.iter().enumerate() {
-            let method = if ols {
-                Method::Ols
-            } else {
-                Method::RidgeM(ridge_m())
+        for (k, &(c, o, kind)) in CENSUS_SEARCHES.iter().enumerate() {
+            let method = match kind {
+                MethodKind::Ols => Method::Ols,
+                MethodKind::RidgeM => Method::RidgeM(ridge_m()),
+                _ => return Err(Error::InvalidParameter),
             };
             picks[k].push(search(&normal, c, o, method, true)?.structure());
         }
@@ -62,7 +63,7 @@ pub fn census(r: Record, first: u64, seeds: u32) -> Result<Vec<CensusRow>> {
     Ok(CENSUS_SEARCHES
         .iter()
         .zip(picks)
-        .map(|(&(criterion, offset, ols), p)| {
+        .map(|(&(criterion, offset, method), p)| {
             let mut d_counts = [0u32; 7];
             for s in &p {
                 d_counts[usize::from(s.d).min(6)] += 1;
@@ -78,7 +79,7 @@ pub fn census(r: Record, first: u64, seeds: u32) -> Result<Vec<CensusRow>> {
                 record: r,
                 criterion,
                 offset,
-                ols,
+                method,
                 d_counts,
                 flaw_pattern: p
                     .iter()

@@ -2,48 +2,49 @@
 //! estimator of the paper on that structure, scored on the four records.
 
 use ridge_core::{
-    AdaptiveLasso, ArxModel, Criterion, Estimator, Method, Offset, Ols, Result, Ridge, Structure,
+    AdaptiveLasso, ArxModel, Criterion, Estimator, Method, MethodKind, Offset, Ols, Result, Ridge,
+    Structure,
 };
 use ridge_pump_firmware::excitation::Record;
 
 use super::{ridge_m, rls, search, Dataset, Rmse, GAMMA, RLS_DELTA, RLS_LAMBDA};
 
-/// The estimators compared in Tables 1 and 5 (plus least squares as a reference).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Algorithm {
-    /// Recursive least squares, λ = 1, δ = 1e3, sample by sample.
-    Rls,
-    /// Plain Ridge, γ = 1000.
-    Ridge,
-    /// Adaptive LASSO, BIC-chosen λ ([`AdaptiveLasso::default`]).
-    Alasso,
-    /// Ridge-M with the paper's hyper-parameters.
-    RidgeM,
-    /// Ordinary least squares (reference; not in the paper's tables).
-    Ols,
+/// The estimators compared in Tables 1 and 5, in column order, plus least squares as a
+/// reference column (not in the paper's tables):
+///
+/// - [`MethodKind::Rls`]: recursive least squares, λ = [`RLS_LAMBDA`], `P₀ = δI` with
+///   δ = [`RLS_DELTA`], one update per sample over the whole record, final estimate;
+/// - [`MethodKind::Ridge`]: plain Ridge, γ = [`GAMMA`];
+/// - [`MethodKind::AdaptiveLasso`]: adaptive LASSO, λ chosen by BIC
+///   ([`AdaptiveLasso::default`]);
+/// - [`MethodKind::RidgeM`]: Ridge-M with the paper's hyper-parameters ([`ridge_m`]);
+/// - [`MethodKind::Ols`]: ordinary least squares (reference).
+pub const COMPARED: [MethodKind; 5] = [
+    MethodKind::Rls,
+    MethodKind::Ridge,
+    MethodKind::AdaptiveLasso,
+    MethodKind::RidgeM,
+    MethodKind::Ols,
+];
+
+/// One estimator of a [`Comparison`]: its model on the chosen structure and its scores.
+#[derive(Clone, Debug)]
+pub struct Estimate {
+    /// The estimator.
+    pub method: MethodKind,
+    /// Its model (coefficients in slm and duty fraction).
+    pub model: ArxModel<f64>,
+    /// Its RMSE on each record, in [`RECORDS`](super::RECORDS) order.
+    pub rmse: Vec<Rmse>,
 }
 
-impl Algorithm {
-    /// All, in table order.
-    pub const ALL: [Algorithm; 5] = [
-        Algorithm::Rls,
-        Algorithm::Ridge,
-        Algorithm::Alasso,
-        Algorithm::RidgeM,
-        Algorithm::Ols,
-    ];
-
-    /// Column title.
-    pub fn name(self) -> &'static str {
-        match self {
-            Algorithm::Rls => "RLS",
-            Algorithm::Ridge => "Ridge",
-            Algorithm::Alasso => "ALASSO",
-            Algorithm::RidgeM => "Ridge-M",
-            Algorithm::Ols => "OLS (ref.)",
-        }
+impl Estimate {
+    /// Mean RMSE over the records.
+    pub fn average(&self) -> Rmse {
+        Rmse::mean(&self.rmse)
     }
 }
+
 /// Tables 1 and 5: a structure chosen by Ridge-M + search on one record, then every
 /// estimator on that structure, validated on the four records.
 #[derive(Clone, Debug)]
@@ -62,25 +63,19 @@ pub struct Comparison {
     pub candidates: u16,
     /// Ridge-M iterates used on the chosen structure.
     pub ridge_m_iterations: u32,
-    /// The model of each algorithm, in [`Algorithm::ALL`] order.
-    pub models: Vec<(Algorithm, ArxModel<f64>)>,
-    /// `rmse[a][r]`: algorithm `a` ([`Algorithm::ALL`]) on record `r` ([`RECORDS`](super::RECORDS)).
-    pub rmse: Vec<Vec<Rmse>>,
+    /// One entry per estimator, in [`COMPARED`] order.
+    pub estimates: Vec<Estimate>,
 }
 
 impl Comparison {
-    /// Mean over the four records for algorithm index `a`.
-    pub fn average(&self, a: usize) -> Rmse {
-        Rmse::mean(&self.rmse[a])
-    }
-
-    /// The model of one algorithm.
-    pub fn model(&self, a: Algorithm) -> Option<&ArxModel<f64>> {
-        self.models.iter().find(|(x, _)| *x == a).map(|(_, m)| m)
+    /// The entry of estimator `method` (`None` if it is not one of [`COMPARED`]).
+    pub fn estimate(&self, method: MethodKind) -> Option<&Estimate> {
+        self.estimates.iter().find(|e| e.method == method)
     }
 }
 
-/// Runs one Table-1/5 comparison.
+/// Runs one Table-1/5 comparison: the Ridge-M search (criterion `criterion`, α = [`ALPHA`](super::ALPHA))
+/// on `identification`, then every estimator of [`COMPARED`] on the chosen structure.
 pub fn comparison(
     data: &Dataset,
     identification: Record,
@@ -93,21 +88,26 @@ pub fn comparison(
     let sys = normal.system(s, offset)?;
     let ls = sys.factor(0.0)?;
     let log = data.log(identification)?;
-    let mut models = Vec::new();
-    for a in Algorithm::ALL {
-        let m = match a {
-            Algorithm::Rls => rls(log, s, offset, RLS_LAMBDA, RLS_DELTA)?,
-            Algorithm::Ridge => Ridge { gamma: GAMMA }.fit_with(&sys, &ls)?.model(),
-            Algorithm::Alasso => AdaptiveLasso::default().fit_with(&sys, &ls)?.model(),
-            Algorithm::RidgeM => ridge_m().fit_with(&sys, &ls)?.model(),
-            Algorithm::Ols => Ols.fit_with(&sys, &ls)?.model(),
+    let mut estimates = Vec::new();
+    for method in COMPARED {
+        let model = match method {
+            MethodKind::Rls => rls(log, s, offset, RLS_LAMBDA, RLS_DELTA)?,
+            MethodKind::Ridge => Ridge { gamma: GAMMA }.fit_with(&sys, &ls)?.model(),
+            MethodKind::AdaptiveLasso => AdaptiveLasso::default().fit_with(&sys, &ls)?.model(),
+            MethodKind::RidgeM => ridge_m().fit_with(&sys, &ls)?.model(),
+            MethodKind::Ols => Ols.fit_with(&sys, &ls)?.model(),
         };
-        models.push((a, m));
+        let rmse = data
+            .logs
+            .iter()
+            .map(|l| Rmse::of(&model, l))
+            .collect::<Result<Vec<_>>>()?;
+        estimates.push(Estimate {
+            method,
+            model,
+            rmse,
+        });
     }
-    let rmse = models
-        .iter()
-        .map(|(_, m)| data.logs.iter().map(|l| Rmse::of(m, l)).collect())
-        .collect::<Result<Vec<Vec<Rmse>>>>()?;
     Ok(Comparison {
         identification,
         criterion,
@@ -116,7 +116,6 @@ pub fn comparison(
         evaluated: sel.evaluated,
         candidates: sel.candidates,
         ridge_m_iterations: sel.fit.iterations,
-        models,
-        rmse,
+        estimates,
     })
 }

@@ -46,7 +46,7 @@ use ridge_core::{Criterion, Offset, Real, RidgeM};
 use ridge_pump_firmware::excitation::Record;
 
 pub use census::{census, CensusRow, CENSUS_RECORDS, CENSUS_SEARCHES, CENSUS_SEEDS};
-pub use comparison::{comparison, Algorithm, Comparison};
+pub use comparison::{comparison, Comparison, Estimate, COMPARED};
 pub use convergence::{convergence, Convergence, ITERATIONS};
 pub use dataset::{int_gram, record_index, Dataset, RecordSummary};
 pub use estimate::{model_from_internal, rls, search};
