@@ -163,8 +163,9 @@ fn paper_criterion_picks_d_zero_or_q_max() {
 
 /// (3) Table 4. γ → 0: Ridge, Ridge-M and least squares coincide. Ridge-M's fixed point is
 /// least squares; after 200 iterates it is within the factor γ/(λ+γ)·ρ¹⁹⁹ of it in every
-/// eigen-mode (SPEC §3): where that factor is tiny for the smallest eigenvalue of every
-/// candidate, the momentum pick must be the least-squares pick.
+/// eigen-mode (closed form of the paper's eqs. (10) and (12), see
+/// `paper::ridge_m_residual_factor`): where that factor is tiny for the smallest eigenvalue
+/// of every candidate, the momentum pick must be the least-squares pick.
 #[test]
 fn gamma_sweep_small_gamma_is_least_squares_and_momentum_pick_is_ols_while_converged() {
     let data = Dataset::simulate(DEFAULT_SEED).unwrap();

@@ -74,8 +74,9 @@ impl Comparison {
     }
 }
 
-/// Runs one Table-1/5 comparison: the Ridge-M search (criterion `criterion`, α = [`ALPHA`](super::ALPHA))
-/// on `identification`, then every estimator of [`COMPARED`] on the chosen structure.
+/// Runs one Table-1/5 comparison: the Ridge-M search (criterion `criterion`,
+/// α = [`ALPHA`](super::ALPHA)) on `identification`, then every estimator of [`COMPARED`] on
+/// the chosen structure.
 pub fn comparison(
     data: &Dataset,
     identification: Record,

@@ -94,8 +94,8 @@ fn comparison_md(out: &mut String, title: &str, c: &Comparison) {
     let _ = writeln!(
         out,
         "\nAll models are scored by `ridge_core::Evaluation`: both predictors are seeded with the \
-         first m = max(p, d+q−1) = {} measured samples and scored on samples m..N (SPEC §6), \
-         not from the zero history used for estimation. `{}`: λ = {RLS_LAMBDA}, \
+         first m = max(p, d+q−1) = {} measured samples and scored on samples m..N, not from \
+         the zero history used for estimation. `{}`: λ = {RLS_LAMBDA}, \
          δ = {RLS_DELTA}, one update per sample over the whole record, final estimate. `{}`: \
          weights 1/|w_OLS|, λ by BIC over a 30-point path. `{}` is a reference column, not in \
          the paper.\n",
@@ -151,7 +151,8 @@ fn sweep_md(out: &mut String, s: &Sweep) {
     }
     let _ = writeln!(
         out,
-        "\nRMSE in slm on {}, seeded with measured samples (SPEC §6). \"iterates\": Ridge-M \
+        "\nRMSE in slm on {}, predictors seeded with the first m = max(p, d+q−1) measured samples \
+         and scored on samples m..N. \"iterates\": Ridge-M \
          iterates on the pick (200 = stopped by max_iter, not by ε = 1e-6). Theory column: after \
          200 iterates Ridge-M differs from least squares by the factor γ/(λ+γ)·ρ¹⁹⁹, \
          ρ = β + (1−β)γ/(λ+γ), in the eigen-mode λ of XᵀX; shown for the smallest eigenvalue \
@@ -467,6 +468,7 @@ fn census_md(out: &mut String, r: &Tables) {
     let _ = writeln!(
         out,
         "\nTrue delay 3. \"d = 0 or q = 6\": the pattern the paper criterion must follow with least \
-         squares, since (p, q+d, 0) nests (p, q, d) at the same penalty (SPEC §4).\n"
+         squares, since (p, q+d, 0) contains every regressor of (p, q, d) at the same penalty \
+         α(p+q+d) of the paper's eq. (14), so it fits at least as well.\n"
     );
 }

@@ -7,26 +7,31 @@
 //! in `f32` for the precision check). Models are therefore in duty fraction (0..1) and slm.
 //!
 //! Models are scored with [`ridge_core::Evaluation`]: one-step-ahead and free-run RMSE, both
-//! seeded with the first `m = max(p, d + q − 1)` measured samples and scored on samples `m..N`
-//! (SPEC §6). The paper's own RMSE figures (26–40) were obtained on a real pump with an
-//! unknown evaluation protocol; see `docs/results.md` for the reading.
+//! seeded with the first `m = max(p, d + q − 1)` measured samples and scored on samples `m..N`,
+//! so that no model is charged for a start-up transient it cannot know (estimation, like the
+//! paper's Algorithm 1, assumes zero history). The paper's own RMSE figures (26–40) were
+//! obtained on a real pump with an evaluation protocol it does not state; see
+//! `docs/results.md` for the reading.
 //!
 //! The experiments return plain structs (for the tests); [`Tables::compute`] runs them all
 //! and [`Tables::to_markdown`] renders what the `paper-tables` binary prints.
+//!
 //! One file per concern:
 //!
-//! - [`dataset`](mod@dataset): the simulated records, their exact statistics and a summary of each;
-//! - [`estimate`](mod@estimate): the structure search with the paper's α, RLS over a log, and models from
+//! - [`dataset`]: the simulated records, their exact statistics and a summary of each;
+//! - [`estimate`]: the structure search with the paper's α, RLS over a log, and models from
 //!   coefficient vectors;
-//! - [`score`](mod@score): one-step and free-run RMSE of a model on a log;
-//! - [`comparison`](mod@comparison): Tables 1 and 5 (every estimator on the searched structure);
-//! - [`convergence`](mod@convergence): Tables 2–3 (Ridge-M iterates against the iteration count);
-//! - [`sweep`](mod@sweep): Table 4 (the γ sweep with and without momentum);
-//! - [`spectrum`](mod@spectrum): eigenvalues of `XᵀX` and what they imply for Ridge-M after `k` iterates;
-//! - [`pruning`](mod@pruning), [`precision`](mod@precision), [`forgetting`](mod@forgetting), [`census`](mod@census): checks with no paper counterpart
-//!   (pruned vs exhaustive search, `f32` vs `f64`, RLS forgetting factors, picks over many
-//!   noise seeds);
-//! - [`markdown`](mod@markdown): the rendering printed by `paper-tables`.
+//! - [`score`]: one-step and free-run RMSE of a model on a log;
+//! - [`comparison`](mod@comparison): Tables 1 and 5 (every estimator on the searched
+//!   structure);
+//! - [`convergence`](mod@convergence): Tables 2–3 (Ridge-M iterates against the iteration
+//!   count);
+//! - [`sweep`]: Table 4 (the γ sweep with and without momentum);
+//! - [`spectrum`]: eigenvalues of `XᵀX` and what they imply for Ridge-M after `k` iterates;
+//! - checks with no paper counterpart: [`pruning`](mod@pruning) (pruned vs exhaustive
+//!   search), [`precision`](mod@precision) (`f32` vs `f64`), [`forgetting`] (RLS forgetting
+//!   factors), [`census`](mod@census) (picks over many noise seeds);
+//! - [`markdown`]: the rendering printed by `paper-tables`.
 
 pub mod census;
 pub mod comparison;

@@ -24,9 +24,14 @@ pub fn gram_matrix(sys: &System<f64>) -> DMatrix<f64> {
     DMatrix::from_fn(n, n, |i, j| sys.augmented(i, j))
 }
 
-/// How far Ridge-M is from least squares after `k` iterates, per eigen-mode of `XᵀX`
-/// with eigenvalue `lambda` (SPEC §3 closed form): `w_k − w_LS = −γ/(λ+γ) ρ^{k−1} w_LS`
-/// in that mode, `ρ = β + (1−β) γ/(λ+γ)`. Returns `γ/(λ+γ) ρ^{k−1}`.
+/// How far Ridge-M is from least squares after `k` iterates, per eigen-mode of `XᵀX` with
+/// eigenvalue `lambda` (units of `XᵀX`); `gamma` (same units) and `beta` as in the paper.
+///
+/// Closed form of the paper's iteration, eqs. (10) and (12), from `v_0 = 0`: in the mode,
+/// with `s = γ/(λ+γ)`, `w_{k+1} − w_LS = s (v_k − w_LS)` and
+/// `v_{k+1} − w_LS = ρ (v_k − w_LS)`, `ρ = β + (1−β) s`, so
+/// `w_k − w_LS = −s ρ^{k−1} w_LS`. Returns the dimensionless factor `s ρ^{k−1}`: near 0,
+/// Ridge-M has reached least squares in that mode; near 1, it is still near zero.
 pub fn ridge_m_residual_factor(lambda: f64, gamma: f64, beta: f64, k: u32) -> f64 {
     let shrink = gamma / (lambda + gamma);
     let rho = beta + (1.0 - beta) * shrink;
