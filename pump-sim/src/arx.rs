@@ -1,4 +1,4 @@
-//! Linear ARX "known plant" simulator for the core's tests (SPEC §1, paper eq. 1):
+//! Linear ARX "known plant" simulator for the core's tests (the paper's eq. (1)):
 //!
 //! `y_t = Σ_{i=1..p} θ_i y_{t−i} + Σ_{j=0..q−1} φ_j u_{t−j−d} + e_t`,
 //!

@@ -1,5 +1,8 @@
-//! Sensirion SFM3300 flow-sensor model (SPEC §7): true flow in slm → the raw 16-bit word and
-//! the 3-byte I2C frame `[MSB, LSB, CRC]` the part sends.
+//! Sensirion SFM3300 flow-sensor model: true flow in slm → the raw 16-bit word and the 3-byte
+//! I2C frame `[MSB, LSB, CRC]` the part sends. Conversion, frame and CRC follow Sensirion's
+//! SFM3300 datasheet and SFM3xxx I2C functional description; the noise figures are the typical
+//! ones the paper quotes for the SFM3300 (section 3: 3 % of the measured value, 0.1 slm
+//! zero-point offset).
 //!
 //! - Conversion: `raw = round(flow · 120) + 32768`, clamped to `0..=65535`
 //!   (`flow = (raw − 32768) / 120`, resolution 1/120 slm, range ±250 slm on the real part).
@@ -82,7 +85,9 @@ pub struct Sfm3300Params {
 }
 
 impl Default for Sfm3300Params {
-    /// 3 % of reading, 0.02 slm floor, +0.1 slm zero offset (paper, SPEC §7).
+    /// 3 % of reading and +0.1 slm zero offset (the SFM3300's typical figures as the paper
+    /// quotes them, section 3), and a 0.02 slm floor (this model's choice: some noise at zero
+    /// flow).
     fn default() -> Self {
         Self {
             noise_rel: 0.03,

@@ -2,14 +2,16 @@
 //! simulator's true transport delay, the nesting argument behind the paper criterion's flaw,
 //! the closed-form convergence of Ridge-M to least squares, and the RLS/Ridge identity.
 
+use nalgebra::{DMatrix, DVector};
 use pump_sim::paper::{
     comparison, convergence, gamma_sweep, gram_matrix, int_gram, precision, pruning,
-    ridge_m_residual_factor, rls, search, Algorithm, Dataset, DEFAULT_SEED, RLS_DELTA,
+    ridge_m_residual_factor, rls, search, symmetric_eigenvalues, Comparison, Dataset, COMPARED,
+    DEFAULT_SEED, RLS_DELTA,
 };
 use pump_sim::{record, PumpParams};
 use ridge_core::{
-    ArxModel, Criterion, Estimator, Grid, Method, Normal, Offset, Ols, Ridge, RidgeM, Search,
-    Structure, Q_MAX,
+    ArxModel, Criterion, Estimator, Grid, Method, MethodKind, Normal, Offset, Ols, Ridge, RidgeM,
+    Search, Structure, Q_MAX,
 };
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::units::SCALE;
@@ -161,8 +163,9 @@ fn paper_criterion_picks_d_zero_or_q_max() {
 
 /// (3) Table 4. γ → 0: Ridge, Ridge-M and least squares coincide. Ridge-M's fixed point is
 /// least squares; after 200 iterates it is within the factor γ/(λ+γ)·ρ¹⁹⁹ of it in every
-/// eigen-mode (SPEC §3): where that factor is tiny for the smallest eigenvalue of every
-/// candidate, the momentum pick must be the least-squares pick.
+/// eigen-mode (closed form of the paper's eqs. (10) and (12), see
+/// `paper::ridge_m_residual_factor`): where that factor is tiny for the smallest eigenvalue
+/// of every candidate, the momentum pick must be the least-squares pick.
 #[test]
 fn gamma_sweep_small_gamma_is_least_squares_and_momentum_pick_is_ols_while_converged() {
     let data = Dataset::simulate(DEFAULT_SEED).unwrap();
@@ -214,12 +217,14 @@ fn gamma_sweep_small_gamma_is_least_squares_and_momentum_pick_is_ols_while_conve
     }
 }
 
-fn cholesky_ok(a: &[Vec<f64>], shift: f64) -> bool {
-    let n = a.len();
+/// Whether `a − shift·I` is positive definite: a plain Cholesky factorisation, independent of
+/// the eigen-solver.
+fn cholesky_ok(a: &DMatrix<f64>, shift: f64) -> bool {
+    let n = a.nrows();
     let mut l = vec![vec![0.0; n]; n];
     for i in 0..n {
         for j in 0..=i {
-            let mut s = a[i][j] - if i == j { shift } else { 0.0 };
+            let mut s = a[(i, j)] - if i == j { shift } else { 0.0 };
             s -= (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
             if i == j {
                 if s <= 0.0 {
@@ -232,6 +237,32 @@ fn cholesky_ok(a: &[Vec<f64>], shift: f64) -> bool {
         }
     }
     true
+}
+
+/// The eigen-solver on matrices whose eigenvalues are known by construction:
+/// `A = H Λ H` with a Householder reflection `H = I − 2vvᵀ/(vᵀv)` (symmetric, orthogonal), so
+/// the eigenvalues of `A` are the diagonal of `Λ`. The spread 0.5 … 8e7 is that of the pump's
+/// Gram matrices (smallest eigenvalue ~0.5, largest ~1e8).
+#[test]
+fn symmetric_eigenvalues_recovers_known_eigenvalues() {
+    let lambda = [8e7, 0.5, 2e5, 3.0, 1e3, 40.0, 0.5];
+    let n = lambda.len();
+    let v = DVector::from_fn(n, |i, _| {
+        1.0 + i as f64 * 0.7 - if i % 2 == 1 { 2.5 } else { 0.0 }
+    });
+    let h = DMatrix::<f64>::identity(n, n) - &v * v.transpose() * (2.0 / v.dot(&v));
+    let a = &h * DMatrix::from_diagonal(&DVector::from_row_slice(&lambda)) * &h;
+    let got = symmetric_eigenvalues(&a);
+    let mut want = lambda.to_vec();
+    want.sort_by(f64::total_cmp);
+    assert_eq!(got.len(), n);
+    for (g, w) in got.iter().zip(&want) {
+        // Backward-stable solver: absolute error ~ ε · ‖A‖ = 2e-16 · 8e7.
+        assert!((g - w).abs() < 1e-6 * w.max(1.0), "{got:?} vs {want:?}");
+    }
+    // A diagonal matrix, given unsorted: its diagonal, ascending.
+    let d = DMatrix::from_diagonal(&DVector::from_row_slice(&[3.0, -1.0, 2.0]));
+    assert_eq!(symmetric_eigenvalues(&d), vec![-1.0, 2.0, 3.0]);
 }
 
 /// (4) Tables 2–3: iterates settle (late steps smaller than early ones) and approach least
@@ -265,7 +296,7 @@ fn ridge_m_iterates_converge_monotonically_to_least_squares() {
         }
         // Closed form: ‖w_k − w_LS‖ ≤ max_i γ/(λ_i+γ) ρ_i^{k−1} ‖w_LS‖, largest at λ_min.
         let g = gram_matrix(&n.system(s, Offset::None).unwrap());
-        let lmin = pump_sim::paper::symmetric_eigenvalues(&g)[0];
+        let lmin = symmetric_eigenvalues(&g)[0];
         assert!(cholesky_ok(&g, 0.99 * lmin) && !cholesky_ok(&g, 1.01 * lmin));
         let bound = ridge_m_residual_factor(lmin, gamma, 0.01, 180) * norm(&ls);
         assert!(
@@ -323,11 +354,8 @@ fn rls_without_forgetting_is_ridge_with_gamma_one_over_delta_and_ends_at_least_s
     }
     // In Table 1 the RLS column equals the OLS reference.
     let c = comparison(&data, Record::AMultistep, Criterion::Aic, Offset::None).unwrap();
-    let ai = |a: Algorithm| Algorithm::ALL.iter().position(|&x| x == a).unwrap();
-    for (x, y) in c.rmse[ai(Algorithm::Rls)]
-        .iter()
-        .zip(&c.rmse[ai(Algorithm::Ols)])
-    {
+    let rmse = |m: MethodKind| &c.estimate(m).unwrap().rmse;
+    for (x, y) in rmse(MethodKind::Rls).iter().zip(rmse(MethodKind::Ols)) {
         assert!(rel(x.free_run, y.free_run) < 1e-4 && rel(x.one_step, y.one_step) < 1e-4);
     }
 }
@@ -350,29 +378,32 @@ fn table_one_estimators_agree_with_the_theory_of_each() {
     let data = Dataset::simulate(DEFAULT_SEED).unwrap();
     for c in [Criterion::Paper, Criterion::Aic] {
         let t = comparison(&data, Record::AMultistep, c, Offset::None).unwrap();
-        let ai = |a: Algorithm| Algorithm::ALL.iter().position(|&x| x == a).unwrap();
-        let avg = |a: Algorithm| t.average(ai(a));
+        let avg = |a: MethodKind| t.estimate(a).unwrap().average();
         // One-step: least squares minimises the identification record's one-step error.
-        let ident = |a: Algorithm| t.rmse[ai(a)][0].one_step;
-        for a in Algorithm::ALL {
+        let ident = |a: MethodKind| t.estimate(a).unwrap().rmse[0].one_step;
+        for a in COMPARED {
             assert!(
-                ident(Algorithm::Ols) <= ident(a) * (1.0 + 1e-9),
+                ident(MethodKind::Ols) <= ident(a) * (1.0 + 1e-9),
                 "{c:?} {a:?}"
             );
         }
         // Plain Ridge at γ = 1000 shrinks the input coefficients (Σu² ≈ 1e3 per column):
         // clearly worse free-run than the others.
-        for a in [Algorithm::Rls, Algorithm::Alasso, Algorithm::RidgeM] {
+        for a in [
+            MethodKind::Rls,
+            MethodKind::AdaptiveLasso,
+            MethodKind::RidgeM,
+        ] {
             assert!(
-                avg(Algorithm::Ridge).free_run > 1.3 * avg(a).free_run,
+                avg(MethodKind::Ridge).free_run > 1.3 * avg(a).free_run,
                 "{c:?} {a:?}"
             );
         }
         // A proportional model's static gain is below the plant's secant slope (the map
         // does not pass through the origin) but of the right size.
-        for (a, m) in &t.models {
-            let g = m.static_gain();
-            assert!((100.0..160.0).contains(&g), "{c:?} {a:?} gain {g}");
+        for e in &t.estimates {
+            let g = e.model.static_gain();
+            assert!((100.0..160.0).contains(&g), "{c:?} {:?} gain {g}", e.method);
         }
     }
     // With an intercept the static gain of the least-squares-like estimators is the secant
@@ -382,20 +413,17 @@ fn table_one_estimators_agree_with_the_theory_of_each() {
     let secant = (pump.steady_state_flow(0.9) - pump.steady_state_flow(0.2)) / 0.7;
     let with = comparison(&data, Record::AMultistep, Criterion::Aic, Offset::Intercept).unwrap();
     for a in [
-        Algorithm::Rls,
-        Algorithm::Alasso,
-        Algorithm::RidgeM,
-        Algorithm::Ols,
+        MethodKind::Rls,
+        MethodKind::AdaptiveLasso,
+        MethodKind::RidgeM,
+        MethodKind::Ols,
     ] {
-        let g = with.model(a).unwrap().static_gain();
+        let g = with.estimate(a).unwrap().model.static_gain();
         assert!(rel(g, secant) < 0.1, "{a:?}: gain {g} vs secant {secant}");
     }
     let without = comparison(&data, Record::AMultistep, Criterion::Aic, Offset::None).unwrap();
-    let rm = Algorithm::ALL
-        .iter()
-        .position(|&x| x == Algorithm::RidgeM)
-        .unwrap();
-    assert!(with.average(rm).free_run * 2.0 < without.average(rm).free_run);
+    let ridge_m = |c: &Comparison| c.estimate(MethodKind::RidgeM).unwrap().average().free_run;
+    assert!(ridge_m(&with) * 2.0 < ridge_m(&without));
 }
 
 #[test]
@@ -447,10 +475,31 @@ fn binary_prints_markdown_and_honours_flags() {
     ] {
         assert!(stdout.contains(needle), "missing {needle}");
     }
-    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_paper-tables"))
-        .args(["--seed", "x"])
+    // Usage errors: exit status 2 (clap's convention), nothing on standard output.
+    for args in [&["--seed", "x"][..], &["--seed"], &["--no-such-flag"]] {
+        let bad = std::process::Command::new(env!("CARGO_BIN_EXE_paper-tables"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert_eq!(bad.status.code(), Some(2), "{args:?}");
+        assert!(bad.stdout.is_empty(), "{args:?}");
+    }
+    // `--seed=N` is the same flag; `--help` lists both options and succeeds.
+    let eq = std::process::Command::new(env!("CARGO_BIN_EXE_paper-tables"))
+        .arg("--seed=7")
         .output()
         .unwrap();
-    assert!(!bad.status.success());
+    assert!(eq.status.success());
+    assert_eq!(String::from_utf8(eq.stdout).unwrap(), stdout);
+    let help = std::process::Command::new(env!("CARGO_BIN_EXE_paper-tables"))
+        .arg("--help")
+        .output()
+        .unwrap();
+    assert!(help.status.success());
+    let help = String::from_utf8(help.stdout).unwrap();
+    assert!(
+        help.contains("--seed") && help.contains("--markdown-out"),
+        "{help}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
