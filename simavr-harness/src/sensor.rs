@@ -5,7 +5,7 @@
 //! 0.5 ms of simulated time, read address NACKed while no new value is ready, and the first
 //! frame after a start command invalid.
 //!
-//! The slave only sees bus packets; time and the flow it measures come from the rig through
+//! The slave only sees bus packets; time and the flow it measures come from the bench through
 //! [`SensorState`], shared with the harness (`Rc<RefCell<_>>`): the machine stamps each packet
 //! with the core cycle, the harness sets `flow_slm` at every 0.5 ms plant step.
 
