@@ -48,8 +48,8 @@ pub struct IdLine {
     pub q: u8,
     /// Delay.
     pub d: u8,
-    /// Intercept present.
-    pub offset: bool,
+    /// Constant term: [`Offset::Intercept`] when the line says `off=1`.
+    pub offset: Offset,
     /// θ.
     pub theta: Vec<f64>,
     /// φ.
@@ -69,7 +69,11 @@ impl IdLine {
             p: r.int("p")? as u8,
             q: r.int("q")? as u8,
             d: r.int("d")? as u8,
-            offset: r.int("off").unwrap_or(0) != 0,
+            offset: if r.int("off").unwrap_or(0) != 0 {
+                Offset::Intercept
+            } else {
+                Offset::None
+            },
             theta: r.list("theta")?,
             phi: r.list("phi")?,
             c: r.num("c").unwrap_or(0.0),
@@ -80,18 +84,15 @@ impl IdLine {
 
     /// As a ridge-core model (physical units: slm, duty fraction).
     pub fn model(&self) -> Option<ArxModel<f64>> {
-        let off = if self.offset {
-            Offset::Intercept
-        } else {
-            Offset::None
-        };
-        ArxModel::new(&self.theta, &self.phi, self.d, off, self.c).ok()
+        ArxModel::new(&self.theta, &self.phi, self.d, self.offset, self.c).ok()
     }
 }
 
 /// A record as the firmware saw it: duty (1/10 000) in effect at each read, the raw word read.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Samples {
+    /// The excitation preset the duties follow (named on the `EXCITE` / `VALIDATE` line).
+    pub record: Option<Record>,
     /// Duties, 1/10 000.
     pub u: Vec<u16>,
     /// SFM3300 raw words.
@@ -436,6 +437,7 @@ pub fn rebuild(bench: &Bench, idx: usize, r: &ParsedLine) -> Option<Samples> {
                 ((sum + half) / 50) as i16
             });
             let mut s = Samples {
+                record: Some(record),
                 u0: r.num("u0").map_or(0, |v| (v * 100.0).round() as u16),
                 y0: r
                     .num("y0")
@@ -491,7 +493,7 @@ pub fn host_search_in<T: Real>(samples: &Samples) -> Result<IdLine, String> {
         p: s.p,
         q: s.q,
         d: s.d,
-        offset: true,
+        offset: m.offset(),
         theta,
         phi,
         c,
@@ -560,7 +562,10 @@ pub fn fresh_record(
     for _ in 0..200 * SUBSTEPS {
         pump.step(frac(base));
     }
-    let mut s = Samples::default();
+    let mut s = Samples {
+        record: Some(record),
+        ..Samples::default()
+    };
     for g in record.generator() {
         for _ in 0..latency {
             pump.step(frac(prev));

@@ -12,6 +12,7 @@
 use pump_sim::sfm3300::flow_to_raw;
 use pump_sim::PumpParams;
 use ridge_pump_firmware::excitation::Record;
+use ridge_pump_firmware::selfid::Config;
 use simavr_harness::bench::{Action, Bench, BenchConfig};
 use simavr_harness::firmware;
 use simavr_harness::sensor::Fault;
@@ -26,9 +27,12 @@ const FLASH_BUDGET: u32 = 64 * 1024;
 /// Static RAM + stack budget, bytes.
 const RAM_BUDGET: u32 = 6 * 1024;
 /// Smallest free-run fit (%) of the identified model on a fresh host-side validation signal
-/// (B-Ramp, new noise seed, the loop's timing). The firmware's own acceptance threshold on its
+/// ([`FRESH_RECORD`], new noise seed, the loop's timing). The firmware's own acceptance threshold on its
 /// validation record is 70 %.
 const MIN_FRESH_FIT: f64 = 70.0;
+/// Excitation preset of the fresh validation signal: one the firmware neither estimates nor
+/// validates on.
+const FRESH_RECORD: Record = Record::BRamp;
 /// Largest coefficient difference between the firmware (f32 on the AVR) and ridge-core on the
 /// host (f64) from the same samples, relative to max(1, |coefficient|). README: f32 vs f64 on
 /// exact statistics differ by ≤ 1.4e-5 relative.
@@ -57,7 +61,12 @@ fn transcript(o: &Outcome) -> String {
 
 /// Checks of one identification session; returns the list of failures.
 fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
+    let firmware_config = Config::default();
     let mut bad = Vec::new();
+    assert!(
+        FRESH_RECORD != firmware_config.excitation && FRESH_RECORD != firmware_config.validation,
+        "the fresh validation signal must be a record the firmware did not see"
+    );
     if let Some(h) = o.bench.halted() {
         bad.push(format!("core halted: {h:?}"));
     }
@@ -160,6 +169,14 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
         None => bad.push("estimation record could not be rebuilt from the served frames".into()),
         Some(est) => {
             assert_eq!(est.len(), 3000);
+            // The preset named on the EXCITE line, read back through `Record`'s name table, is
+            // the firmware's configured one (and the duties matched its generator).
+            if est.record != Some(firmware_config.excitation) {
+                bad.push(format!(
+                    "estimation record {:?}, the firmware is configured with {:?}",
+                    est.record, firmware_config.excitation
+                ));
+            }
             if est.y0_frames != Some(est.y0) {
                 bad.push(format!(
                     "operating point: EXCITE says y0={} counts, the served frames give {:?}",
@@ -181,6 +198,14 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
             }
         }
     }
+    match &o.validation {
+        Some(val) if val.record != Some(firmware_config.validation) => bad.push(format!(
+            "validation record {:?}, the firmware is configured with {:?}",
+            val.record, firmware_config.validation
+        )),
+        Some(_) => {}
+        None => bad.push("validation record could not be rebuilt from the served frames".into()),
+    }
     match id.model() {
         None => bad.push("ID line does not give a valid model".into()),
         Some(model) => {
@@ -193,7 +218,7 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
                 &cfg.pump,
                 &cfg.sensor,
                 cfg.seed + 1000,
-                Record::BRamp,
+                FRESH_RECORD,
                 3_000,
                 lat,
             );
@@ -214,7 +239,7 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
 /// AVR-specific defect (code generation, float library) from one of the algorithm.
 fn replay(o: &Outcome) -> String {
     use ridge_pump_firmware::event::Event;
-    use ridge_pump_firmware::selfid::{Config, SelfIdentification};
+    use ridge_pump_firmware::selfid::SelfIdentification;
     let frames = o.bench.sensor.borrow().served();
     let mut sid = SelfIdentification::new(Config::default(), None);
     for (_, raw) in frames {

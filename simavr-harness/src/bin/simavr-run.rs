@@ -43,6 +43,10 @@ struct Args {
     lines: bool,
 }
 
+/// Excitation preset of the fresh host-side validation signal (a record the firmware neither
+/// estimates nor validates on).
+const FRESH_RECORD: Record = Record::BRamp;
+
 fn ms(cycles: f64) -> f64 {
     cycles / 16_000.0
 }
@@ -215,7 +219,8 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
             );
             panels.push((
                 format!(
-                    "closed loop, firmware validation record (B-Multistep): free-run fit {:.1} %",
+                    "closed loop, firmware validation record ({}): free-run fit {:.1} %",
+                    val.record.map_or("?", Record::name),
                     free.unwrap_or(f64::NAN)
                 ),
                 trace,
@@ -229,19 +234,21 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
             &cfg.bench.pump,
             &cfg.bench.sensor,
             cfg.bench.seed.wrapping_add(1000),
-            Record::BRamp,
+            FRESH_RECORD,
             3_000,
             latency,
         );
         let (free, one, trace) = session::score(&model, &fresh);
         println!(
-            "  fresh validation signal (host, B-Ramp, new noise seed, loop timing: duty applied {latency} x 0.5 ms after the read): free-run fit {:.1} %, one-step fit {:.1} %",
+            "  fresh validation signal (host, {}, new noise seed, loop timing: duty applied {latency} x 0.5 ms after the read): free-run fit {:.1} %, one-step fit {:.1} %",
+            FRESH_RECORD.name(),
             free.unwrap_or(f64::NAN),
             one.unwrap_or(f64::NAN)
         );
         panels.push((
             format!(
-                "fresh validation signal (B-Ramp, host): free-run fit {:.1} %",
+                "fresh validation signal ({}, host): free-run fit {:.1} %",
+                FRESH_RECORD.name(),
                 free.unwrap_or(f64::NAN)
             ),
             trace,
