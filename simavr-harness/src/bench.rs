@@ -5,7 +5,7 @@
 //! The plant is the same blower and sensor models that `pump_sim::Rig` steps once per 10 ms
 //! sample, but the bench drives them itself, finer and from the MCU's registers: every 0.5 ms
 //! of simulated time (the SFM3300's update period) it reads the PWM duty from the timer
-//! registers ([`pwm`](crate::pwm)), steps the blower model by 0.5 ms with it and hands the new
+//! registers ([`pwm`]), steps the blower model by 0.5 ms with it and hands the new
 //! flow to the sensor. The blower is `pump_sim::Pump` with its 100 Hz parameters sub-stepped
 //! 20× (time constants are exact under zero-order hold; the transport delay is kept in time,
 //! 20 sub-steps per 10 ms sample).

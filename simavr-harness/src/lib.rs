@@ -7,7 +7,7 @@
 //!   builds from source with its TWI fixes): cycle counter, data space, EEPROM, IRQ hooks.
 //! - [`sensor`]: the SFM3300 as an `avr_tester::TwiSlave`, with fault injection.
 //! - [`pwm`]: duty from the 16-bit timer registers.
-//! - [`bench`]: the bench ([`bench::Bench`]): the simulated MCU wired to the simulated plant,
+//! - [`bench`](mod@bench): the bench ([`bench::Bench`]): the simulated MCU wired to the simulated plant,
 //!   closed loop, with the timing meter. (The plant alone, stepped once per sample without an
 //!   MCU, is `pump_sim::Rig`.)
 //! - [`report`]: the UART transcript: [`report::Line`] (text and cycle stamp) and
