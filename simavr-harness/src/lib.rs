@@ -7,17 +7,22 @@
 //!   builds from source with its TWI fixes): cycle counter, data space, EEPROM, IRQ hooks.
 //! - [`sensor`]: the SFM3300 as an `avr_tester::TwiSlave`, with fault injection.
 //! - [`pwm`]: duty from the 16-bit timer registers.
-//! - [`rig`]: the closed loop and the timing meter.
-//! - [`report`]: report-line parsing.
+//! - [`bench`](mod@bench): the bench ([`bench::Bench`]): the simulated MCU wired to the simulated plant,
+//!   closed loop, with the timing meter. (The plant alone, stepped once per sample without an
+//!   MCU, is `pump_sim::Rig`.)
+//! - [`report`]: the UART transcript: [`report::Line`] (text and cycle stamp) and
+//!   [`report::ParsedLine`] (keyword, words, `key=value` fields).
 //! - [`firmware`]: locating/building the ELF and its section sizes.
 //! - [`session`]: a whole power-up identification run and its figures (what `simavr-run`
 //!   prints and the tests check).
+//! - [`stack`]: worst-case stack from the image's call graph ([`stack::StackAnalysis`], what
+//!   `avr-stack` prints).
 
+pub mod bench;
 pub mod firmware;
 pub mod machine;
 pub mod pwm;
 pub mod report;
-pub mod rig;
 pub mod sensor;
 pub mod session;
 pub mod stack;

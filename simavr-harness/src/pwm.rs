@@ -1,6 +1,11 @@
 //! Reads the PWM duty the firmware drives from the ATmega2560's 16-bit timers (1, 3, 4, 5)
 //! straight from their registers: waveform mode → TOP, compare-output mode, OCR, clock select
 //! and the pin's data direction. Nothing here depends on how the firmware sets them up.
+//!
+//! Register addresses, bits and modes are those of the ATmega640/1280/1281/2560/2561
+//! datasheet: chapter "16-bit Timer/Counter (Timer/Counter 1, 3, 4, and 5)" (TCCRnA/B, OCRnX,
+//! ICRn, compare-output modes, Table 17-2 "Waveform Generation Mode Bit Description"), the
+//! "Register Summary" (data-space addresses) and the "I/O-Ports" chapter (OCnX pins, DDRx).
 
 use crate::machine::Machine;
 

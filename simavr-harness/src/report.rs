@@ -14,15 +14,16 @@ pub struct Line {
 }
 
 impl Line {
-    /// Parses the line as a report.
-    pub fn report(&self) -> Report {
-        Report::parse(&self.text)
+    /// The line split into keyword, words and fields.
+    pub fn parsed(&self) -> ParsedLine {
+        ParsedLine::parse(&self.text)
     }
 }
 
-/// A parsed report line.
+/// One report line split into its keyword, its bare words and its `key=value` fields (no
+/// cycle stamp: that stays with the [`Line`]).
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Report {
+pub struct ParsedLine {
     /// First word, e.g. `ID`, `FAULT`, `STACK`.
     pub keyword: String,
     /// Words without `=`, after the keyword (e.g. `A-Multistep`, `persist`, `stall`).
@@ -31,7 +32,7 @@ pub struct Report {
     pub fields: BTreeMap<String, String>,
 }
 
-impl Report {
+impl ParsedLine {
     /// Splits `text` on whitespace.
     pub fn parse(text: &str) -> Self {
         let mut it = text.split_whitespace();
@@ -128,17 +129,17 @@ mod tests {
 
     #[test]
     fn parses_event_lines() {
-        let r = Report::parse(
+        let r = ParsedLine::parse(
             "ID p=1 q=1 d=3 off=1 theta=0.935000 phi=6.500000,-1.25 c=-0.125000 score=-1234.5 eval=14/252 skip=0 iters=200",
         );
         assert_eq!(r.keyword, "ID");
         assert_eq!(r.int("p"), Some(1));
         assert_eq!(r.list("phi"), Some(vec![6.5, -1.25]));
         assert_eq!(r.ratio("eval"), Some((14, 252)));
-        let f = Report::parse("FAULT stall duty=45.00 flow=0.125");
+        let f = ParsedLine::parse("FAULT stall duty=45.00 flow=0.125");
         assert!(f.has_word("stall"));
         assert_eq!(f.num("duty"), Some(45.0));
-        let j = Report::parse("REJECT fit=42.1<70.0 attempt=1/3");
+        let j = ParsedLine::parse("REJECT fit=42.1<70.0 attempt=1/3");
         assert_eq!(j.num("fit"), Some(42.1));
         let mut s = LineSplitter::default();
         let mut out = Vec::new();

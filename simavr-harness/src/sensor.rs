@@ -1,11 +1,17 @@
-//! A simulated Sensirion SFM3300 on the simulated TWI bus (SPEC §7), as an `avr_tester`
-//! [`TwiSlave`]: 7-bit address 0x40, 16-bit commands MSB first, soft reset 0x2000, start
-//! continuous measurement 0x1000, serial number 0x31AE (high word, then low word) / 0x31AF (low
-//! word), 3-byte frames `[MSB, LSB, CRC]` (CRC-8 poly 0x31 init 0x00), a new value every
-//! 0.5 ms of simulated time, read address NACKed while no new value is ready, and the first
-//! frame after a start command invalid.
+//! A simulated Sensirion SFM3300 on the simulated TWI bus, as an `avr_tester` [`TwiSlave`]:
+//! 7-bit address 0x40, 16-bit commands MSB first, soft reset 0x2000, start continuous
+//! measurement 0x1000, serial number 0x31AE (high word, then low word) / 0x31AF (low word),
+//! 3-byte frames `[MSB, LSB, CRC]` (CRC-8 poly 0x31 init 0x00), a new value every 0.5 ms of
+//! simulated time, read address NACKed while no new value is ready, and the first frame after
+//! a start command invalid.
 //!
-//! The slave only sees bus packets; time and the flow it measures come from the rig through
+//! Sources: Sensirion, *I2C Functional Description SFM3xxx* (address, commands, frame layout,
+//! NACK before a new value, first frame after the start invalid); Sensirion's *SF05 sample
+//! code* (CRC-8 polynomial 0x31 with initial value 0x00, which the SFM3300 uses; newer
+//! Sensirion parts start from 0xFF); Sensirion, *Datasheet SFM3300-AW / SFM3300-D* (update time
+//! 0.5 ms).
+//!
+//! The slave only sees bus packets; time and the flow it measures come from the bench through
 //! [`SensorState`], shared with the harness (`Rc<RefCell<_>>`): the machine stamps each packet
 //! with the core cycle, the harness sets `flow_slm` at every 0.5 ms plant step.
 

@@ -1,4 +1,4 @@
-//! One power-up self-identification of the firmware in the closed-loop rig, and the figures
+//! One power-up self-identification of the firmware in the closed-loop bench, and the figures
 //! taken from it: the identified model (from the `ID` line), the firmware's validation fit
 //! (`ACCEPT`/`REJECT`), a host-side free-run fit on a fresh validation signal, the same
 //! search rerun on the host from the exact samples the firmware saw, tick timing, CPU load,
@@ -6,8 +6,8 @@
 //!
 //! Sample convention (firmware `selfid`): at each tick the firmware reads `y_t` and pushes
 //! `(u, y_t)` with `u` the duty applied during the interval that ends with that reading, i.e.
-//! the duty it wrote in the previous tick. The rig records every frame it served and every PWM
-//! change, so the pairs are rebuilt from the rig's own logs: the duty in effect when a frame
+//! the duty it wrote in the previous tick. The bench records every frame it served and every PWM
+//! change, so the pairs are rebuilt from the bench's own logs: the duty in effect when a frame
 //! was read, mapped back to the excitation generator's duty (1/10 000) and checked against the
 //! timer count it must produce.
 
@@ -16,9 +16,9 @@ use std::time::Instant;
 
 use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Real, Search};
 
+use crate::bench::{Bench, BenchConfig, RunEnd, TickTiming, SUBSTEPS};
 use crate::firmware::{self, Sizes};
-use crate::report::{Line, Report};
-use crate::rig::{Rig, RigConfig, RunEnd, TickTiming, SUBSTEPS};
+use crate::report::{Line, ParsedLine};
 use pump_sim::{Pump, PumpParams, Sfm3300, Sfm3300Params};
 use ridge_id::eval::Trace;
 use ridge_id::plot::{write_png, Panel};
@@ -48,8 +48,8 @@ pub struct IdLine {
     pub q: u8,
     /// Delay.
     pub d: u8,
-    /// Intercept present.
-    pub offset: bool,
+    /// Constant term: [`Offset::Intercept`] when the line says `off=1`.
+    pub offset: Offset,
     /// θ.
     pub theta: Vec<f64>,
     /// φ.
@@ -64,12 +64,16 @@ pub struct IdLine {
 
 impl IdLine {
     /// Parses an `ID` or `LOADED` line.
-    pub fn parse(r: &Report) -> Option<Self> {
+    pub fn parse(r: &ParsedLine) -> Option<Self> {
         Some(Self {
             p: r.int("p")? as u8,
             q: r.int("q")? as u8,
             d: r.int("d")? as u8,
-            offset: r.int("off").unwrap_or(0) != 0,
+            offset: if r.int("off").unwrap_or(0) != 0 {
+                Offset::Intercept
+            } else {
+                Offset::None
+            },
             theta: r.list("theta")?,
             phi: r.list("phi")?,
             c: r.num("c").unwrap_or(0.0),
@@ -80,18 +84,15 @@ impl IdLine {
 
     /// As a ridge-core model (physical units: slm, duty fraction).
     pub fn model(&self) -> Option<ArxModel<f64>> {
-        let off = if self.offset {
-            Offset::Intercept
-        } else {
-            Offset::None
-        };
-        ArxModel::new(&self.theta, &self.phi, self.d, off, self.c).ok()
+        ArxModel::new(&self.theta, &self.phi, self.d, self.offset, self.c).ok()
     }
 }
 
 /// A record as the firmware saw it: duty (1/10 000) in effect at each read, the raw word read.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Samples {
+    /// The excitation preset the duties follow (named on the `EXCITE` / `VALIDATE` line).
+    pub record: Option<Record>,
     /// Duties, 1/10 000.
     pub u: Vec<u16>,
     /// SFM3300 raw words.
@@ -154,16 +155,16 @@ pub struct Timing {
 /// Everything a session produced.
 #[derive(Debug)]
 pub struct Outcome {
-    /// The rig after the run (lines, logs, sensor state).
-    pub rig: Rig,
+    /// The bench after the run (lines, logs, sensor state).
+    pub bench: Bench,
     /// The `ID` line's model (the last one).
     pub id: Option<IdLine>,
     /// The `ACCEPT` line, if any.
-    pub accept: Option<Report>,
+    pub accept: Option<ParsedLine>,
     /// `REJECT` lines.
-    pub rejects: Vec<Report>,
+    pub rejects: Vec<ParsedLine>,
     /// `FAULT` lines with their end cycle.
-    pub faults: Vec<(u64, Report)>,
+    pub faults: Vec<(u64, ParsedLine)>,
     /// Stack used, bytes (`STACK used=`).
     pub stack_used: Option<u32>,
     /// Image sizes.
@@ -181,8 +182,8 @@ pub struct Outcome {
 /// What to run.
 #[derive(Clone, Debug)]
 pub struct SessionConfig {
-    /// Rig settings (ELF, plant, seed, faults in the EEPROM …).
-    pub rig: RigConfig,
+    /// Bench settings (ELF, plant, seed, faults in the EEPROM …).
+    pub bench: BenchConfig,
     /// Simulated-time limit, seconds.
     pub max_s: f64,
     /// Keep running this long after the final line (`ACCEPT`, `FAULT`, `LOADED`).
@@ -193,7 +194,7 @@ impl SessionConfig {
     /// Default plant, seed 1, 200 s limit, 0.5 s linger.
     pub fn new(elf: impl Into<std::path::PathBuf>) -> Self {
         Self {
-            rig: RigConfig::new(elf),
+            bench: BenchConfig::new(elf),
             max_s: 200.0,
             linger_s: 0.5,
         }
@@ -208,48 +209,49 @@ fn is_final(l: &Line) -> bool {
 
 /// Runs one session.
 pub fn run(cfg: &SessionConfig) -> Result<Outcome, String> {
-    let sizes = firmware::sizes(&cfg.rig.elf)?;
-    let mut rig = Rig::new(cfg.rig.clone())?;
+    let sizes = firmware::sizes(&cfg.bench.elf)?;
+    let mut bench = Bench::new(cfg.bench.clone())?;
     let t0 = Instant::now();
-    let end = rig.run_until(cfg.max_s, is_final);
+    let end = bench.run_until(cfg.max_s, is_final);
     if let RunEnd::Line(i) = end {
-        if rig.lines[i].text.starts_with("ACCEPT") && rig.lines[i].report().has_word("persist") {
+        if bench.lines[i].text.starts_with("ACCEPT") && bench.lines[i].parsed().has_word("persist")
+        {
             // Let the EEPROM write finish (`PERSIST saved` / `PERSIST failed`).
-            let t = (rig.time_s() + 5.0).min(cfg.max_s);
-            rig.run_until(t, |l| l.text.starts_with("PERSIST"));
+            let t = (bench.time_s() + 5.0).min(cfg.max_s);
+            bench.run_until(t, |l| l.text.starts_with("PERSIST"));
         }
-        let t = (rig.time_s() + cfg.linger_s).min(cfg.max_s);
-        rig.run_until(t, |_| false);
+        let t = (bench.time_s() + cfg.linger_s).min(cfg.max_s);
+        bench.run_until(t, |_| false);
     }
     let wall_s = t0.elapsed().as_secs_f64();
-    Ok(analyse(rig, sizes, wall_s))
+    Ok(analyse(bench, sizes, wall_s))
 }
 
-/// Extracts the figures from a finished rig.
-pub fn analyse(rig: Rig, sizes: Sizes, wall_s: f64) -> Outcome {
-    let reports: Vec<(usize, Report)> = rig
+/// Extracts the figures from a finished bench.
+pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
+    let parsed: Vec<(usize, ParsedLine)> = bench
         .lines
         .iter()
         .enumerate()
-        .map(|(i, l)| (i, l.report()))
+        .map(|(i, l)| (i, l.parsed()))
         .collect();
-    let id_idx = reports.iter().rev().find(|(_, r)| r.keyword == "ID");
+    let id_idx = parsed.iter().rev().find(|(_, r)| r.keyword == "ID");
     let id = id_idx.and_then(|(_, r)| IdLine::parse(r));
-    let accept = reports
+    let accept = parsed
         .iter()
         .find(|(_, r)| r.keyword == "ACCEPT")
         .map(|(_, r)| r.clone());
-    let rejects = reports
+    let rejects = parsed
         .iter()
         .filter(|(_, r)| r.keyword == "REJECT")
         .map(|(_, r)| r.clone())
         .collect();
-    let faults = reports
+    let faults = parsed
         .iter()
         .filter(|(_, r)| r.keyword == "FAULT")
-        .map(|(i, r)| (rig.lines[*i].cycle, r.clone()))
+        .map(|(i, r)| (bench.lines[*i].cycle, r.clone()))
         .collect();
-    let stack_used = reports
+    let stack_used = parsed
         .iter()
         .filter(|(_, r)| r.keyword == "STACK")
         .filter_map(|(_, r)| r.int("used"))
@@ -258,22 +260,22 @@ pub fn analyse(rig: Rig, sizes: Sizes, wall_s: f64) -> Outcome {
     // The estimation record: the last EXCITE before the ID line.
     let id_line = id_idx.map(|(i, _)| *i);
     let excite = match id_line {
-        Some(j) => reports
+        Some(j) => parsed
             .iter()
             .rfind(|(i, r)| r.keyword == "EXCITE" && *i < j),
         // No model: the first record, to compare with what the host finds on it.
-        None => reports.iter().find(|(_, r)| r.keyword == "EXCITE"),
+        None => parsed.iter().find(|(_, r)| r.keyword == "EXCITE"),
     };
-    let estimation = excite.and_then(|(i, r)| rebuild(&rig, *i, r));
-    let validate = reports
+    let estimation = excite.and_then(|(i, r)| rebuild(&bench, *i, r));
+    let validate = parsed
         .iter()
         .filter(|(i, r)| r.keyword == "VALIDATE" && id_line.is_some_and(|j| *i > j))
         .map(|(i, r)| (*i, r.clone()))
         .next();
-    let validation = validate.and_then(|(i, r)| rebuild(&rig, i, &r));
+    let validation = validate.and_then(|(i, r)| rebuild(&bench, i, &r));
     // The search that followed the rebuilt record: up to its ID or REJECT line.
     let search_end = excite.and_then(|(i, _)| {
-        reports
+        parsed
             .iter()
             .find(|(j, r)| *j > *i && matches!(r.keyword.as_str(), "ID" | "REJECT"))
             .map(|(j, _)| *j)
@@ -282,38 +284,38 @@ pub fn analyse(rig: Rig, sizes: Sizes, wall_s: f64) -> Outcome {
         (Some(s), Some(j)) => s
             .cycle
             .last()
-            .map(|c| rig.line_starts[j].saturating_sub(*c)),
+            .map(|c| bench.line_starts[j].saturating_sub(*c)),
         _ => None,
     };
     // Every search: from the end of an excitation record to the next ID/REJECT line.
     let mut search_windows = Vec::new();
-    for (i, r) in reports.iter().filter(|(_, r)| r.keyword == "EXCITE") {
+    for (i, r) in parsed.iter().filter(|(_, r)| r.keyword == "EXCITE") {
         let n = r.int("n").unwrap_or(3000).max(0) as u64;
         // The record's last tick starts (n − 1) ticks after the tick that printed EXCITE.
-        let from = rig.line_starts[*i] + n.saturating_sub(1) * TICK_CYCLES;
-        if let Some((j, _)) = reports
+        let from = bench.line_starts[*i] + n.saturating_sub(1) * TICK_CYCLES;
+        if let Some((j, _)) = parsed
             .iter()
             .find(|(j, r)| *j > *i && matches!(r.keyword.as_str(), "ID" | "REJECT"))
         {
-            search_windows.push((from, rig.lines[*j].cycle + TICK_CYCLES));
+            search_windows.push((from, bench.lines[*j].cycle + TICK_CYCLES));
         } else {
             search_windows.push((from, u64::MAX));
         }
     }
-    let firmware_missed = reports
+    let firmware_missed = parsed
         .iter()
         .rev()
         .find(|(_, r)| r.keyword == "MISSED")
         .and_then(|(_, r)| Some((r.int("late")?, r.int("lost")?)));
     let timing = timing(
-        rig.ticks(),
+        bench.ticks(),
         &search_windows,
-        &rig,
+        &bench,
         search_cycles,
         firmware_missed,
     );
     Outcome {
-        rig,
+        bench,
         id,
         accept,
         rejects,
@@ -330,7 +332,7 @@ pub fn analyse(rig: Rig, sizes: Sizes, wall_s: f64) -> Outcome {
 fn timing(
     ticks: &[TickTiming],
     searches: &[(u64, u64)],
-    rig: &Rig,
+    bench: &Bench,
     search_cycles: Option<u64>,
     firmware_missed: Option<(i64, i64)>,
 ) -> Timing {
@@ -361,13 +363,13 @@ fn timing(
     };
     // Load outside the search, from the first measured tick on.
     let from = ticks.first().map_or(0, |t| t.start);
-    let elapsed = rig.machine.cycle().saturating_sub(from);
-    let now = rig.machine.cycle();
+    let elapsed = bench.machine.cycle().saturating_sub(from);
+    let now = bench.machine.cycle();
     let search_len: u64 = searches
         .iter()
         .map(|&(a, b)| b.min(now).saturating_sub(a.min(now)))
         .sum();
-    let busy_total = elapsed.saturating_sub(rig.idle_cycles());
+    let busy_total = elapsed.saturating_sub(bench.idle_cycles());
     let load = if elapsed > search_len {
         busy_total.saturating_sub(search_len) as f64 / (elapsed - search_len) as f64
     } else {
@@ -403,17 +405,18 @@ fn timing(
 
 /// Rebuilds the record announced by line `idx` (`EXCITE <name> n=..` / `VALIDATE <name> n=..`)
 /// from the frames served and the PWM log, aligned on the generator's duty sequence.
-pub fn rebuild(rig: &Rig, idx: usize, r: &Report) -> Option<Samples> {
+pub fn rebuild(bench: &Bench, idx: usize, r: &ParsedLine) -> Option<Samples> {
     let record = r.words.iter().find_map(|w| w.parse::<Record>().ok())?;
     let n = r
         .int("n")
         .map_or(record.len_samples() as usize, |v| v as usize);
     let gen: Vec<u16> = record.generator().take(n).collect();
-    let frames = rig.sensor.borrow().served();
-    let at = rig.line_starts[idx];
+    let frames = bench.sensor.borrow().served();
+    let at = bench.line_starts[idx];
     let j0 = frames.partition_point(|(c, _)| *c < at);
     let counts_at = |c: u64| {
-        rig.duty_at(c)
+        bench
+            .duty_at(c)
             .map_or(0, |d| if d.connected { u32::from(d.ocr) + 1 } else { 0 })
     };
     for k in j0.saturating_sub(3)..=j0 + 3 {
@@ -434,6 +437,7 @@ pub fn rebuild(rig: &Rig, idx: usize, r: &Report) -> Option<Samples> {
                 ((sum + half) / 50) as i16
             });
             let mut s = Samples {
+                record: Some(record),
                 u0: r.num("u0").map_or(0, |v| (v * 100.0).round() as u16),
                 y0: r
                     .num("y0")
@@ -489,7 +493,7 @@ pub fn host_search_in<T: Real>(samples: &Samples) -> Result<IdLine, String> {
         p: s.p,
         q: s.q,
         d: s.d,
-        offset: true,
+        offset: m.offset(),
         theta,
         phi,
         c,
@@ -537,7 +541,7 @@ pub fn score(model: &ArxModel<f64>, samples: &Samples) -> (Option<f64>, Option<f
 }
 
 /// A fresh validation signal on the host, with the loop's timing: the plant sub-stepped as in
-/// the rig, the reading taken at the tick, the new duty applied `latency` sub-steps later, the
+/// the bench, the reading taken at the tick, the new duty applied `latency` sub-steps later, the
 /// sensor noise from `seed`. Starts from `base` duty held for 2 s, as the firmware settles.
 pub fn fresh_record(
     pump: &PumpParams,
@@ -558,7 +562,10 @@ pub fn fresh_record(
     for _ in 0..200 * SUBSTEPS {
         pump.step(frac(base));
     }
-    let mut s = Samples::default();
+    let mut s = Samples {
+        record: Some(record),
+        ..Samples::default()
+    };
     for g in record.generator() {
         for _ in 0..latency {
             pump.step(frac(prev));
@@ -578,14 +585,14 @@ pub fn fresh_record(
 
 /// Median sub-steps between a read and the PWM change that follows it in the same tick, over
 /// `samples` (the duty written is seen by the plant at the next 0.5 ms step).
-pub fn write_latency(rig: &Rig, samples: &Samples) -> usize {
+pub fn write_latency(bench: &Bench, samples: &Samples) -> usize {
     let step = TICK_CYCLES / SUBSTEPS as u64;
     let mut lat: Vec<u64> = samples
         .cycle
         .iter()
         .filter_map(|&c| {
-            let i = rig.duty_log.partition_point(|d| d.cycle <= c);
-            let d = rig.duty_log.get(i)?;
+            let i = bench.duty_log.partition_point(|d| d.cycle <= c);
+            let d = bench.duty_log.get(i)?;
             (d.cycle - c < TICK_CYCLES).then(|| (d.cycle - c).div_ceil(step))
         })
         .collect();

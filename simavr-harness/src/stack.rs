@@ -53,9 +53,10 @@ pub struct CallPath {
     pub frames: Vec<(String, u32)>,
 }
 
-/// The analysis of one image.
+/// The stack analysis of one image: deepest paths (bytes) and what could make the bound
+/// incomplete.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct Report {
+pub struct StackAnalysis {
     /// Deepest path from `main`.
     pub main: CallPath,
     /// Deepest path of any interrupt handler.
@@ -68,7 +69,7 @@ pub struct Report {
     pub late_pushes: BTreeSet<String>,
 }
 
-impl Report {
+impl StackAnalysis {
     /// The worst-case stack: main path plus the deepest interrupt handler.
     pub fn worst(&self) -> u32 {
         self.main.bytes + self.interrupt.bytes
@@ -139,32 +140,32 @@ pub fn parse(disassembly: &str) -> BTreeMap<String, Function> {
 }
 
 /// Analyses a disassembly: deepest paths from `main` and from the interrupt vectors.
-pub fn analyze(disassembly: &str) -> Report {
+pub fn analyze(disassembly: &str) -> StackAnalysis {
     let funcs = parse(disassembly);
-    let mut report = Report::default();
+    let mut analysis = StackAnalysis::default();
     for (name, f) in &funcs {
         if f.indirect > 0 {
-            report.indirect.insert(name.clone());
+            analysis.indirect.insert(name.clone());
         }
         if f.late_pushes > 0 {
-            report.late_pushes.insert(name.clone());
+            analysis.late_pushes.insert(name.clone());
         }
     }
     let mut memo: BTreeMap<String, CallPath> = BTreeMap::new();
     let mut recursive = BTreeSet::new();
-    report.main = deepest("main", &funcs, &mut memo, &mut Vec::new(), &mut recursive);
+    analysis.main = deepest("main", &funcs, &mut memo, &mut Vec::new(), &mut recursive);
     for name in funcs.keys().filter(|n| n.starts_with("__vector_")) {
         let p = deepest(name, &funcs, &mut memo, &mut Vec::new(), &mut recursive);
-        if p.bytes > report.interrupt.bytes {
-            report.interrupt = p;
+        if p.bytes > analysis.interrupt.bytes {
+            analysis.interrupt = p;
         }
     }
-    report.recursive = recursive;
-    report
+    analysis.recursive = recursive;
+    analysis
 }
 
 /// Runs `avr-objdump -d` on `elf` and analyses it.
-pub fn analyze_elf(elf: &Path) -> Result<Report, String> {
+pub fn analyze_elf(elf: &Path) -> Result<StackAnalysis, String> {
     let out = Command::new("avr-objdump")
         .arg("-d")
         .arg(elf)

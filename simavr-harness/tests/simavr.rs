@@ -4,15 +4,17 @@
 //!
 //! Budgets checked: tick control work (ISR → sensor read → statistics → PWM written) < 1.6 ms
 //! (25 600 cycles), every whole tick (with report lines, verdict, persistence) within its
-//! 10 ms period and no overruns, search < 10 s, flash < 64 KB, static RAM + stack < 6 KB; the identified model's free-run fit on a fresh
-//! validation signal ≥ [`MIN_FRESH_FIT`] %; the firmware's result equal to ridge-core's on the
-//! host from the same samples (same structure, coefficients within [`COEF_TOL`]).
+//! 10 ms period and no overruns, search < 10 s, flash < 64 KB, static RAM + stack < 6 KB; the
+//! identified model's free-run fit on a fresh validation signal ≥ [`MIN_FRESH_FIT`] %; the
+//! firmware's result equal to ridge-core's on the host from the same samples (same structure,
+//! coefficients within [`COEF_TOL`]).
 
 use pump_sim::sfm3300::flow_to_raw;
 use pump_sim::PumpParams;
 use ridge_pump_firmware::excitation::Record;
+use ridge_pump_firmware::selfid::Config;
+use simavr_harness::bench::{Action, Bench, BenchConfig};
 use simavr_harness::firmware;
-use simavr_harness::rig::{Action, Rig, RigConfig};
 use simavr_harness::sensor::Fault;
 use simavr_harness::session::{self, Outcome, SessionConfig, TICK_CYCLES};
 
@@ -25,9 +27,12 @@ const FLASH_BUDGET: u32 = 64 * 1024;
 /// Static RAM + stack budget, bytes.
 const RAM_BUDGET: u32 = 6 * 1024;
 /// Smallest free-run fit (%) of the identified model on a fresh host-side validation signal
-/// (B-Ramp, new noise seed, the loop's timing). The firmware's own acceptance threshold on its
+/// ([`FRESH_RECORD`], new noise seed, the loop's timing). The firmware's own acceptance threshold on its
 /// validation record is 70 %.
 const MIN_FRESH_FIT: f64 = 70.0;
+/// Excitation preset of the fresh validation signal: one the firmware neither estimates nor
+/// validates on.
+const FRESH_RECORD: Record = Record::BRamp;
 /// Largest coefficient difference between the firmware (f32 on the AVR) and ridge-core on the
 /// host (f64) from the same samples, relative to max(1, |coefficient|). README: f32 vs f64 on
 /// exact statistics differ by ≤ 1.4e-5 relative.
@@ -39,14 +44,14 @@ fn elf() -> std::path::PathBuf {
 
 fn session(pump: PumpParams, seed: u64) -> Outcome {
     let mut cfg = SessionConfig::new(elf());
-    cfg.rig.pump = pump;
-    cfg.rig.seed = seed;
+    cfg.bench.pump = pump;
+    cfg.bench.seed = seed;
     cfg.max_s = 200.0;
     session::run(&cfg).expect("simavr session")
 }
 
 fn transcript(o: &Outcome) -> String {
-    o.rig
+    o.bench
         .lines
         .iter()
         .filter(|l| !l.text.starts_with("RES "))
@@ -56,14 +61,19 @@ fn transcript(o: &Outcome) -> String {
 
 /// Checks of one identification session; returns the list of failures.
 fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
+    let firmware_config = Config::default();
     let mut bad = Vec::new();
-    if let Some(h) = o.rig.halted() {
+    assert!(
+        FRESH_RECORD != firmware_config.excitation && FRESH_RECORD != firmware_config.validation,
+        "the fresh validation signal must be a record the firmware did not see"
+    );
+    if let Some(h) = o.bench.halted() {
         bad.push(format!("core halted: {h:?}"));
     }
-    if !o.rig.machine.resets().is_empty() {
+    if !o.bench.machine.resets().is_empty() {
         bad.push(format!(
             "{} reset(s) during the run",
-            o.rig.machine.resets().len()
+            o.bench.machine.resets().len()
         ));
     }
     if o.accept.is_none() {
@@ -108,7 +118,7 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
         if o.sizes.flash() >= FLASH_BUDGET {
             bad.push(format!("flash {} B ≥ {FLASH_BUDGET} B", o.sizes.flash()));
         }
-        let stack = o.rig.stack_used().or(o.stack_used).unwrap_or(u32::MAX);
+        let stack = o.bench.stack_used().or(o.stack_used).unwrap_or(u32::MAX);
         if o.sizes.ram() + stack >= RAM_BUDGET {
             bad.push(format!(
                 "static RAM {} B + stack {stack} B ≥ {RAM_BUDGET} B",
@@ -130,11 +140,11 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
             Ok(_) => {}
             Err(e) => bad.push(format!("stack analysis: {e}")),
         }
-        if o.stack_used.is_some() && o.stack_used != o.rig.stack_used() {
+        if o.stack_used.is_some() && o.stack_used != o.bench.stack_used() {
             bad.push(format!(
                 "STACK line {:?} B disagrees with the SRAM paint {:?} B",
                 o.stack_used,
-                o.rig.stack_used()
+                o.bench.stack_used()
             ));
         }
     }
@@ -159,6 +169,14 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
         None => bad.push("estimation record could not be rebuilt from the served frames".into()),
         Some(est) => {
             assert_eq!(est.len(), 3000);
+            // The preset named on the EXCITE line, read back through `Record`'s name table, is
+            // the firmware's configured one (and the duties matched its generator).
+            if est.record != Some(firmware_config.excitation) {
+                bad.push(format!(
+                    "estimation record {:?}, the firmware is configured with {:?}",
+                    est.record, firmware_config.excitation
+                ));
+            }
             if est.y0_frames != Some(est.y0) {
                 bad.push(format!(
                     "operating point: EXCITE says y0={} counts, the served frames give {:?}",
@@ -180,19 +198,27 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
             }
         }
     }
+    match &o.validation {
+        Some(val) if val.record != Some(firmware_config.validation) => bad.push(format!(
+            "validation record {:?}, the firmware is configured with {:?}",
+            val.record, firmware_config.validation
+        )),
+        Some(_) => {}
+        None => bad.push("validation record could not be rebuilt from the served frames".into()),
+    }
     match id.model() {
         None => bad.push("ID line does not give a valid model".into()),
         Some(model) => {
             let lat = o
                 .estimation
                 .as_ref()
-                .map_or(2, |e| session::write_latency(&o.rig, e));
-            let cfg = o.rig.config();
+                .map_or(2, |e| session::write_latency(&o.bench, e));
+            let cfg = o.bench.config();
             let fresh = session::fresh_record(
                 &cfg.pump,
                 &cfg.sensor,
                 cfg.seed + 1000,
-                Record::BRamp,
+                FRESH_RECORD,
                 3_000,
                 lat,
             );
@@ -209,12 +235,12 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
 }
 
 /// Replays the firmware's state machine (`ridge_pump_firmware::selfid`, compiled for the host)
-/// with the readings the rig served, in order, and describes its first search result: tells an
+/// with the readings the bench served, in order, and describes its first search result: tells an
 /// AVR-specific defect (code generation, float library) from one of the algorithm.
 fn replay(o: &Outcome) -> String {
     use ridge_pump_firmware::event::Event;
-    use ridge_pump_firmware::selfid::{Config, SelfIdentification};
-    let frames = o.rig.sensor.borrow().served();
+    use ridge_pump_firmware::selfid::SelfIdentification;
+    let frames = o.bench.sensor.borrow().served();
     let mut sid = SelfIdentification::new(Config::default(), None);
     for (_, raw) in frames {
         sid.tick(Ok((i32::from(raw) - 32_768) as i16));
@@ -257,15 +283,15 @@ fn default_pump_identifies_within_budgets_and_persists() {
     assert_clean("default pump, seed 1", &o, bad);
 
     assert!(
-        o.rig
+        o.bench
             .find_lines("PERSIST")
             .any(|(_, l)| l.text == "PERSIST saved"),
         "no `PERSIST saved` after ACCEPT:\n{}",
         transcript(&o)
     );
-    // Next boot with the EEPROM the firmware wrote (simavr keeps EEPROM in the core; the rig
+    // Next boot with the EEPROM the firmware wrote (simavr keeps EEPROM in the core; the bench
     // programs it into a fresh core before reset).
-    let mut machine_eeprom = o.rig.machine.eeprom();
+    let mut machine_eeprom = o.bench.machine.eeprom();
     let written: Vec<usize> = machine_eeprom
         .iter()
         .enumerate()
@@ -277,15 +303,15 @@ fn default_pump_identifies_within_budgets_and_persists() {
         "ACCEPT … persist, but the EEPROM is blank"
     );
     let boot = |eeprom: &[u8]| {
-        let mut cfg = RigConfig::new(elf());
+        let mut cfg = BenchConfig::new(elf());
         cfg.eeprom = vec![(0, eeprom.to_vec())];
-        let mut rig = Rig::new(cfg).expect("rig");
-        rig.run_until(3.0, |l| {
+        let mut bench = Bench::new(cfg).expect("bench");
+        bench.run_until(3.0, |l| {
             l.text.starts_with("LOADED")
                 || l.text.starts_with("STORED-REJECTED")
                 || l.text.starts_with("EXCITE")
         });
-        rig
+        bench
     };
     let intact = boot(&machine_eeprom);
     assert!(
@@ -323,48 +349,49 @@ fn sluggish_pump_identifies() {
 }
 
 /// Runs to `at_s` (in the excitation), applies `fault`, runs on until a FAULT line or
-/// `at_s + within_s`. Returns the rig and the FAULT line's index.
-fn inject(actions: &[(f64, Action)], within_s: f64) -> (Rig, Option<usize>) {
-    let mut rig = Rig::new(RigConfig::new(elf())).expect("rig");
+/// `at_s + within_s`. Returns the bench and the FAULT line's index.
+fn inject(actions: &[(f64, Action)], within_s: f64) -> (Bench, Option<usize>) {
+    let mut bench = Bench::new(BenchConfig::new(elf())).expect("bench");
     for &(t, a) in actions {
-        rig.schedule(t, a);
+        bench.schedule(t, a);
     }
     let until = actions.iter().map(|(t, _)| *t).fold(0.0, f64::max) + within_s;
-    let end = rig.run_until(until, |l| l.text.starts_with("FAULT"));
+    let end = bench.run_until(until, |l| l.text.starts_with("FAULT"));
     let idx = match end {
-        simavr_harness::rig::RunEnd::Line(i) => Some(i),
+        simavr_harness::bench::RunEnd::Line(i) => Some(i),
         _ => None,
     };
     if idx.is_some() {
         // Two more ticks so the PWM log covers the stop.
-        rig.run_for(0.03);
+        bench.run_for(0.03);
     }
-    (rig, idx)
+    (bench, idx)
 }
 
 /// The pump must be off (duty 0 on the pin) from at most two ticks after the FAULT line's tick
 /// on, to the end of the run.
-fn assert_stopped(rig: &Rig, idx: usize, what: &str) {
-    let line_start = rig.line_starts[idx];
+fn assert_stopped(bench: &Bench, idx: usize, what: &str) {
+    let line_start = bench.line_starts[idx];
     let deadline = line_start + 2 * TICK_CYCLES;
-    let last_on = rig
+    let last_on = bench
         .duty_log
         .iter()
         .rev()
         .find(|d| d.fraction > 0.0)
         .map(|d| d.cycle);
-    let off_since = rig
+    let off_since = bench
         .duty_log
         .iter()
         .rev()
         .find(|d| d.fraction > 0.0)
-        .and_then(|on| rig.duty_log.iter().find(|d| d.cycle > on.cycle))
+        .and_then(|on| bench.duty_log.iter().find(|d| d.cycle > on.cycle))
         .map(|d| d.cycle);
     assert!(
-        rig.duty_at(rig.machine.cycle())
+        bench
+            .duty_at(bench.machine.cycle())
             .is_some_and(|d| d.fraction == 0.0),
         "{what}: pump still running at the end: {:?}",
-        rig.duty_at(rig.machine.cycle())
+        bench.duty_at(bench.machine.cycle())
     );
     assert!(
         off_since.is_some_and(|c| c <= deadline),
@@ -373,17 +400,17 @@ fn assert_stopped(rig: &Rig, idx: usize, what: &str) {
 }
 
 fn fault_case(actions: &[(f64, Action)], within_s: f64, expect: &str) {
-    let (rig, idx) = inject(actions, within_s);
-    let texts: Vec<&str> = rig.lines.iter().map(|l| l.text.as_str()).collect();
+    let (bench, idx) = inject(actions, within_s);
+    let texts: Vec<&str> = bench.lines.iter().map(|l| l.text.as_str()).collect();
     let Some(idx) = idx else {
         panic!("{expect}: no FAULT line within {within_s} s: {texts:?}");
     };
     assert!(
-        rig.lines[idx].text.contains(expect),
+        bench.lines[idx].text.contains(expect),
         "expected a FAULT with `{expect}`, got `{}`",
-        rig.lines[idx].text
+        bench.lines[idx].text
     );
-    assert_stopped(&rig, idx, expect);
+    assert_stopped(&bench, idx, expect);
 }
 
 /// Fault injection starts at 5 s: the firmware is in the excitation record (after 2 s settle).
@@ -397,7 +424,7 @@ fn fault_sensor_absent_stops_pump() {
 #[test]
 fn fault_crc_corruption_stops_pump_but_short_burst_is_bridged() {
     // A burst of three corrupted frames (30 ms) is bridged: no fault.
-    let (rig, idx) = inject(
+    let (bench, idx) = inject(
         &[
             (AT, Action::Sensor(Fault::CrcCorrupt)),
             (AT + 0.03, Action::Sensor(Fault::None)),
@@ -407,7 +434,7 @@ fn fault_crc_corruption_stops_pump_but_short_burst_is_bridged() {
     assert!(
         idx.is_none(),
         "a 30 ms CRC burst raised {:?}",
-        idx.map(|i| &rig.lines[i].text)
+        idx.map(|i| &bench.lines[i].text)
     );
     fault_case(
         &[(AT, Action::Sensor(Fault::CrcCorrupt))],
@@ -448,13 +475,13 @@ fn fault_stuck_reading_at_zero_flow_stops_pump() {
 #[test]
 fn fault_sensor_absent_during_the_search_stops_pump_before_it_ends() {
     const DIES: f64 = 33.0;
-    let (rig, idx) = inject(&[(DIES, Action::Sensor(Fault::Absent))], 4.0);
-    let texts: Vec<&str> = rig.lines.iter().map(|l| l.text.as_str()).collect();
+    let (bench, idx) = inject(&[(DIES, Action::Sensor(Fault::Absent))], 4.0);
+    let texts: Vec<&str> = bench.lines.iter().map(|l| l.text.as_str()).collect();
     let idx = idx.unwrap_or_else(|| panic!("no FAULT line: {texts:?}"));
     assert!(
-        rig.lines[idx].text.contains("sensor=nack"),
+        bench.lines[idx].text.contains("sensor=nack"),
         "{}",
-        rig.lines[idx].text
+        bench.lines[idx].text
     );
     // The search was running: its ID line comes after the sensor died.
     let id = texts
@@ -462,9 +489,9 @@ fn fault_sensor_absent_during_the_search_stops_pump_before_it_ends() {
         .position(|t| t.starts_with("ID "))
         .unwrap_or_else(|| panic!("no ID line: {texts:?}"));
     let dies = (DIES * 16e6) as u64;
-    assert!(rig.line_starts[id] > dies + 16_000_000 / 2, "{texts:?}");
+    assert!(bench.line_starts[id] > dies + 16_000_000 / 2, "{texts:?}");
     // The pump stopped long before: 5 failed reads and at most ~0.15 s without a read.
-    let off = rig
+    let off = bench
         .duty_log
         .iter()
         .find(|d| d.cycle > dies && d.fraction == 0.0)
@@ -472,9 +499,13 @@ fn fault_sensor_absent_during_the_search_stops_pump_before_it_ends() {
         .unwrap_or(u64::MAX);
     let delay_s = off.saturating_sub(dies) as f64 / 16e6;
     assert!(delay_s < 0.25, "pump off {delay_s} s after the sensor died");
-    assert!(off < rig.line_starts[id], "pump off only after the search");
     assert!(
-        rig.duty_at(rig.machine.cycle())
+        off < bench.line_starts[id],
+        "pump off only after the search"
+    );
+    assert!(
+        bench
+            .duty_at(bench.machine.cycle())
             .is_some_and(|d| d.fraction == 0.0),
         "pump running at the end"
     );
@@ -528,13 +559,17 @@ fn persisted_record_is_loaded_and_a_corrupted_one_rejected() {
     let model = ArxModel::new(&[0.9f32], &[12.0], 3, Offset::Intercept, -1.5).expect("model");
     let record = persist::encode(&model, 88.5);
     let boot = |bytes: &[u8]| {
-        let mut cfg = RigConfig::new(elf());
+        let mut cfg = BenchConfig::new(elf());
         cfg.eeprom = vec![(0, bytes.to_vec())];
-        let mut rig = Rig::new(cfg).expect("rig");
-        rig.run_until(4.0, |l| {
+        let mut bench = Bench::new(cfg).expect("bench");
+        bench.run_until(4.0, |l| {
             l.text.starts_with("LOADED") || l.text.starts_with("EXCITE")
         });
-        rig.lines.iter().map(|l| l.text.clone()).collect::<Vec<_>>()
+        bench
+            .lines
+            .iter()
+            .map(|l| l.text.clone())
+            .collect::<Vec<_>>()
     };
     let intact = boot(&record);
     assert!(

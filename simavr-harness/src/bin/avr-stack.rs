@@ -2,67 +2,61 @@
 //! `simavr_harness::stack`), and the SRAM budget check: static RAM + worst-case stack.
 //!
 //! Usage: `avr-stack ELF [--budget BYTES] [--path]`; exits 1 when static RAM + stack exceeds
-//! the budget (default 6144) or the analysis is incomplete (recursion, indirect calls).
+//! the budget (default 6144) or the analysis is incomplete (recursion, indirect calls), 2 on
+//! a usage error or an ELF that cannot be read or disassembled.
 
+use clap::Parser;
 use simavr_harness::firmware::sizes;
 use simavr_harness::stack::analyze_elf;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+/// Worst-case stack of an AVR ELF from its call graph (`avr-objdump -d`), and the SRAM budget
+/// check: static RAM (`.data + .bss + .noinit`) + worst-case stack ≤ `--budget`.
+#[derive(Parser, Debug)]
+#[command(name = "avr-stack")]
+struct Args {
+    /// The AVR ELF to analyse.
+    elf: PathBuf,
+    /// SRAM budget for static RAM + worst-case stack, bytes.
+    #[arg(long, value_name = "BYTES", default_value_t = 6144)]
+    budget: u32,
+    /// Also print the deepest call path from `main`, one function and its own frame per line.
+    #[arg(long)]
+    path: bool,
+}
+
 fn main() -> ExitCode {
-    let mut elf: Option<PathBuf> = None;
-    let mut budget: u32 = 6144;
-    let mut show_path = false;
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        match a.as_str() {
-            "--budget" => match args.next().and_then(|v| v.parse().ok()) {
-                Some(b) => budget = b,
-                None => {
-                    eprintln!("avr-stack: --budget needs a number of bytes");
-                    return ExitCode::from(2);
-                }
-            },
-            "--path" => show_path = true,
-            "-h" | "--help" => {
-                println!("usage: avr-stack ELF [--budget BYTES] [--path]");
-                return ExitCode::SUCCESS;
-            }
-            _ => elf = Some(PathBuf::from(a)),
-        }
-    }
-    let Some(elf) = elf else {
-        eprintln!("usage: avr-stack ELF [--budget BYTES] [--path]");
-        return ExitCode::from(2);
-    };
-    let (report, sizes) = match (analyze_elf(&elf), sizes(&elf)) {
+    let args = Args::parse();
+    let (analysis, sizes) = match (analyze_elf(&args.elf), sizes(&args.elf)) {
         (Ok(r), Ok(s)) => (r, s),
         (Err(e), _) | (_, Err(e)) => {
             eprintln!("avr-stack: {e}");
             return ExitCode::from(2);
         }
     };
-    let total = sizes.ram() + report.worst();
+    let budget = args.budget;
+    let total = sizes.ram() + analysis.worst();
     println!(
         "           stack  {:5} B worst case (call graph: main {} B + interrupt {} B)",
-        report.worst(),
-        report.main.bytes,
-        report.interrupt.bytes
+        analysis.worst(),
+        analysis.main.bytes,
+        analysis.interrupt.bytes
     );
     println!(
         "           SRAM   {:5} B static RAM + stack, limit {budget}",
         total
     );
-    if show_path {
-        for (name, own) in &report.main.frames {
+    if args.path {
+        for (name, own) in &analysis.main.frames {
             println!("             {own:5} B  {name}");
         }
     }
     let mut ok = true;
-    if !report.complete() {
+    if !analysis.complete() {
         eprintln!(
             "avr-stack: incomplete bound: recursion {:?}, indirect calls {:?}, pushes past the prologue {:?}",
-            report.recursive, report.indirect, report.late_pushes
+            analysis.recursive, analysis.indirect, analysis.late_pushes
         );
         ok = false;
     }

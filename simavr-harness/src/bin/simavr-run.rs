@@ -43,6 +43,10 @@ struct Args {
     lines: bool,
 }
 
+/// Excitation preset of the fresh host-side validation signal (a record the firmware neither
+/// estimates nor validates on).
+const FRESH_RECORD: Record = Record::BRamp;
+
 fn ms(cycles: f64) -> f64 {
     cycles / 16_000.0
 }
@@ -76,8 +80,8 @@ fn main() -> ExitCode {
     };
     let mut cfg = SessionConfig::new(&elf);
     cfg.max_s = args.max_s;
-    cfg.rig.seed = args.seed;
-    cfg.rig.pump = match args.plant {
+    cfg.bench.seed = args.seed;
+    cfg.bench.pump = match args.plant {
         Plant::Default => PumpParams::default(),
         Plant::Small => PumpParams::small(),
         Plant::Sluggish => PumpParams::sluggish(),
@@ -95,34 +99,34 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    report(&args, &cfg, &out)
+    print_outcome(&args, &cfg, &out)
 }
 
-fn report(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
-    let rig = &out.rig;
+fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
+    let bench = &out.bench;
     if args.lines {
-        for l in &rig.lines {
+        for l in &bench.lines {
             println!("  [{:8.3} s] {}", l.cycle as f64 / 16e6, l.text);
         }
     } else {
         println!("firmware lines (events):");
-        for l in rig.lines.iter().filter(|l| {
+        for l in bench.lines.iter().filter(|l| {
             let k = l.text.split_whitespace().next().unwrap_or("");
             !matches!(k, "RES")
         }) {
             println!("  [{:8.3} s] {}", l.cycle as f64 / 16e6, l.text);
         }
     }
-    let sim_s = rig.time_s();
+    let sim_s = bench.time_s();
     println!(
         "\nsimulated {:.2} s in {:.2} s wall ({:.1}x real time){}",
         sim_s,
         out.wall_s,
         sim_s / out.wall_s.max(1e-9),
-        if rig.machine.resets().is_empty() {
+        if bench.machine.resets().is_empty() {
             String::new()
         } else {
-            format!(", {} reset(s)", rig.machine.resets().len())
+            format!(", {} reset(s)", bench.machine.resets().len())
         }
     );
     let mut ok = true;
@@ -215,7 +219,8 @@ fn report(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
             );
             panels.push((
                 format!(
-                    "closed loop, firmware validation record (B-Multistep): free-run fit {:.1} %",
+                    "closed loop, firmware validation record ({}): free-run fit {:.1} %",
+                    val.record.map_or("?", Record::name),
                     free.unwrap_or(f64::NAN)
                 ),
                 trace,
@@ -224,24 +229,26 @@ fn report(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
         let latency = out
             .estimation
             .as_ref()
-            .map_or(2, |e| session::write_latency(rig, e));
+            .map_or(2, |e| session::write_latency(bench, e));
         let fresh = session::fresh_record(
-            &cfg.rig.pump,
-            &cfg.rig.sensor,
-            cfg.rig.seed.wrapping_add(1000),
-            Record::BRamp,
+            &cfg.bench.pump,
+            &cfg.bench.sensor,
+            cfg.bench.seed.wrapping_add(1000),
+            FRESH_RECORD,
             3_000,
             latency,
         );
         let (free, one, trace) = session::score(&model, &fresh);
         println!(
-            "  fresh validation signal (host, B-Ramp, new noise seed, loop timing: duty applied {latency} x 0.5 ms after the read): free-run fit {:.1} %, one-step fit {:.1} %",
+            "  fresh validation signal (host, {}, new noise seed, loop timing: duty applied {latency} x 0.5 ms after the read): free-run fit {:.1} %, one-step fit {:.1} %",
+            FRESH_RECORD.name(),
             free.unwrap_or(f64::NAN),
             one.unwrap_or(f64::NAN)
         );
         panels.push((
             format!(
-                "fresh validation signal (B-Ramp, host): free-run fit {:.1} %",
+                "fresh validation signal ({}, host): free-run fit {:.1} %",
+                FRESH_RECORD.name(),
                 free.unwrap_or(f64::NAN)
             ),
             trace,
@@ -321,11 +328,12 @@ fn report(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
         "  stack high-water: STACK line {} B, SRAM paint {} B  ->  static RAM + stack {} B of 8192",
         out.stack_used
             .map_or_else(|| "n/a".into(), |v| v.to_string()),
-        rig.stack_used()
+        bench
+            .stack_used()
             .map_or_else(|| "n/a".into(), |v| v.to_string()),
-        s.ram() + rig.stack_used().or(out.stack_used).unwrap_or(0)
+        s.ram() + bench.stack_used().or(out.stack_used).unwrap_or(0)
     );
-    match simavr_harness::stack::analyze_elf(&cfg.rig.elf) {
+    match simavr_harness::stack::analyze_elf(&cfg.bench.elf) {
         Ok(r) => println!(
             "  worst-case stack over every path (call graph): {} B (main {} + interrupt {})  ->  static RAM + stack {} B (budget 6144){}",
             r.worst(),

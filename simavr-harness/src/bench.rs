@@ -1,11 +1,14 @@
-//! The closed loop: firmware in simavr ⇄ simulated SFM3300 on TWI ⇄ blower model driven by the
-//! PWM the firmware actually programs.
+//! The bench: the simulated ATmega2560 (simavr, running the firmware image) wired to the
+//! simulated plant, closed loop: firmware in simavr ⇄ simulated SFM3300 on TWI ⇄ blower model
+//! driven by the PWM the firmware actually programs.
 //!
-//! Every 0.5 ms of simulated time (the SFM3300's update period) the rig reads the PWM duty from
-//! the timer registers ([`pwm`](crate::pwm)), steps the blower model by 0.5 ms with it and
-//! hands the new flow to the sensor. The blower is `sim::Pump` with its 100 Hz parameters
-//! sub-stepped 20× (time constants are exact under zero-order hold; the transport delay is
-//! kept in time, 20 sub-steps per 10 ms sample).
+//! The plant is the same blower and sensor models that `pump_sim::Rig` steps once per 10 ms
+//! sample, but the bench drives them itself, finer and from the MCU's registers: every 0.5 ms
+//! of simulated time (the SFM3300's update period) it reads the PWM duty from the timer
+//! registers ([`pwm`]), steps the blower model by 0.5 ms with it and hands the new
+//! flow to the sensor. The blower is `pump_sim::Pump` with its 100 Hz parameters sub-stepped
+//! 20× (time constants are exact under zero-order hold; the transport delay is kept in time,
+//! 20 sub-steps per 10 ms sample).
 //!
 //! Timing is measured from the core's cycle counter, with no help from the firmware:
 //! - **tick start**: entry into the tick interrupt (TIMER3_COMPA, vector 32, by default);
@@ -35,17 +38,19 @@ use pump_sim::{Pump, PumpParams, Sfm3300, Sfm3300Params};
 
 /// Plant sub-steps per 10 ms sample (0.5 ms each: the SFM3300 update period).
 pub const SUBSTEPS: usize = 20;
-/// ATmega2560 vector number of TIMER3_COMPA (the board's 100 Hz tick).
+/// Vector number of TIMER3_COMPA (the board's 100 Hz tick), counted from 0 = RESET as avr-libc's
+/// `__vector_N` symbols and simavr do (the ATmega2560 datasheet's "Reset and Interrupt Vectors"
+/// table counts from 1 and lists it as vector 33, program address `0x0040`).
 pub const TIMER3_COMPA: u8 = 32;
 
-/// Rig settings.
+/// Bench settings.
 #[derive(Clone, Debug)]
-pub struct RigConfig {
+pub struct BenchConfig {
     /// Firmware ELF.
     pub elf: PathBuf,
     /// Core clock, Hz.
     pub frequency: u32,
-    /// Blower (100 Hz parameters; the rig sub-steps it).
+    /// Blower (100 Hz parameters; the bench sub-steps it).
     pub pump: PumpParams,
     /// Sensor error model.
     pub sensor: Sfm3300Params,
@@ -59,7 +64,7 @@ pub struct RigConfig {
     pub eeprom: Vec<(u16, Vec<u8>)>,
 }
 
-impl RigConfig {
+impl BenchConfig {
     /// ATmega2560 at 16 MHz, default pump and sensor, seed 1, OC4A (the board's pump PWM),
     /// TIMER3_COMPA tick.
     pub fn new(elf: impl Into<PathBuf>) -> Self {
@@ -314,15 +319,17 @@ pub enum Action {
     Stall(bool),
 }
 
-/// The closed-loop rig.
-pub struct Rig {
+/// The closed-loop bench: the simulated MCU running the firmware, its UART transcript, the
+/// simulated SFM3300 on its TWI bus and the blower model on its PWM pin, with the timing meter
+/// (see the module docs). Time is the core's cycle counter; [`Bench::time_s`] in seconds.
+pub struct Bench {
     /// The simulated MCU.
     pub machine: Machine,
     /// The simulated sensor's shared state.
     pub sensor: Rc<RefCell<SensorState>>,
     /// The blower (sub-stepped at 0.5 ms).
     pub pump: Pump,
-    cfg: RigConfig,
+    cfg: BenchConfig,
     channel: Option<Channel>,
     uart: Rc<RefCell<Vec<UartByte>>>,
     uart_seen: usize,
@@ -344,18 +351,18 @@ pub struct Rig {
     halted: Option<Halt>,
 }
 
-impl std::fmt::Debug for Rig {
+impl std::fmt::Debug for Bench {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Rig")
+        f.debug_struct("Bench")
             .field("cycle", &self.machine.cycle())
             .field("lines", &self.lines.len())
             .finish()
     }
 }
 
-impl Rig {
+impl Bench {
     /// Loads the firmware, attaches sensor and pump, programs the EEPROM; the core is at reset.
-    pub fn new(cfg: RigConfig) -> Result<Self, String> {
+    pub fn new(cfg: BenchConfig) -> Result<Self, String> {
         let mut machine = Machine::new("atmega2560", cfg.frequency, &cfg.elf)?;
         for (off, bytes) in &cfg.eeprom {
             machine.set_eeprom(*off, bytes)?;
@@ -419,7 +426,7 @@ impl Rig {
     }
 
     /// The configuration.
-    pub fn config(&self) -> &RigConfig {
+    pub fn config(&self) -> &BenchConfig {
         &self.cfg
     }
 
@@ -651,7 +658,7 @@ impl Rig {
     }
 }
 
-/// How [`Rig::run_until`] ended.
+/// How [`Bench::run_until`] ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RunEnd {
     /// Reached the time limit.
