@@ -26,13 +26,14 @@ pub mod report;
 
 pub use error::IdError;
 pub use eval::{evaluate_file, read_record, Figures, RecordStats, Trace};
-pub use options::{MethodName, Options};
+pub use options::Options;
 pub use report::{Hyper, Report, SearchInfo};
 
-use ridge_core::{ArxModel, Criterion, Error as CoreError, Grid, Normal, Rls, Search, Structure};
+use ridge_core::{
+    ArxModel, Criterion, Error as CoreError, Grid, MethodKind, Normal, Rls, Search, Structure,
+};
 
 use csv::CsvRecord;
-use eval::criterion_value;
 
 /// Points kept per signal for the plot.
 pub const PLOT_POINTS: usize = 2000;
@@ -175,31 +176,26 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         })?;
     let structure = sel.structure();
     let (model, iterations, rss, score) = match opts.method {
-        MethodName::Rls => {
+        MethodKind::Rls => {
             let (model, samples) = run_rls(opts, structure)?;
             let rss_of = |n: &Normal<f64>, path: &std::path::Path| {
                 n.rss(&model)
                     .map_err(|e| IdError::file(path, format!("cannot score the RLS model: {e}")))
             };
             let rss = rss_of(&est_normal, &opts.input)?;
-            let score = match (&val_normal, &val) {
-                (Some(vn), Some(v)) => criterion_value(
-                    opts.criterion,
-                    opts.hyper.alpha,
-                    rss_of(vn, &v.path)?,
-                    vn.samples(),
-                    structure,
-                    opts.offset,
-                ),
-                _ => criterion_value(
-                    opts.criterion,
-                    opts.hyper.alpha,
-                    rss,
-                    est_normal.samples(),
-                    structure,
-                    opts.offset,
-                ),
+            // Scored like the search scores its candidates: on the validation statistics
+            // for `validation`, else on the estimation statistics.
+            let (score_rss, score_samples) = match (&val_normal, &val) {
+                (Some(vn), Some(v)) => (rss_of(vn, &v.path)?, vn.samples()),
+                _ => (rss, est_normal.samples()),
             };
+            let score = opts.criterion.value(
+                opts.hyper.alpha,
+                score_rss,
+                score_samples,
+                structure,
+                opts.offset,
+            );
             (model, samples, rss, score)
         }
         _ => (sel.fit.model(), sel.fit.iterations, sel.fit.rss, sel.score),
