@@ -30,7 +30,8 @@ pub struct Cli {
 pub enum Command {
     /// Identify y_t = Σθ_i y_{t-i} + Σφ_j u_{t-j-d} (+ c) from a CSV log with columns u and y
     /// (other columns, such as t, are ignored). Scores are one-step and free-run RMSE / fit %
-    /// from measured initial conditions (samples m..N, SPEC §6).
+    /// from measured initial conditions: both predictors are seeded with the first
+    /// m = max(p, d+q-1) measured samples and scored on samples m..N.
     Identify(IdentifyArgs),
 }
 

@@ -1,10 +1,11 @@
 //! Streaming passes over a CSV record: statistics for estimation ([`read_record`]) and
 //! scores of a model ([`evaluate_file`]), each in constant memory.
 //!
-//! Scores follow SPEC §6: one-step-ahead and free-run predictors are seeded with the
-//! first `m = max(p, d + q − 1)` measured samples and samples `m..N` are scored
-//! ([`ridge_core::Evaluation`]), so a model is not charged for a start-up transient it
-//! cannot know.
+//! Scores are from measured initial conditions: the one-step-ahead and free-run predictors
+//! are seeded with the first `m = max(p, d + q − 1)` measured samples and scored on
+//! samples `m..N` ([`ridge_core::Evaluation`]), as MATLAB `compare` and SysIdentPy do, so a
+//! model is not charged for a start-up transient it cannot know. (Estimation keeps the
+//! paper's zero history before the record, eq. 6 of the paper (Ridge-M ventilation pump).)
 
 use std::path::{Path, PathBuf};
 
@@ -184,7 +185,7 @@ pub fn evaluate_file(
         IdError::file(
             path,
             format!(
-                "too short to score the model: its first {m} samples only seed the predictors (SPEC §6), at least {} data rows needed",
+                "too short to score the model: its first {m} samples only seed the predictors, at least {} data rows needed",
                 m + 1
             ),
         )

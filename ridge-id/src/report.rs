@@ -48,7 +48,9 @@ impl Default for Hyper {
 pub struct SearchInfo {
     /// Candidates in the grid (1 with `--structure`).
     pub candidates: u16,
-    /// Candidates the estimator ran on (the rest were pruned exactly, SPEC §4).
+    /// Candidates the estimator ran on. The rest were pruned exactly: least squares
+    /// minimises the RSS, so a candidate's least-squares criterion is a lower bound of its
+    /// score, and candidates whose bound is worse than the best score found are skipped.
     pub evaluated: u16,
     /// Candidates that could not be fitted (too short, or not excited on this record).
     pub skipped: u16,
@@ -342,12 +344,13 @@ impl Report {
         let seed = s.seed_len();
         let _ = writeln!(
             o,
-            "  Scores from measured initial conditions: both predictors are seeded with the first"
+            "  Scores from measured initial conditions, as in MATLAB compare and SysIdentPy: both"
         );
         let _ = writeln!(
             o,
-            "  m = max(p, d+q-1) = {seed} measured samples and samples m..N are scored (SPEC §6)."
+            "  predictors are seeded with the first m = max(p, d+q-1) = {seed} measured samples and"
         );
+        let _ = writeln!(o, "  samples m..N are scored.");
         let _ = writeln!(
             o,
             "  {:<11} {:>8} {:>14} {:>14} {:>13} {:>13}",
