@@ -4,10 +4,15 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Args, Parser, Subcommand, ValueEnum};
-use ridge_core::{Criterion, Grid, Offset, OrderRange, Structure, D_MAX, P_MAX, Q_MAX};
+use std::str::FromStr;
 
-use crate::options::{parse_range, parse_structure, MethodName, Options};
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+use clap::{Args, Parser, Subcommand};
+use ridge_core::{
+    Criterion, Grid, MethodKind, Offset, OrderRange, Structure, UnknownName, D_MAX, P_MAX, Q_MAX,
+};
+
+use crate::options::{parse_range, parse_structure, Options};
 use crate::report::Hyper;
 use crate::run;
 
@@ -25,69 +30,60 @@ pub struct Cli {
 pub enum Command {
     /// Identify y_t = Σθ_i y_{t-i} + Σφ_j u_{t-j-d} (+ c) from a CSV log with columns u and y
     /// (other columns, such as t, are ignored). Scores are one-step and free-run RMSE / fit %
-    /// from measured initial conditions (samples m..N, SPEC §6).
+    /// from measured initial conditions: both predictors are seeded with the first
+    /// m = max(p, d+q-1) measured samples and scored on samples m..N.
     Identify(IdentifyArgs),
 }
 
-/// Estimator names on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum MethodArg {
-    /// Ridge with momentum (the paper's method).
-    #[value(name = "ridge-m")]
-    RidgeM,
-    /// Plain Ridge (one Ridge-M iterate).
-    Ridge,
-    /// Ordinary least squares.
-    Ols,
-    /// Recursive least squares on the Ridge-M search's structure (or --structure).
-    Rls,
-    /// Adaptive LASSO (weights from least squares, lambda by BIC).
-    Alasso,
+/// A clap parser of the names of `all`: it accepts exactly `name(v)` for each `v` of `all`
+/// (ridge-core's one name table) and converts with the enum's `FromStr`; `--help` lists
+/// the names, each with `help(v)`, and clap's error for another word lists them too.
+fn names<T>(
+    all: &'static [T],
+    name: fn(T) -> &'static str,
+    help: fn(T) -> &'static str,
+) -> impl TypedValueParser<Value = T>
+where
+    T: Copy + FromStr<Err = UnknownName> + Send + Sync + 'static,
+{
+    PossibleValuesParser::new(
+        all.iter()
+            .map(|&v| PossibleValue::new(name(v)).help(help(v))),
+    )
+    .try_map(|s| s.parse::<T>())
 }
 
-impl From<MethodArg> for MethodName {
-    fn from(m: MethodArg) -> Self {
-        match m {
-            MethodArg::RidgeM => MethodName::RidgeM,
-            MethodArg::Ridge => MethodName::Ridge,
-            MethodArg::Ols => MethodName::Ols,
-            MethodArg::Rls => MethodName::Rls,
-            MethodArg::Alasso => MethodName::AdaptiveLasso,
+/// `--help` text of an estimator.
+fn method_help(m: MethodKind) -> &'static str {
+    match m {
+        MethodKind::RidgeM => "Ridge with momentum (the paper's method)",
+        MethodKind::Ridge => "Plain Ridge (one Ridge-M iterate)",
+        MethodKind::Ols => "Ordinary least squares",
+        MethodKind::Rls => {
+            "Recursive least squares on the Ridge-M search's structure (or --structure)"
+        }
+        MethodKind::AdaptiveLasso => "Adaptive LASSO (weights from least squares, lambda by BIC)",
+    }
+}
+
+/// `--help` text of a criterion.
+fn criterion_help(c: Criterion) -> &'static str {
+    match c {
+        Criterion::Paper => "The paper's eq. (14): N ln(RSS/N) + alpha (p+q+d)",
+        Criterion::Aic => "Delay-free AIC: N ln(RSS/N) + alpha (p+q)",
+        Criterion::Bic => "BIC: N ln(RSS/N) + ln(N) (p+q)",
+        Criterion::Validation => {
+            "One-step (equation-error) loss on the --validate record, no penalty"
         }
     }
 }
 
-/// Criterion names on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum CriterionArg {
-    /// The paper's eq. (14): N ln(RSS/N) + alpha (p+q+d).
-    Paper,
-    /// Delay-free AIC: N ln(RSS/N) + alpha (p+q).
-    Aic,
-    /// BIC: N ln(RSS/N) + ln(N) (p+q).
-    Bic,
-    /// One-step (equation-error) loss on the --validate record, no penalty.
-    Validation,
-}
-
-impl From<CriterionArg> for Criterion {
-    fn from(c: CriterionArg) -> Self {
-        match c {
-            CriterionArg::Paper => Criterion::Paper,
-            CriterionArg::Aic => Criterion::Aic,
-            CriterionArg::Bic => Criterion::Bic,
-            CriterionArg::Validation => Criterion::Validation,
-        }
+/// `--help` text of an offset choice.
+fn offset_help(o: Offset) -> &'static str {
+    match o {
+        Offset::None => "No constant term (the paper's model)",
+        Offset::Intercept => "A constant term c (absorbs a dead zone or sensor offset)",
     }
-}
-
-/// Offset names on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum OffsetArg {
-    /// No constant term (the paper's model).
-    None,
-    /// A constant term c (absorbs a dead zone or sensor offset).
-    Intercept,
 }
 
 fn p_range(s: &str) -> Result<OrderRange, String> {
@@ -110,11 +106,19 @@ pub struct IdentifyArgs {
     #[arg(long, value_name = "VAL.csv")]
     pub validate: Option<PathBuf>,
     /// Estimator.
-    #[arg(long, value_enum, default_value = "ridge-m")]
-    pub method: MethodArg,
+    #[arg(
+        long,
+        default_value_t = MethodKind::default(),
+        value_parser = names(&MethodKind::ALL, MethodKind::name, method_help)
+    )]
+    pub method: MethodKind,
     /// Structure criterion (aic: delay-free AIC, the core's default; validation needs --validate).
-    #[arg(long, value_enum, default_value = "aic")]
-    pub criterion: CriterionArg,
+    #[arg(
+        long,
+        default_value_t = Criterion::default(),
+        value_parser = names(&Criterion::ALL, Criterion::name, criterion_help)
+    )]
+    pub criterion: Criterion,
     /// Ridge / Ridge-M regularisation gamma.
     #[arg(long, value_name = "G", default_value_t = Hyper::default().gamma)]
     pub gamma: f64,
@@ -149,8 +153,12 @@ pub struct IdentifyArgs {
     #[arg(long, value_name = "P,Q,D", value_parser = parse_structure, conflicts_with_all = ["p", "q", "d"])]
     pub structure: Option<Structure>,
     /// Constant term.
-    #[arg(long, value_enum, default_value = "none")]
-    pub offset: OffsetArg,
+    #[arg(
+        long,
+        default_value_t = Offset::default(),
+        value_parser = names(&Offset::ALL, Offset::name, offset_help)
+    )]
+    pub offset: Offset,
     /// Print exactly one JSON object instead of the readable report.
     #[arg(long)]
     pub json: bool,
@@ -165,8 +173,8 @@ impl IdentifyArgs {
         Options {
             input: self.input.clone(),
             validate: self.validate.clone(),
-            method: self.method.into(),
-            criterion: self.criterion.into(),
+            method: self.method,
+            criterion: self.criterion,
             hyper: Hyper {
                 gamma: self.gamma,
                 beta: self.beta,
@@ -182,10 +190,7 @@ impl IdentifyArgs {
                 d: self.d,
             },
             structure: self.structure,
-            offset: match self.offset {
-                OffsetArg::None => Offset::None,
-                OffsetArg::Intercept => Offset::Intercept,
-            },
+            offset: self.offset,
             plot: self.plot.clone(),
         }
     }
@@ -243,5 +248,61 @@ pub fn main() -> ExitCode {
                 ExitCode::FAILURE
             }
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn identify(extra: &[&str]) -> Result<IdentifyArgs, clap::Error> {
+        let mut argv = vec!["ridge-id", "identify", "--input", "x.csv"];
+        argv.extend(extra);
+        Cli::try_parse_from(argv).map(|cli| match cli.command {
+            Command::Identify(a) => a,
+        })
+    }
+
+    #[test]
+    fn names_on_the_command_line() {
+        let a = identify(&[]).unwrap();
+        assert_eq!(
+            (a.method, a.criterion, a.offset),
+            (MethodKind::RidgeM, Criterion::Aic, Offset::None)
+        );
+        for (word, want) in [
+            ("ridge-m", MethodKind::RidgeM),
+            ("ridge", MethodKind::Ridge),
+            ("ols", MethodKind::Ols),
+            ("rls", MethodKind::Rls),
+            ("alasso", MethodKind::AdaptiveLasso),
+        ] {
+            assert_eq!(identify(&["--method", word]).unwrap().method, want);
+        }
+        for (word, want) in [
+            ("paper", Criterion::Paper),
+            ("aic", Criterion::Aic),
+            ("bic", Criterion::Bic),
+            ("validation", Criterion::Validation),
+        ] {
+            assert_eq!(identify(&["--criterion", word]).unwrap().criterion, want);
+        }
+        for (word, want) in [("none", Offset::None), ("intercept", Offset::Intercept)] {
+            assert_eq!(identify(&["--offset", word]).unwrap().offset, want);
+        }
+        // Names are exact: no other spelling or case.
+        for (flag, word) in [
+            ("--method", "lasso"),
+            ("--method", "Ridge-M"),
+            ("--criterion", "AIC"),
+            ("--offset", "const"),
+        ] {
+            let e = identify(&[flag, word]).unwrap_err();
+            assert_eq!(
+                e.kind(),
+                clap::error::ErrorKind::InvalidValue,
+                "{flag} {word}"
+            );
+        }
     }
 }

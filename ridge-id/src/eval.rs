@@ -1,17 +1,15 @@
 //! Streaming passes over a CSV record: statistics for estimation ([`read_record`]) and
 //! scores of a model ([`evaluate_file`]), each in constant memory.
 //!
-//! Scores follow SPEC §6: one-step-ahead and free-run predictors are seeded with the
-//! first `m = max(p, d + q − 1)` measured samples and samples `m..N` are scored
-//! ([`ridge_core::Evaluation`]), so a model is not charged for a start-up transient it
-//! cannot know.
+//! Scores are from measured initial conditions: the one-step-ahead and free-run predictors
+//! are seeded with the first `m = max(p, d + q − 1)` measured samples and scored on
+//! samples `m..N` ([`ridge_core::Evaluation`]), as MATLAB `compare` and SysIdentPy do, so a
+//! model is not charged for a start-up transient it cannot know. (Estimation keeps the
+//! paper's zero history before the record, eq. 6 of the paper (Ridge-M ventilation pump).)
 
 use std::path::{Path, PathBuf};
 
-use ridge_core::{
-    ArxModel, Criterion, Error as CoreError, Evaluation, FloatGram, Normal, Offset, Scale,
-    Structure,
-};
+use ridge_core::{ArxModel, Error as CoreError, Evaluation, FloatGram, Normal, Scale};
 
 use crate::csv::{CsvRecord, Sample};
 use crate::error::IdError;
@@ -187,34 +185,11 @@ pub fn evaluate_file(
         IdError::file(
             path,
             format!(
-                "too short to score the model: its first {m} samples only seed the predictors (SPEC §6), at least {} data rows needed",
+                "too short to score the model: its first {m} samples only seed the predictors, at least {} data rows needed",
                 m + 1
             ),
         )
     })
-}
-
-/// The value of a structure criterion (SPEC §4) for a residual sum of squares `rss` on
-/// `samples` samples: `N ln(RSS/N)` plus `α (p + q + d)` (paper), `α (p + q)` (AIC),
-/// `ln(N) (p + q)` (BIC) or nothing (validation); `p + q` counts the intercept too.
-/// The same formula as [`ridge_core::Search`], for models the search did not fit (RLS).
-pub fn criterion_value(
-    criterion: Criterion,
-    alpha: f64,
-    rss: f64,
-    samples: u32,
-    structure: Structure,
-    offset: Offset,
-) -> f64 {
-    let n = f64::from(samples);
-    let k = f64::from(structure.p) + f64::from(structure.q) + offset.params() as f64;
-    let fit = n * (rss / n).ln();
-    match criterion {
-        Criterion::Paper => fit + alpha * (k + f64::from(structure.d)),
-        Criterion::Aic => fit + alpha * k,
-        Criterion::Bic => fit + n.ln() * k,
-        Criterion::Validation => fit,
-    }
 }
 
 /// A bounded picture of one signal for plotting: every sample while the record has at
@@ -380,14 +355,5 @@ mod tests {
         assert_eq!(t.measured.lower(), t.measured.upper());
         assert_eq!(t.measured.buckets.len(), 10);
         assert!(t.one_step.buckets.is_empty());
-    }
-
-    #[test]
-    fn criterion_matches_the_formula() {
-        let s = Structure::new(2, 3, 1).unwrap();
-        let v = criterion_value(Criterion::Paper, 12.0, 5.0, 100, s, Offset::Intercept);
-        assert!((v - (100.0 * (0.05f64).ln() + 12.0 * 7.0)).abs() < 1e-12);
-        let v = criterion_value(Criterion::Bic, 12.0, 5.0, 100, s, Offset::None);
-        assert!((v - (100.0 * (0.05f64).ln() + (100f64).ln() * 5.0)).abs() < 1e-12);
     }
 }

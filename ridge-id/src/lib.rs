@@ -1,15 +1,31 @@
 //! `ridge-id`: ARX identification of a logged `u`/`y` record (CSV), as a library.
 //!
-//! The binary `ridge-id` (`src/main.rs`) only parses the command line
-//! ([`cli`]) and prints a [`Report`]; everything else is here so that other programs
-//! (e.g. the paper tables) can reuse the pieces:
-//! - [`csv::CsvRecord`]: streaming CSV reader with line-numbered errors.
+//! The crate is `ridge-id/` in the workspace. Its binary `ridge-id` (`src/main.rs`) only
+//! calls [`cli::main`], which parses the command line (clap) and prints a [`Report`]:
+//!
+//! ```text
+//! cargo run --release -p ridge-id -- identify --input LOG.csv [--validate VAL.csv] [--json]
+//! ```
+//!
+//! Everything else is here, so that other programs (e.g. the paper tables, the whole-firmware
+//! simulation's plots) can reuse the pieces:
+//! - [`csv::CsvRecord`]: streaming CSV reader (the `csv` crate) with line-numbered errors.
 //! - [`eval::read_record`]: one streaming pass into exact statistics
 //!   ([`ridge_core::FloatGram`], `f64`).
 //! - [`eval::evaluate_file`]: one streaming pass scoring a model one-step and free-run
-//!   from measured initial conditions (SPEC §6), optionally collecting a bounded
+//!   from measured initial conditions (seeded with the first `m = max(p, d + q − 1)`
+//!   measured samples, scored on samples `m..N`), optionally collecting a bounded
 //!   [`eval::Trace`] for [`plot::write_png`].
-//! - [`run`]: the whole identification of [`Options`] → [`Report`] (text or JSON).
+//! - [`Options`] (`src/options.rs`): what a run does; estimators, criteria and offsets are
+//!   ridge-core's [`ridge_core::MethodKind`], [`ridge_core::Criterion`] and
+//!   [`ridge_core::Offset`], named by their `name()` on the command line and in reports.
+//! - [`run`]: the whole identification of [`Options`] → [`Report`] (`src/report.rs`: text
+//!   or JSON); every failure is an [`IdError`] (`src/error.rs`), one line naming the file,
+//!   the line and the problem.
+//!
+//! Tests: `tests/cli.rs` runs the binary (JSON shape, bad input, a known ARX plant from
+//! `pump-sim`, 10⁶ rows in flat memory); `tests/logged_data.rs` checks the library on the
+//! two real records of `shared/data/` against an explicit regression built with nalgebra.
 //!
 //! Memory is independent of the record length: the estimation record is read once for
 //! the statistics, once more to score the model (and once more for RLS); the
@@ -26,13 +42,14 @@ pub mod report;
 
 pub use error::IdError;
 pub use eval::{evaluate_file, read_record, Figures, RecordStats, Trace};
-pub use options::{MethodName, Options};
+pub use options::Options;
 pub use report::{Hyper, Report, SearchInfo};
 
-use ridge_core::{ArxModel, Criterion, Error as CoreError, Grid, Normal, Rls, Search, Structure};
+use ridge_core::{
+    ArxModel, Criterion, Error as CoreError, Grid, MethodKind, Normal, Rls, Search, Structure,
+};
 
 use csv::CsvRecord;
-use eval::criterion_value;
 
 /// Points kept per signal for the plot.
 pub const PLOT_POINTS: usize = 2000;
@@ -175,31 +192,26 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         })?;
     let structure = sel.structure();
     let (model, iterations, rss, score) = match opts.method {
-        MethodName::Rls => {
+        MethodKind::Rls => {
             let (model, samples) = run_rls(opts, structure)?;
             let rss_of = |n: &Normal<f64>, path: &std::path::Path| {
                 n.rss(&model)
                     .map_err(|e| IdError::file(path, format!("cannot score the RLS model: {e}")))
             };
             let rss = rss_of(&est_normal, &opts.input)?;
-            let score = match (&val_normal, &val) {
-                (Some(vn), Some(v)) => criterion_value(
-                    opts.criterion,
-                    opts.hyper.alpha,
-                    rss_of(vn, &v.path)?,
-                    vn.samples(),
-                    structure,
-                    opts.offset,
-                ),
-                _ => criterion_value(
-                    opts.criterion,
-                    opts.hyper.alpha,
-                    rss,
-                    est_normal.samples(),
-                    structure,
-                    opts.offset,
-                ),
+            // Scored like the search scores its candidates: on the validation statistics
+            // for `validation`, else on the estimation statistics.
+            let (score_rss, score_samples) = match (&val_normal, &val) {
+                (Some(vn), Some(v)) => (rss_of(vn, &v.path)?, vn.samples()),
+                _ => (rss, est_normal.samples()),
             };
+            let score = opts.criterion.value(
+                opts.hyper.alpha,
+                score_rss,
+                score_samples,
+                structure,
+                opts.offset,
+            );
             (model, samples, rss, score)
         }
         _ => (sel.fit.model(), sel.fit.iterations, sel.fit.rss, sel.score),

@@ -1,114 +1,16 @@
-//! What an identification run does: [`Options`] and the names used on the command line
-//! and in reports.
+//! What an identification run does: [`Options`], and the parsers of the order ranges and
+//! structures of the command line. The names of estimators, criteria and offsets are
+//! ridge-core's ([`MethodKind`], [`Criterion`], [`Offset`]: `name()` and `FromStr`).
 
-use std::fmt;
 use std::path::PathBuf;
-use std::str::FromStr;
 
 use ridge_core::{
-    AdaptiveLasso, Criterion, Grid, Method as CoreMethod, Offset, OrderRange, Ridge, RidgeM,
-    Structure, D_MAX, P_MAX, Q_MAX,
+    AdaptiveLasso, Criterion, Grid, Method as CoreMethod, MethodKind, Offset, OrderRange, Ridge,
+    RidgeM, Structure, D_MAX, P_MAX, Q_MAX,
 };
 
 use crate::error::IdError;
 use crate::report::Hyper;
-
-/// The estimator, by its command-line name.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum MethodName {
-    /// `ridge-m`: Ridge with momentum (the paper's method), [`RidgeM`].
-    #[default]
-    RidgeM,
-    /// `ridge`: plain Ridge, [`Ridge`] (one Ridge-M iterate).
-    Ridge,
-    /// `ols`: ordinary least squares.
-    Ols,
-    /// `rls`: recursive least squares on the structure chosen by a Ridge-M search (or
-    /// fixed by `--structure`), run sample by sample over the estimation record.
-    Rls,
-    /// `alasso`: adaptive LASSO, [`AdaptiveLasso::default`] (λ by BIC).
-    AdaptiveLasso,
-}
-
-impl MethodName {
-    /// All methods, in command-line order.
-    pub const ALL: [MethodName; 5] = [
-        MethodName::RidgeM,
-        MethodName::Ridge,
-        MethodName::Ols,
-        MethodName::Rls,
-        MethodName::AdaptiveLasso,
-    ];
-
-    /// The command-line and report name (`ridge-m`, `ridge`, `ols`, `rls`, `alasso`).
-    pub fn name(self) -> &'static str {
-        match self {
-            MethodName::RidgeM => "ridge-m",
-            MethodName::Ridge => "ridge",
-            MethodName::Ols => "ols",
-            MethodName::Rls => "rls",
-            MethodName::AdaptiveLasso => "alasso",
-        }
-    }
-}
-
-impl fmt::Display for MethodName {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for MethodName {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        MethodName::ALL
-            .into_iter()
-            .find(|m| m.name() == s)
-            .ok_or_else(|| {
-                format!("unknown method {s:?} (expected ridge-m, ridge, ols, rls or alasso)")
-            })
-    }
-}
-
-/// The command-line and report name of a criterion (`paper`, `aic`, `bic`, `validation`).
-pub fn criterion_name(c: Criterion) -> &'static str {
-    match c {
-        Criterion::Paper => "paper",
-        Criterion::Aic => "aic",
-        Criterion::Bic => "bic",
-        Criterion::Validation => "validation",
-    }
-}
-
-/// Parses a criterion name (see [`criterion_name`]).
-pub fn parse_criterion(s: &str) -> Result<Criterion, String> {
-    [
-        Criterion::Paper,
-        Criterion::Aic,
-        Criterion::Bic,
-        Criterion::Validation,
-    ]
-    .into_iter()
-    .find(|c| criterion_name(*c) == s)
-    .ok_or_else(|| format!("unknown criterion {s:?} (expected paper, aic, bic or validation)"))
-}
-
-/// The command-line name of an offset choice (`none`, `intercept`).
-pub fn offset_name(o: Offset) -> &'static str {
-    match o {
-        Offset::None => "none",
-        Offset::Intercept => "intercept",
-    }
-}
-
-/// Parses an offset name (see [`offset_name`]).
-pub fn parse_offset(s: &str) -> Result<Offset, String> {
-    match s {
-        "none" => Ok(Offset::None),
-        "intercept" => Ok(Offset::Intercept),
-        _ => Err(format!("unknown offset {s:?} (expected none or intercept)")),
-    }
-}
 
 /// Parses an inclusive order range: `1..=6` or a single number `3`, checked against
 /// `lo..=hi`.
@@ -157,9 +59,13 @@ pub struct Options {
     /// Optional validation record, scored like the estimation record; required by
     /// [`Criterion::Validation`].
     pub validate: Option<PathBuf>,
-    /// Estimator (default `ridge-m`).
-    pub method: MethodName,
-    /// Structure criterion (default delay-free AIC, the core's default: SPEC §4).
+    /// Estimator (default `ridge-m`). [`MethodKind::Rls`] runs recursive least squares,
+    /// sample by sample over the estimation record, on the structure a Ridge-M search picks
+    /// (or [`Options::structure`]); [`MethodKind::AdaptiveLasso`] is
+    /// [`AdaptiveLasso::default`] (weights from least squares, λ by BIC).
+    pub method: MethodKind,
+    /// Structure criterion (default: delay-free AIC, the core's default, which unlike the
+    /// paper's criterion can find a true delay; see [`Criterion`]).
     pub criterion: Criterion,
     /// Hyper-parameters (defaults: [`Hyper::default`], the paper's).
     pub hyper: Hyper,
@@ -179,7 +85,7 @@ impl Options {
         Options {
             input: input.into(),
             validate: None,
-            method: MethodName::RidgeM,
+            method: MethodKind::RidgeM,
             criterion: Criterion::Aic,
             hyper: Hyper::default(),
             grid: Grid::default(),
@@ -208,12 +114,12 @@ impl Options {
     /// `rls` (which is not a Gram method: it only borrows the search's structure).
     pub fn core_method(&self) -> CoreMethod<f64> {
         match self.method {
-            MethodName::RidgeM | MethodName::Rls => CoreMethod::RidgeM(self.ridge_m()),
-            MethodName::Ridge => CoreMethod::Ridge(Ridge {
+            MethodKind::RidgeM | MethodKind::Rls => CoreMethod::RidgeM(self.ridge_m()),
+            MethodKind::Ridge => CoreMethod::Ridge(Ridge {
                 gamma: self.hyper.gamma,
             }),
-            MethodName::Ols => CoreMethod::Ols,
-            MethodName::AdaptiveLasso => CoreMethod::AdaptiveLasso(AdaptiveLasso::default()),
+            MethodKind::Ols => CoreMethod::Ols,
+            MethodKind::AdaptiveLasso => CoreMethod::AdaptiveLasso(AdaptiveLasso::default()),
         }
     }
 
@@ -279,21 +185,34 @@ mod tests {
     }
 
     #[test]
-    fn structures_and_names() {
+    fn structures() {
         assert_eq!(
             parse_structure("2,2,3"),
             Structure::new(2, 2, 3).map_err(|e| e.to_string())
         );
         assert!(parse_structure("2,2").is_err());
         assert!(parse_structure("0,1,0").is_err());
-        for m in MethodName::ALL {
-            assert_eq!(m.name().parse::<MethodName>(), Ok(m));
+    }
+
+    #[test]
+    fn core_method_is_the_method_and_ridge_m_for_rls() {
+        let mut o = Options::new("x.csv");
+        for m in MethodKind::ALL {
+            o.method = m;
+            let want = if m == MethodKind::Rls {
+                MethodKind::RidgeM
+            } else {
+                m
+            };
+            assert_eq!(o.core_method().kind(), want);
         }
-        for c in ["paper", "aic", "bic", "validation"] {
-            assert_eq!(criterion_name(parse_criterion(c).unwrap()), c);
+        o.method = MethodKind::RidgeM;
+        o.hyper.gamma = 7.0;
+        o.hyper.max_iter = 3;
+        match o.core_method() {
+            CoreMethod::RidgeM(r) => assert_eq!((r.gamma, r.max_iter), (7.0, 3)),
+            other => panic!("{other:?}"),
         }
-        assert_eq!(parse_offset("intercept"), Ok(Offset::Intercept));
-        assert!(parse_offset("const").is_err());
     }
 
     #[test]

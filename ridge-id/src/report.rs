@@ -4,11 +4,10 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use ridge_core::{ArxModel, Criterion, Offset};
+use ridge_core::{ArxModel, Criterion, MethodKind, Offset};
 use serde::Serialize;
 
 use crate::eval::Figures;
-use crate::options::{criterion_name, offset_name, MethodName};
 
 /// Hyper-parameters of a run (all of them, whether the method uses them or not).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -49,7 +48,9 @@ impl Default for Hyper {
 pub struct SearchInfo {
     /// Candidates in the grid (1 with `--structure`).
     pub candidates: u16,
-    /// Candidates the estimator ran on (the rest were pruned exactly, SPEC §4).
+    /// Candidates the estimator ran on. The rest were pruned exactly: least squares
+    /// minimises the RSS, so a candidate's least-squares criterion is a lower bound of its
+    /// score, and candidates whose bound is worse than the best score found are skipped.
     pub evaluated: u16,
     /// Candidates that could not be fitted (too short, or not excited on this record).
     pub skipped: u16,
@@ -69,7 +70,7 @@ pub struct Report {
     /// Its number of samples.
     pub validate_rows: Option<u32>,
     /// Estimator.
-    pub method: MethodName,
+    pub method: MethodKind,
     /// Structure criterion.
     pub criterion: Criterion,
     /// The identified model (structure, θ, φ, offset).
@@ -187,7 +188,7 @@ impl Report {
         let s = self.model.structure();
         Json {
             method: self.method.name(),
-            criterion: criterion_name(self.criterion),
+            criterion: self.criterion.name(),
             structure: JsonStructure {
                 p: s.p,
                 q: s.q,
@@ -256,16 +257,16 @@ impl Report {
             self.input_rows
         );
         let method = match self.method {
-            MethodName::RidgeM => format!(
+            MethodKind::RidgeM => format!(
                 "ridge-m (gamma {}, beta {}, tol {}, max-iter {})",
                 hp(h.gamma),
                 hp(h.beta),
                 hp(h.tol),
                 h.max_iter
             ),
-            MethodName::Ridge => format!("ridge (gamma {})", hp(h.gamma)),
-            MethodName::Ols => "ols (least squares)".to_string(),
-            MethodName::Rls => format!(
+            MethodKind::Ridge => format!("ridge (gamma {})", hp(h.gamma)),
+            MethodKind::Ols => "ols (least squares)".to_string(),
+            MethodKind::Rls => format!(
                 "rls (lambda {}, delta {}); structure from a ridge-m search (gamma {}, beta {}, tol {}, max-iter {})",
                 hp(h.lambda),
                 hp(h.delta),
@@ -274,7 +275,7 @@ impl Report {
                 hp(h.tol),
                 h.max_iter
             ),
-            MethodName::AdaptiveLasso => {
+            MethodKind::AdaptiveLasso => {
                 "alasso (adaptive LASSO, weights 1/|w_ols|, lambda by BIC)".to_string()
             }
         };
@@ -309,18 +310,18 @@ impl Report {
             s.p,
             s.q,
             s.d,
-            offset_name(m.offset())
+            m.offset().name()
         );
         let iter_note = match self.method {
-            MethodName::RidgeM if self.iterations >= h.max_iter => " (max-iter reached)",
-            MethodName::RidgeM => " (converged: step below tol)",
-            MethodName::Rls => " (one update per sample)",
-            MethodName::AdaptiveLasso
+            MethodKind::RidgeM if self.iterations >= h.max_iter => " (max-iter reached)",
+            MethodKind::RidgeM => " (converged: step below tol)",
+            MethodKind::Rls => " (one update per sample)",
+            MethodKind::AdaptiveLasso
                 if self.iterations >= ridge_core::AdaptiveLasso::<f64>::default().max_sweeps =>
             {
                 " (coordinate-descent sweeps: budget reached, not converged)"
             }
-            MethodName::AdaptiveLasso => " (coordinate-descent sweeps)",
+            MethodKind::AdaptiveLasso => " (coordinate-descent sweeps)",
             _ => "",
         };
         let _ = writeln!(o, "  iterations  {}{iter_note}", self.iterations);
@@ -343,12 +344,13 @@ impl Report {
         let seed = s.seed_len();
         let _ = writeln!(
             o,
-            "  Scores from measured initial conditions: both predictors are seeded with the first"
+            "  Scores from measured initial conditions, as in MATLAB compare and SysIdentPy: both"
         );
         let _ = writeln!(
             o,
-            "  m = max(p, d+q-1) = {seed} measured samples and samples m..N are scored (SPEC §6)."
+            "  predictors are seeded with the first m = max(p, d+q-1) = {seed} measured samples and"
         );
+        let _ = writeln!(o, "  samples m..N are scored.");
         let _ = writeln!(
             o,
             "  {:<11} {:>8} {:>14} {:>14} {:>13} {:>13}",
