@@ -35,6 +35,7 @@
 //! paths; the host tests check it.
 
 mod cholesky;
+pub mod control;
 pub mod error;
 pub mod estimate;
 pub mod excitation;

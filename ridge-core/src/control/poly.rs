@@ -1,0 +1,153 @@
+//! Small polynomial tools in the backward shift `q⁻¹`: coefficient slices in ascending powers
+//! (`a[k]` multiplies `q⁻ᵏ`), fixed capacity, no allocation.
+//!
+//! A polynomial `A(q⁻¹) = a₀ + a₁q⁻¹ + … + aₙq⁻ⁿ` has the roots of `a₀zⁿ + a₁zⁿ⁻¹ + … + aₙ`:
+//! those are the poles it stands for (`A y = …` is stable when they lie inside the unit circle).
+
+use crate::real::Real;
+
+/// Largest number of coefficients of any polynomial built here: the closed-loop polynomial
+/// `P = A R + q^{−d−1} B S` has degree at most `p + q + d ≤ 18`.
+pub const POLY_LEN: usize = crate::P_MAX + crate::Q_MAX + crate::D_MAX + 1;
+
+/// `out[..n] = a · b` with `n = a.len() + b.len() − 1`; the rest of `out` is left alone.
+/// Returns `n`, or `None` when `out` is shorter than `n` or a factor is empty.
+pub fn mul<T: Real>(a: &[T], b: &[T], out: &mut [T]) -> Option<usize> {
+    let n = (a.len() + b.len()).checked_sub(1)?;
+    if a.is_empty() || b.is_empty() {
+        return None;
+    }
+    let out = out.get_mut(..n)?;
+    for o in out.iter_mut() {
+        *o = T::ZERO;
+    }
+    for (i, &ai) in a.iter().enumerate() {
+        for (o, &bj) in out.iter_mut().skip(i).zip(b) {
+            *o += ai * bj;
+        }
+    }
+    Some(n)
+}
+
+/// `A(1) = Σ aₖ`: the polynomial at `q = 1` (its static gain).
+pub fn at_one<T: Real>(a: &[T]) -> T {
+    let mut s = T::ZERO;
+    for &x in a {
+        s += x;
+    }
+    s
+}
+
+/// Whether every root of `a` lies strictly inside the circle `|z| < radius` (`a[0] ≠ 0`,
+/// `radius > 0`), by the Schur–Cohn–Jury recursion on the scaled polynomial `aₖ / radiusᵏ`:
+/// each step takes the reflection coefficient `k = cₙ / c₀` (stable needs `|k| < 1`) and
+/// reduces the degree by one with `cᵢ ← cᵢ − k cₙ₋ᵢ`. `false` for NaNs, `a[0] = 0`, or more
+/// than [`POLY_LEN`] coefficients.
+pub fn roots_within<T: Real>(a: &[T], radius: T) -> bool {
+    let mut c = [T::ZERO; POLY_LEN];
+    let Some(c) = c.get_mut(..a.len()) else {
+        return false;
+    };
+    if !radius.is_finite() || radius <= T::ZERO {
+        return false;
+    }
+    let mut scale = T::ONE;
+    for (ci, &ai) in c.iter_mut().zip(a) {
+        *ci = ai * scale;
+        scale = scale / radius;
+    }
+    let mut n = c.len();
+    let mut prev = [T::ZERO; POLY_LEN];
+    while n > 1 {
+        let (Some(&c0), Some(&cn)) = (c.first(), c.get(n - 1)) else {
+            return false;
+        };
+        let k = cn / c0;
+        if !k.is_finite() || k.abs() >= T::ONE {
+            return false;
+        }
+        // cᵢ ← cᵢ − k cₙ₋₁₋ᵢ for i < n − 1, from a snapshot (the new cₙ₋₁ is 0).
+        for (p, &ci) in prev.iter_mut().zip(c.iter()) {
+            *p = ci;
+        }
+        for (i, ci) in c.iter_mut().enumerate().take(n - 1) {
+            let mirror = prev.get(n - 1 - i).copied().unwrap_or(T::ZERO);
+            *ci -= k * mirror;
+        }
+        n -= 1;
+    }
+    true
+}
+
+/// The largest real root in `(0, 1)` of `a` (`a[0] = 1`), by Newton's method on
+/// `zⁿ + a₁zⁿ⁻¹ + … + aₙ` started at `z = 1`: for a stable plant with `A(1) > 0` it descends
+/// monotonically onto the largest real root. `None` when `A(1) ≤ 0`, the iteration leaves
+/// `(0, 1)`, or it does not settle in 60 steps.
+pub fn dominant_real_root<T: Real>(a: &[T]) -> Option<T> {
+    let a1 = at_one(a);
+    if !a1.is_finite() || a1 <= T::ZERO {
+        return None;
+    }
+    let mut z = T::ONE;
+    for _ in 0..60 {
+        // Horner for f and f'.
+        let (mut f, mut df) = (T::ZERO, T::ZERO);
+        for &ak in a {
+            df = df * z + f;
+            f = f * z + ak;
+        }
+        if !df.is_finite() || df == T::ZERO {
+            return None;
+        }
+        let step = f / df;
+        let next = z - step;
+        if !next.is_finite() || next <= T::ZERO || next >= T::ONE {
+            return None;
+        }
+        z = next;
+        if step.abs() <= T::from_f64(4.0) * T::EPSILON * z {
+            return Some(z);
+        }
+    }
+    None
+}
+
+/// `out[..a.len() − 1] = a / (1 − λq⁻¹)` by synthetic division, exact when `λ` is a root.
+/// Returns the remainder `a₀λⁿ + a₁λⁿ⁻¹ + … + aₙ` (0 for a root), or `None` when `a` is empty
+/// or `out` too short.
+pub fn deflate<T: Real>(a: &[T], lambda: T, out: &mut [T]) -> Option<T> {
+    let n = a.len().checked_sub(1)?;
+    let out = out.get_mut(..n)?;
+    let mut carry = T::ZERO;
+    for (o, &ak) in out.iter_mut().zip(a) {
+        carry = ak + lambda * carry;
+        *o = carry;
+    }
+    let last = *a.get(n)?;
+    Some(last + lambda * carry)
+}
+
+/// `r[k] = Σᵢ aᵢ aᵢ₊ₖ` for `k = 0..a.len()`, so that `|A(e^{−jω})|² = r₀ + 2 Σₖ rₖ cos kω`.
+pub fn autocorrelation<T: Real>(a: &[T], r: &mut [T]) {
+    for (k, rk) in r.iter_mut().enumerate() {
+        let mut s = T::ZERO;
+        for (x, y) in a.iter().zip(a.iter().skip(k)) {
+            s += *x * *y;
+        }
+        *rk = s;
+    }
+}
+
+/// `r₀ + 2 Σ_{k≥1} rₖ Tₖ(x)` (Chebyshev polynomials, `x = cos ω`: the squared magnitude whose
+/// [`autocorrelation`] `r` is), by Clenshaw's recurrence.
+pub fn magnitude_sq<T: Real>(r: &[T], x: T) -> T {
+    let two = T::ONE + T::ONE;
+    let (mut b1, mut b2) = (T::ZERO, T::ZERO);
+    for &rk in r.iter().skip(1).rev() {
+        let b0 = two * rk + two * x * b1 - b2;
+        b2 = b1;
+        b1 = b0;
+    }
+    let r0 = r.first().copied().unwrap_or(T::ZERO);
+    r0 + x * b1 - b2
+}
