@@ -74,7 +74,9 @@ impl PersistError {
 }
 
 /// CRC-32 (IEEE 802.3, as zlib's `crc32`): reflected polynomial 0xEDB88320, initial value and
-/// final XOR 0xFFFFFFFF. Bitwise, without a table (a table would cost 1 KB of AVR SRAM).
+/// final XOR 0xFFFFFFFF. Bitwise, without a table (a table would cost 1 KB of AVR SRAM):
+/// 20.6 k cycles per record on the ATmega2560, the same as the `crc` crate's `NoTable`
+/// (figures in `docs/hand-written.md`).
 ///
 /// ```
 /// use ridge_pump_firmware::persist::crc32;
