@@ -2,7 +2,7 @@
 //! SFM3300 (I2C in the main loop, never in an interrupt), step the self-identification state
 //! machine ([`crate::selfid`]), apply its duty to the pump, print its events,
 //! persist its record when an event asks for it, and — after the PWM write — judge the
-//! validation record and run the structure search when they are due.
+//! validation record and run the structure search or the controller design when they are due.
 //!
 //! The search runs in one of two ways ([`Board::TICK_DURING_SEARCH`]):
 //! - ticking (STM32F411): as a `SearchJob` whose `pet` closure also keeps the loop going: at
@@ -14,7 +14,9 @@
 //!   (`SelfIdentification::guard`: sensor errors, flow range, stall), stopping the pump at once
 //!   on a fault; the PWM holds the base duty, the readings are not recorded.
 //!
-//! Either way the search's ticks are counted on the `SEARCH` line, not in `MISSED`.
+//! Either way the search's ticks are counted on the `SEARCH` line, not in `MISSED`. The
+//! controller design (tens of milliseconds) always runs the blocking way, with the same guard,
+//! and its ticks are counted on the `DESIGN` line.
 //!
 //! Report lines written here (`\n`-terminated ASCII), besides the state machine's events (see
 //! [`crate::event`]):
@@ -24,13 +26,14 @@
 //! | `SENSOR ready tries=<n>` / `SENSOR start failed` | at start: continuous measurement started (retried every tick for 1 s) |
 //! | `MISSED late=<n> lost=<n>` | at most once a second, when a total changed: `late` = loop passes that came back after the next tick had already fired, `lost` = ticks skipped entirely (no sample) |
 //! | `SEARCH ticks=<n> lost=<n>` | after a search: tick boundaries handled (ticked, or sensor read and fault checks on the ATmega2560) and skipped while it ran |
+//! | `DESIGN ticks=<n> lost=<n>` | after the controller design: tick boundaries handled (sensor read and fault checks) and skipped while it ran |
 //! | `STACK used=<bytes> free=<bytes>` | after each search (boards that measure the stack) |
 //! | `PERSIST saved` / `PERSIST failed` | a record write finished |
 //! | `PUMP error` | the PWM channel refused a duty: the pump is stopped |
 
 use crate::event::{Event, FaultReason, SensorFault};
 use crate::pump::Pump;
-use crate::selfid::SelfIdentification;
+use crate::selfid::{Guard, SelfIdentification};
 use crate::sfm3300::Sfm3300;
 use embedded_hal::i2c::I2c;
 use embedded_hal::pwm::SetDutyCycle;
@@ -98,8 +101,8 @@ pub struct App<I, P, W> {
     lost: u16,
     reported: (u16, u16),
     summary_in: u8,
-    /// `(ticks, lost)` of the last search, for its `SEARCH` line in the next pass.
-    search_lines: Option<(u16, u16)>,
+    /// The last blocking job and its `(ticks, lost)`, for its line in the next pass.
+    search_lines: Option<(Job, u16, u16)>,
 }
 
 impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
@@ -178,6 +181,10 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             let end = self.search(board);
             self.after_search(board, end);
         }
+        if self.sid.needs_design() {
+            let end = self.design(board);
+            self.after_search(board, end);
+        }
     }
 
     /// Scores the complete validation record (after the tick's PWM write, so that it does not
@@ -241,9 +248,11 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
     fn search<B: Board>(&mut self, board: &mut B) -> SearchEnd {
         let (mut ticks, mut lost) = (0u16, 0u16);
         let mut fault = None;
+        let job = Job::Search;
         let event = if B::TICK_DURING_SEARCH {
             let Some(job) = self.sid.take_search() else {
                 return SearchEnd {
+                    job,
                     event: None,
                     fault,
                     ticks,
@@ -264,29 +273,33 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             // has no room for a tick on top of the search): the PWM holds the base duty, and a
             // copy of the tick's fault checks reads the sensor at every tick boundary. A fault
             // stops the pump at once; the state machine takes it over after the search.
-            let mut guard = self.sid.guard();
-            let applied = self.pump.applied();
-            let (sensor, pump) = (&mut self.sensor, &mut self.pump);
-            self.sid.search(|| {
-                board.pet();
-                if let Some(elapsed) = board.poll_tick() {
-                    ticks = ticks.saturating_add(1);
-                    lost = lost.saturating_add(elapsed - 1);
-                    if fault.is_none() {
-                        let flow = sensor.read_counts().map_err(SensorFault::from);
-                        if let Err(reason) = guard.check(applied, flow) {
-                            pump.stop().ok();
-                            fault = Some(reason);
-                        }
-                    }
-                }
-            })
+            let mut watch = Watch::new(&self.sid, &mut self.sensor, &mut self.pump, board);
+            let event = self.sid.search(|| watch.pet());
+            (ticks, lost, fault) = (watch.ticks, watch.lost, watch.fault);
+            event
         };
         SearchEnd {
+            job,
             event,
             fault,
             ticks,
             lost,
+        }
+    }
+
+    /// Runs the controller design, blocking, with the guard (tens of milliseconds on the
+    /// ATmega2560). Never inlined, for the same reason as [`search`](Self::search): its frame
+    /// is only on the stack while it runs, beside the search's, not on top of it.
+    #[inline(never)]
+    fn design<B: Board>(&mut self, board: &mut B) -> SearchEnd {
+        let mut watch = Watch::new(&self.sid, &mut self.sensor, &mut self.pump, board);
+        let event = self.sid.design(|| watch.pet());
+        SearchEnd {
+            job: Job::Design,
+            event,
+            fault: watch.fault,
+            ticks: watch.ticks,
+            lost: watch.lost,
         }
     }
 
@@ -295,6 +308,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
     /// tick, so that printing them cannot run into the next tick boundary.
     fn after_search(&mut self, board: &mut impl Board, end: SearchEnd) {
         let SearchEnd {
+            job,
             event,
             fault,
             mut ticks,
@@ -315,13 +329,17 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             lost = lost.saturating_add(elapsed - 1);
             self.tick(board);
         }
-        self.search_lines = Some((ticks, lost));
+        self.search_lines = Some((job, ticks, lost));
     }
 
     /// The `SEARCH` / `STACK` lines of the last search, once.
     fn print_search_lines(&mut self, board: &impl Board) {
-        if let Some((ticks, lost)) = self.search_lines.take() {
-            uwriteln!(self.out, "SEARCH ticks={} lost={}", ticks, lost).ok();
+        if let Some((job, ticks, lost)) = self.search_lines.take() {
+            let name = match job {
+                Job::Search => "SEARCH",
+                Job::Design => "DESIGN",
+            };
+            uwriteln!(self.out, "{} ticks={} lost={}", name, ticks, lost).ok();
             if let Some((used, free)) = board.stack() {
                 uwriteln!(self.out, "STACK used={} free={}", used, free).ok();
             }
@@ -341,8 +359,72 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
     }
 }
 
-/// How a search ended, for [`App::after_search`].
+/// What a blocking search or design calls between its steps: pets the watchdog and, at every
+/// tick boundary, reads the sensor and runs the tick's fault checks, stopping the pump at once
+/// on a fault. One non-inlined function, so that each of the many call sites in the search and
+/// the design costs a call, not a copy.
+struct Watch<'a, I, P, B> {
+    guard: Guard,
+    /// The duty the pump holds meanwhile, 1/10 000.
+    applied: u16,
+    sensor: &'a mut Sfm3300<I>,
+    pump: &'a mut Pump<P>,
+    board: &'a mut B,
+    fault: Option<FaultReason>,
+    ticks: u16,
+    lost: u16,
+}
+
+impl<'a, I: I2c, P: SetDutyCycle, B: Board> Watch<'a, I, P, B> {
+    /// The guard of `sid` at the pump's applied duty, counters at zero.
+    fn new(
+        sid: &SelfIdentification,
+        sensor: &'a mut Sfm3300<I>,
+        pump: &'a mut Pump<P>,
+        board: &'a mut B,
+    ) -> Self {
+        Watch {
+            guard: sid.guard(),
+            applied: pump.applied(),
+            sensor,
+            pump,
+            board,
+            fault: None,
+            ticks: 0,
+            lost: 0,
+        }
+    }
+
+    #[inline(never)]
+    fn pet(&mut self) {
+        self.board.pet();
+        if let Some(elapsed) = self.board.poll_tick() {
+            self.ticks = self.ticks.saturating_add(1);
+            self.lost = self.lost.saturating_add(elapsed - 1);
+            if self.fault.is_none() {
+                let flow = self.sensor.read_counts().map_err(SensorFault::from);
+                if let Err(reason) = self.guard.check(self.applied, flow) {
+                    self.pump.stop().ok();
+                    self.fault = Some(reason);
+                }
+            }
+        }
+    }
+}
+
+/// The blocking work the loop runs between ticks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Job {
+    /// The structure search.
+    Search,
+    /// The controller design.
+    Design,
+}
+
+/// How a search (or design) ended, for [`App::after_search`].
 struct SearchEnd {
+    /// Which one it was.
+    job: Job,
     /// The search's event (`ID` or `REJECT`), if it was not stale.
     event: Option<Event>,
     /// A fault the guard found while the search blocked the state machine.

@@ -8,18 +8,22 @@
 //!
 //! | Event | Line |
 //! |---|---|
-//! | [`Event::StoredRejected`] | `STORED-REJECTED crc` |
+//! | [`Event::StoredRejected`] | `STORED-REJECTED crc`, `STORED-REJECTED unstable`, `STORED-REJECTED fit=-1000.0<70.0` |
 //! | [`Event::Loaded`] | `LOADED p=1 q=1 d=3 off=1 theta=0.935000 phi=6.500000 c=-0.125000 fit=87.3` |
 //! | [`Event::Excite`] | `EXCITE A-Multistep n=3000 u0=30.00 y0=19.058 attempt=1/3` |
 //! | [`Event::Identified`] | `ID p=1 q=1 d=3 off=1 theta=0.935000 phi=6.500000 c=-0.125000 score=-1234.5 eval=14/252 skip=0 iters=200` |
 //! | [`Event::Validate`] | `VALIDATE B-Multistep n=3000` |
 //! | [`Event::Accepted`] | `ACCEPT fit=87.3 rmse=3.230 one=2.094 n=2994 persist` |
 //! | [`Event::Rejected`] | `REJECT fit=42.1<70.0 attempt=1/3` |
+//! | [`Event::Control`] | `CTRL method=pole-placement tau=0.040 poles=0.779,0.900 kept=4 mm=0.571 tries=1` |
+//! | [`Event::Track`] | `TRACK sp=40.000 flow=39.875 rms=0.512 max=1.250 duty=35.20` |
+//! | [`Event::Alarm`] | `ALARM track err=5.125 s=0.50` / `ALARM track clear` |
 //! | [`Event::Residual`] | `RES rms=0.812 mean=-0.013 flow=50.125 n=100` |
 //! | [`Event::Drift`] | `DRIFT rms=3.200 mean=-2.997 flow=35.400 s=3 reid=0` |
-//! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125` |
+//! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125`, `FAULT control margin=0.412 tries=5` |
 
 use crate::excitation::Record;
+use ridge_core::control::{DesignError, ModelFault};
 use ridge_core::{ArxModel, Error as CoreError, Offset};
 use ufmt::{uDisplay, uWrite, Formatter};
 
@@ -62,8 +66,45 @@ impl SensorFault {
     }
 }
 
+/// Why the flow controller was refused: the pump never runs on it (see
+/// [`FaultReason::Control`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ControlRefusal {
+    /// The model is not fit to design from (unstable, static gain of the wrong sign or an
+    /// implausible size, non-finite). Line: `FAULT control unstable`, `FAULT control
+    /// gain=0.412`.
+    Model(ModelFault<f32>),
+    /// Every design, slowed down `tries − 1` times, failed its checks; the last one for this
+    /// reason. Line: `FAULT control margin=0.412 tries=5`, `FAULT control poles tries=5`,
+    /// `FAULT control singular tries=1`.
+    Design {
+        /// The last design's failure.
+        error: DesignError<f32>,
+        /// Designs made.
+        tries: u8,
+    },
+}
+
+/// Why a stored model record is not used (a new model is identified instead).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StoredReason {
+    /// The record itself is invalid (see [`PersistError::name`]). Line: `STORED-REJECTED crc`.
+    Record(PersistError),
+    /// The record is valid but its model is unfit for control (the same checks as an
+    /// identified one). Line: `STORED-REJECTED unstable`, `STORED-REJECTED gain=-3.125`.
+    Model(ModelFault<f32>),
+    /// The record's validation fit is below the acceptance fit. Line:
+    /// `STORED-REJECTED fit=-1000.0<70.0`.
+    Fit {
+        /// The stored fit, percent.
+        fit: f32,
+        /// The configured acceptance fit, percent.
+        min: f32,
+    },
+}
+
 /// Why the state machine stopped the pump and latched the fault state.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum FaultReason {
     /// `count` consecutive sensor errors, the last one `error`.
     /// Line: `FAULT sensor=crc n=5`.
@@ -93,6 +134,9 @@ pub enum FaultReason {
         /// Attempts made.
         attempts: u8,
     },
+    /// The flow controller for the accepted (or loaded) model was refused: the pump is
+    /// stopped rather than run without a checked controller.
+    Control(ControlRefusal),
 }
 
 /// Why an identification attempt was refused.
@@ -149,7 +193,7 @@ pub struct SearchStats {
 pub enum Event {
     /// The stored model given to `SelfIdentification::new` is unusable; the pump
     /// identifies a new one. Line: `STORED-REJECTED <reason>` (see [`PersistError::name`]).
-    StoredRejected(PersistError),
+    StoredRejected(StoredReason),
     /// A valid stored model was loaded; identification is skipped and the pump runs.
     Loaded {
         /// The model (physical units: slm and duty fraction).
@@ -211,6 +255,44 @@ pub enum Event {
         attempt: u8,
         /// Configured number of attempts.
         attempts: u8,
+    },
+    /// The flow controller was designed and passed its checks; run mode starts.
+    Control {
+        /// The speed knob: time constant of the setpoint response, s.
+        tau: f32,
+        /// Closed-loop pole of the setpoint response, `e^{−Ts/τ}`.
+        alpha: f32,
+        /// Observer pole.
+        beta: f32,
+        /// Model poles kept in place (the others of the closed loop are at 0).
+        kept: u8,
+        /// Modulus margin.
+        margin: f32,
+        /// Designs made (1 unless slowed down).
+        tries: u8,
+    },
+    /// Run mode, once per tracking window (1 s by default): means over the window.
+    Track {
+        /// Mean setpoint, slm.
+        setpoint: f32,
+        /// Mean measured flow, slm.
+        flow: f32,
+        /// RMS tracking error (setpoint − flow), slm.
+        rms: f32,
+        /// Largest |error|, slm.
+        max: f32,
+        /// Mean duty, 1/10 000 of full scale.
+        duty: u16,
+    },
+    /// Run mode: the tracking error left its band for the alarm time (`on`, with the error
+    /// and the time out of band), or came back (`!on`).
+    Alarm {
+        /// Raised (`true`) or cleared.
+        on: bool,
+        /// Setpoint − flow when raised, slm.
+        error: f32,
+        /// Ticks out of band when raised.
+        ticks: u16,
     },
     /// Run mode, once per monitor window (100 ticks = 1 s by default): one-step prediction
     /// residuals of the model against the measured flow.
@@ -424,6 +506,57 @@ impl uDisplay for FaultReason {
             FaultReason::Unidentified { attempts } => {
                 ufmt::uwrite!(f, "unidentified attempts={}", attempts)
             }
+            FaultReason::Control(r) => ufmt::uwrite!(f, "control {}", r),
+        }
+    }
+}
+
+/// `unstable`, `nonfinite` or `gain=<B(1)/A(1)>` (slm per duty fraction).
+fn write_model_fault<W>(f: &mut Formatter<'_, W>, m: &ModelFault<f32>) -> Result<(), W::Error>
+where
+    W: uWrite + ?Sized,
+{
+    match m {
+        ModelFault::NonFinite => f.write_str("nonfinite"),
+        ModelFault::Unstable => f.write_str("unstable"),
+        ModelFault::Gain { gain } => ufmt::uwrite!(f, "gain={}", Fixed::new(*gain, 3)),
+    }
+}
+
+impl uDisplay for ControlRefusal {
+    fn fmt<W>(&self, f: &mut Formatter<'_, W>) -> Result<(), W::Error>
+    where
+        W: uWrite + ?Sized,
+    {
+        match self {
+            ControlRefusal::Model(m) => write_model_fault(f, m),
+            ControlRefusal::Design { error, tries } => {
+                match error {
+                    DesignError::Spec => f.write_str("spec")?,
+                    DesignError::Singular => f.write_str("singular")?,
+                    DesignError::SlowPoles => f.write_str("slow-poles")?,
+                    DesignError::Poles => f.write_str("poles")?,
+                    DesignError::Margin { margin } => {
+                        ufmt::uwrite!(f, "margin={}", Fixed::new(*margin, 3))?
+                    }
+                }
+                ufmt::uwrite!(f, " tries={}", *tries)
+            }
+        }
+    }
+}
+
+impl uDisplay for StoredReason {
+    fn fmt<W>(&self, f: &mut Formatter<'_, W>) -> Result<(), W::Error>
+    where
+        W: uWrite + ?Sized,
+    {
+        match self {
+            StoredReason::Record(e) => f.write_str(e.name()),
+            StoredReason::Model(m) => write_model_fault(f, m),
+            StoredReason::Fit { fit, min } => {
+                ufmt::uwrite!(f, "fit={}<{}", Fixed::new(*fit, 1), Fixed::new(*min, 1))
+            }
         }
     }
 }
@@ -434,7 +567,7 @@ impl uDisplay for Event {
         W: uWrite + ?Sized,
     {
         match self {
-            Event::StoredRejected(e) => ufmt::uwrite!(f, "STORED-REJECTED {}", e.name()),
+            Event::StoredRejected(r) => ufmt::uwrite!(f, "STORED-REJECTED {}", r),
             Event::Loaded { model, fit } => {
                 f.write_str("LOADED ")?;
                 write_model(f, model)?;
@@ -491,6 +624,49 @@ impl uDisplay for Event {
                 attempt,
                 attempts,
             } => ufmt::uwrite!(f, "REJECT {} attempt={}/{}", reason, *attempt, *attempts),
+            Event::Control {
+                tau,
+                alpha,
+                beta,
+                kept,
+                margin,
+                tries,
+            } => ufmt::uwrite!(
+                f,
+                "CTRL method=pole-placement tau={} poles={},{} kept={} mm={} tries={}",
+                Fixed::new(*tau, 3),
+                Fixed::new(*alpha, 3),
+                Fixed::new(*beta, 3),
+                *kept,
+                Fixed::new(*margin, 3),
+                *tries
+            ),
+            Event::Track {
+                setpoint,
+                flow,
+                rms,
+                max,
+                duty,
+            } => ufmt::uwrite!(
+                f,
+                "TRACK sp={} flow={} rms={} max={} duty={}",
+                Fixed::new(*setpoint, 3),
+                Fixed::new(*flow, 3),
+                Fixed::new(*rms, 3),
+                Fixed::new(*max, 3),
+                percent(*duty)
+            ),
+            Event::Alarm { on: false, .. } => f.write_str("ALARM track clear"),
+            Event::Alarm {
+                on: true,
+                error,
+                ticks,
+            } => ufmt::uwrite!(
+                f,
+                "ALARM track err={} s={}",
+                Fixed::new(*error, 3),
+                Decimal::new(i32::from(*ticks), 2)
+            ),
             Event::Residual {
                 rms,
                 mean,

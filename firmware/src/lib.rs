@@ -30,5 +30,7 @@ pub mod report;
 #[allow(unsafe_code)]
 pub mod ring;
 pub mod selfid;
+pub mod setpoint;
 pub mod sfm3300;
+pub mod tracking;
 pub mod units;

@@ -14,9 +14,14 @@
 //!   decimals → percent.
 //!
 //! Output format (stable, for host-side parsers): an optional `-`, the integer part without
-//! leading zeros (at least one digit), then `.` and exactly `digits` fractional digits when
-//! `digits > 0`. No `+`, no exponent, no negative zero (a value that rounds to zero prints
-//! unsigned). Special values of [`Fixed`] print as `nan`, `inf`, `-inf` and `ovf` (see there).
+//! leading zeros (at least one digit), then `.` and the fractional digits when there are any.
+//! No `+`, no exponent, no negative zero (a value that rounds to zero prints unsigned). Special
+//! values of [`Fixed`] print as `nan`, `inf`, `-inf` and `ovf` (see there).
+//!
+//! All arithmetic is 32-bit at most where it divides: a printed number, without its point, is
+//! below 2³² ([`FIXED_LIMIT`]). A [`Fixed`] that would need more prints with fewer fractional
+//! digits (as many as fit). On the ATmega2560 this keeps 64-bit division (2.8 KB of flash)
+//! out of the image.
 //!
 //! # Example
 //!
@@ -34,16 +39,19 @@ use ufmt::{uDisplay, uWrite, Formatter};
 /// reduced to this. (An `f32` carries about 7 significant decimal digits.)
 pub const MAX_DIGITS: u8 = 9;
 
-/// Magnitude limit of [`Fixed`]: a value whose rounded `|x|·10^digits` is at or above
-/// 2⁶³ (≈ 9.22·10¹⁸, the `i64` range) prints as `ovf`.
-pub const FIXED_LIMIT: u64 = 1 << 63;
+/// Magnitude limit of a printed number without its point: `|x|·10^digits`, rounded, stays
+/// below 2³² (4 294 967 296). A [`Fixed`] above it with `digits` prints with the most
+/// fractional digits below it; one above it with no fractional digit prints as `ovf`.
+pub const FIXED_LIMIT: u64 = 1 << 32;
 
 /// An `f32` printed as a fixed-point decimal with `digits` fractional digits.
 ///
 /// - Rounding is to nearest, halves away from zero, applied to the **exact** binary value of
 ///   the float (so `1.005_f32`, which is 1.00499999523…, prints `1.00` with 2 digits).
 /// - NaN prints `nan`; infinities print `inf` / `-inf`.
-/// - A finite value with rounded `|x|·10^digits` ≥ 2⁶³ ([`FIXED_LIMIT`]) prints `ovf`.
+/// - A finite value with rounded `|x|·10^digits` ≥ 2³² ([`FIXED_LIMIT`]) prints with the
+///   largest number of fractional digits below that limit (`4294.96729` for 4294.967296 with
+///   6 digits); at or above 2³² with 0 digits it prints `ovf`.
 /// - `digits` above [`MAX_DIGITS`] is reduced to [`MAX_DIGITS`].
 ///
 /// ```
@@ -58,6 +66,7 @@ pub const FIXED_LIMIT: u64 = 1 << 63;
 /// assert_eq!(show(Fixed::new(2.5, 0)), "3");
 /// assert_eq!(show(Fixed::new(f32::NAN, 3)), "nan");
 /// assert_eq!(show(Fixed::new(1e30, 0)), "ovf");
+/// assert_eq!(show(Fixed::new(12_345.5, 6)), "12345.50000");
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Fixed {
@@ -88,25 +97,29 @@ impl Fixed {
         self.digits
     }
 
-    /// The printed number as an integer: `round(value · 10^digits)`, halves away from zero.
+    /// The printed number as an integer and its fractional digits: `round(value · 10^d)`,
+    /// halves away from zero, with `d` the requested digits or fewer (see [`FIXED_LIMIT`]).
     ///
-    /// `None` for NaN, infinities, and magnitudes at or above [`FIXED_LIMIT`].
+    /// `None` for NaN, infinities, and magnitudes at or above [`FIXED_LIMIT`] with 0 digits.
     ///
     /// ```
     /// use ridge_pump_firmware::report::Fixed;
-    /// assert_eq!(Fixed::new(-1.9472, 4).scaled(), Some(-19_472));
+    /// assert_eq!(Fixed::new(-1.9472, 4).scaled(), Some((-19_472, 4)));
     /// assert_eq!(Fixed::new(f32::INFINITY, 0).scaled(), None);
     /// ```
-    pub fn scaled(&self) -> Option<i64> {
-        match scale_f32(self.value, self.digits) {
-            Scaled::Finite {
-                negative,
-                magnitude,
-            } => {
-                let magnitude = i64::try_from(magnitude).ok()?;
-                Some(if negative { -magnitude } else { magnitude })
+    pub fn scaled(&self) -> Option<(i64, u8)> {
+        match fit(self.value, self.digits) {
+            (
+                Scaled::Finite {
+                    negative,
+                    magnitude,
+                },
+                d,
+            ) => {
+                let magnitude = i64::from(magnitude);
+                Some((if negative { -magnitude } else { magnitude }, d))
             }
-            Scaled::Nan | Scaled::Infinite { .. } | Scaled::Overflow => None,
+            _ => None,
         }
     }
 }
@@ -116,15 +129,18 @@ impl uDisplay for Fixed {
     where
         W: uWrite + ?Sized,
     {
-        match scale_f32(self.value, self.digits) {
-            Scaled::Finite {
-                negative,
-                magnitude,
-            } => write_decimal(f, negative, magnitude, self.digits),
-            Scaled::Nan => f.write_str("nan"),
-            Scaled::Infinite { negative: false } => f.write_str("inf"),
-            Scaled::Infinite { negative: true } => f.write_str("-inf"),
-            Scaled::Overflow => f.write_str("ovf"),
+        match fit(self.value, self.digits) {
+            (
+                Scaled::Finite {
+                    negative,
+                    magnitude,
+                },
+                d,
+            ) => write_decimal(f, negative, magnitude, d),
+            (Scaled::Nan, _) => f.write_str("nan"),
+            (Scaled::Infinite { negative: false }, _) => f.write_str("inf"),
+            (Scaled::Infinite { negative: true }, _) => f.write_str("-inf"),
+            (Scaled::Overflow, _) => f.write_str("ovf"),
         }
     }
 }
@@ -146,7 +162,7 @@ impl uDisplay for Milli {
     where
         W: uWrite + ?Sized,
     {
-        write_decimal(f, self.0 < 0, u64::from(self.0.unsigned_abs()), 3)
+        write_decimal(f, self.0 < 0, self.0.unsigned_abs(), 3)
     }
 }
 
@@ -186,12 +202,7 @@ impl uDisplay for Decimal {
     where
         W: uWrite + ?Sized,
     {
-        write_decimal(
-            f,
-            self.value < 0,
-            u64::from(self.value.unsigned_abs()),
-            self.digits,
-        )
+        write_decimal(f, self.value < 0, self.value.unsigned_abs(), self.digits)
     }
 }
 
@@ -201,7 +212,20 @@ enum Scaled {
     Nan,
     Infinite { negative: bool },
     Overflow,
-    Finite { negative: bool, magnitude: u64 },
+    Finite { negative: bool, magnitude: u32 },
+}
+
+/// [`scale_f32`] with `digits`, or with fewer until the magnitude is below 2³²; returns the
+/// digits used.
+fn fit(value: f32, digits: u8) -> (Scaled, u8) {
+    let mut d = digits.min(MAX_DIGITS);
+    loop {
+        let s = scale_f32(value, d);
+        if s != Scaled::Overflow || d == 0 {
+            return (s, d);
+        }
+        d -= 1;
+    }
 }
 
 /// `10^digits` for `digits ≤ MAX_DIGITS` (larger values are treated as `MAX_DIGITS`).
@@ -258,13 +282,12 @@ fn scale_f32(value: f32, digits: u8) -> Scaled {
             }
         }
     };
-    if magnitude >= FIXED_LIMIT {
-        Scaled::Overflow
-    } else {
-        Scaled::Finite {
+    match u32::try_from(magnitude) {
+        Ok(magnitude) => Scaled::Finite {
             negative,
             magnitude,
-        }
+        },
+        Err(_) => Scaled::Overflow,
     }
 }
 
@@ -272,7 +295,7 @@ fn scale_f32(value: f32, digits: u8) -> Scaled {
 fn write_decimal<W>(
     f: &mut Formatter<'_, W>,
     negative: bool,
-    magnitude: u64,
+    magnitude: u32,
     digits: u8,
 ) -> Result<(), W::Error>
 where
@@ -281,41 +304,16 @@ where
     if negative && magnitude != 0 {
         f.write_str("-")?;
     }
-    // Report values nearly always fit 32 bits; 32-bit divisions cost a fifth of 64-bit ones
-    // on an 8-bit MCU.
-    match u32::try_from(magnitude) {
-        Ok(m) => write_parts(f, m, pow10(digits), digits),
-        Err(_) => write_parts(f, magnitude, u64::from(pow10(digits)), digits),
-    }
-}
-
-/// Writes `magnitude / divisor`, then `.` and the remainder zero-padded to `digits` digits
-/// (`divisor = 10^digits`).
-fn write_parts<W, N>(
-    f: &mut Formatter<'_, W>,
-    magnitude: N,
-    divisor: N,
-    digits: u8,
-) -> Result<(), W::Error>
-where
-    W: uWrite + ?Sized,
-    N: uDisplay
-        + Copy
-        + PartialOrd
-        + core::ops::Div<Output = N>
-        + core::ops::Rem<Output = N>
-        + From<u8>,
-{
+    let divisor = pow10(digits);
     uDisplay::fmt(&(magnitude / divisor), f)?;
     if digits > 0 {
         f.write_str(".")?;
         let fraction = magnitude % divisor;
         // Leading zeros of the fractional part.
-        let ten = N::from(10);
-        let mut threshold = divisor / ten;
-        while threshold > N::from(1) && fraction < threshold {
+        let mut threshold = divisor / 10;
+        while threshold > 1 && fraction < threshold {
             f.write_str("0")?;
-            threshold = threshold / ten;
+            threshold /= 10;
         }
         uDisplay::fmt(&fraction, f)?;
     }
@@ -326,7 +324,7 @@ where
 mod tests {
     use super::*;
 
-    fn finite(negative: bool, magnitude: u64) -> Scaled {
+    fn finite(negative: bool, magnitude: u32) -> Scaled {
         Scaled::Finite {
             negative,
             magnitude,
@@ -358,11 +356,11 @@ mod tests {
     }
 
     #[test]
-    fn scale_limit_is_two_to_the_63() {
-        // 2^63 − 2^39, the largest f32 below 2^63: exponent field 189, fraction all ones.
-        let below = f32::from_bits((189 << 23) | 0x7F_FFFF);
-        assert_eq!(scale_f32(below, 0), finite(false, (1 << 63) - (1 << 39)));
-        let limit = f32::from_bits(190 << 23); // 2^63
+    fn scale_limit_is_two_to_the_32() {
+        // 2^32 − 2^8, the largest f32 below 2^32: exponent field 158, fraction all ones.
+        let below = f32::from_bits((158 << 23) | 0x7F_FFFF);
+        assert_eq!(scale_f32(below, 0), finite(false, u32::MAX - 255));
+        let limit = f32::from_bits(159 << 23); // 2^32
         assert_eq!(scale_f32(limit, 0), Scaled::Overflow);
         assert_eq!(scale_f32(-limit, 0), Scaled::Overflow);
     }

@@ -305,7 +305,7 @@ fn identifies<const TICKING: bool>() {
     run_until(&mut app, &mut board, 8_000, |a| {
         a.selfid().state() == State::Run
     });
-    run_until(&mut app, &mut board, 100, |_| board_saved(&uart));
+    app.step(&mut board); // the DESIGN line
     let lines = uart.lines();
     let order = [
         "SENSOR ready tries=",
@@ -315,6 +315,8 @@ fn identifies<const TICKING: bool>() {
         "SEARCH ticks=",
         "ACCEPT fit=",
         "PERSIST saved",
+        "CTRL method=pole-placement",
+        "DESIGN ticks=",
     ];
     let mut at = 0;
     for prefix in order {
@@ -333,10 +335,11 @@ fn identifies<const TICKING: bool>() {
     let ticks: u32 = field(search, "ticks").parse().unwrap();
     assert!(ticks >= 2, "{search}");
     assert_eq!(field(search, "lost"), "0", "{search}");
-    // Only the ticking board reports its stack (the fake's figures).
+    // Only the ticking board reports its stack (the fake's figures), after the search and
+    // after the design.
     assert_eq!(
         count(&lines, "STACK used=1234 free=4321"),
-        usize::from(TICKING)
+        2 * usize::from(TICKING)
     );
     // One record stored, and it is the model in use with its fit.
     assert_eq!(board.saves.len(), 1);

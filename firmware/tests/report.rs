@@ -89,22 +89,24 @@ fn fixed_special_values() {
 }
 
 #[test]
-fn fixed_overflow_at_two_to_the_63() {
-    assert_eq!(FIXED_LIMIT, 9_223_372_036_854_775_808);
-    // 2^63 − 2^39 = 9223371487098961920 is the largest f32 below the limit.
-    let below = f32::from_bits((189 << 23) | 0x7F_FFFF);
-    assert_eq!(fixed(below, 0), "9223371487098961920");
-    assert_eq!(fixed(-below, 0), "-9223371487098961920");
-    // 2^63 itself, and anything that reaches it after scaling.
-    assert_eq!(fixed(f32::from_bits(190 << 23), 0), "ovf");
+fn fixed_drops_digits_above_two_to_the_32_and_overflows_without_any() {
+    assert_eq!(FIXED_LIMIT, 4_294_967_296);
+    // 2^32 − 2^8 = 4294967040 is the largest f32 below the limit.
+    let below = f32::from_bits((158 << 23) | 0x7F_FFFF);
+    assert_eq!(fixed(below, 0), "4294967040");
+    assert_eq!(fixed(-below, 0), "-4294967040");
+    // With digits asked for, as many as fit: 4294967040 has none to spare.
+    assert_eq!(fixed(below, 3), "4294967040");
+    // 2^32 itself, and anything that reaches it with no digit left.
+    assert_eq!(fixed(f32::from_bits(159 << 23), 0), "ovf");
     assert_eq!(fixed(-1e19, 0), "ovf");
     assert_eq!(fixed(f32::MAX, 0), "ovf");
     assert_eq!(fixed(f32::MIN, 3), "ovf");
-    // 1e10 · 10⁹ = 10¹⁹ ≥ 2^63 → ovf; 1e9 · 10⁹ = 10¹⁸ fits.
-    assert_eq!(fixed(1e10, 9), "ovf");
-    assert_eq!(fixed(1e9, 9), "1000000000.000000000");
-    // 1e18_f32 = 999999984306749440 exactly.
-    assert_eq!(fixed(1e18, 0), "999999984306749440");
+    // 12345.5 with 6 digits would be 12 345 500 000 ≥ 2^32: 5 digits fit.
+    assert_eq!(fixed(12_345.5, 6), "12345.50000");
+    // 4.25 with 9 digits: 4 250 000 000 < 2^32, all 9.
+    assert_eq!(fixed(4.25, 9), "4.250000000");
+    assert_eq!(fixed(4.5, 9), "4.50000000");
 }
 
 #[test]
@@ -117,9 +119,10 @@ fn fixed_digits_are_capped() {
 
 #[test]
 fn fixed_scaled_value() {
-    assert_eq!(Fixed::new(-1.9472, 4).scaled(), Some(-19_472));
-    assert_eq!(Fixed::new(0.125, 2).scaled(), Some(13));
-    assert_eq!(Fixed::new(-0.0, 2).scaled(), Some(0));
+    assert_eq!(Fixed::new(-1.9472, 4).scaled(), Some((-19_472, 4)));
+    assert_eq!(Fixed::new(0.125, 2).scaled(), Some((13, 2)));
+    assert_eq!(Fixed::new(-0.0, 2).scaled(), Some((0, 2)));
+    assert_eq!(Fixed::new(12_345.5, 6).scaled(), Some((1_234_550_000, 5)));
     assert_eq!(Fixed::new(f32::NAN, 2).scaled(), None);
     assert_eq!(Fixed::new(f32::NEG_INFINITY, 2).scaled(), None);
     assert_eq!(Fixed::new(1e19, 0).scaled(), None);
@@ -186,16 +189,22 @@ fn reference_fixed(x: f32, digits: u8) -> std::string::String {
     }
     let exact = format!("{:.150}", f64::from(x).abs());
     let (int_part, frac_part) = exact.split_once('.').unwrap();
-    let d = usize::from(digits);
-    let kept = format!("{int_part}{}", &frac_part[..d]);
-    let round_up = frac_part.as_bytes()[d] >= b'5';
-    let magnitude = kept
-        .parse::<u128>()
-        .ok()
-        .and_then(|m| m.checked_add(u128::from(round_up)));
-    let Some(magnitude) = magnitude.filter(|&m| m < 1u128 << 63) else {
+    // The most digits (up to those asked for) whose rounded magnitude is below 2^32.
+    let rounded = |d: usize| {
+        let kept = format!("{int_part}{}", &frac_part[..d]);
+        let round_up = frac_part.as_bytes()[d] >= b'5';
+        kept.parse::<u128>()
+            .ok()
+            .and_then(|m| m.checked_add(u128::from(round_up)))
+            .filter(|&m| m < 1u128 << 32)
+    };
+    let Some((magnitude, d)) = (0..=usize::from(digits))
+        .rev()
+        .find_map(|d| rounded(d).map(|m| (m, d)))
+    else {
         return "ovf".into();
     };
+    let digits = d as u8;
     let scale = 10u128.pow(u32::from(digits));
     let sign = if x.is_sign_negative() && magnitude != 0 {
         "-"

@@ -4,10 +4,13 @@
 mod common;
 
 use ridge_core::{ArxModel, IntGram, Method, Offset, RidgeM, Search, Structure};
-use ridge_pump_firmware::event::{Event, FaultReason, RejectReason, SearchStats, SensorFault};
+use ridge_pump_firmware::event::{
+    Event, FaultReason, RejectReason, SearchStats, SensorFault, StoredReason,
+};
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
 use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, Tick};
+use ridge_pump_firmware::setpoint::Program;
 use ridge_pump_firmware::units::SCALE;
 
 use common::Plant;
@@ -102,6 +105,12 @@ impl Rig {
             }
             self.pets += pets;
         }
+        if let Some(e) = self.sm.design(|| {}) {
+            self.events.push(line(&e));
+            if self.sm.fault().is_some() {
+                self.duty = 0;
+            }
+        }
         t
     }
 
@@ -161,7 +170,11 @@ fn identifies_the_linear_plant_and_runs() {
     assert!(ev[2].starts_with("VALIDATE B-Multistep n=3000"), "{ev:#?}");
     assert!(ev[3].starts_with("ACCEPT fit="), "{ev:#?}");
     assert!(ev[3].ends_with(" persist"));
-    assert_eq!(ev.len(), 4, "{ev:#?}");
+    assert!(
+        ev[4].starts_with("CTRL method=pole-placement tau="),
+        "{ev:#?}"
+    );
+    assert_eq!(ev.len(), 5, "{ev:#?}");
     // The plant is the truth: structure, static gain and offset exactly; the dynamics are
     // slowed by Ridge-M's regularisation (see `ridge_m_bias_vanishes_when_converged`).
     let m = *rig.sm.model().unwrap();
@@ -179,21 +192,32 @@ fn identifies_the_linear_plant_and_runs() {
     // The persisted bytes are the model.
     let bytes = rig.sm.persist_bytes().unwrap();
     assert_eq!(persist::decode(&bytes).unwrap(), (m, fit));
-    // Run mode: the run duty, residuals each second at the quantisation level.
+    // Run mode: the demo program holds the start flow for 2 s (the controller keeps the duty
+    // at the operating point's within the dither), residuals each second at the quantisation
+    // level, tracking figures each second half a second later.
     let before = rig.events.len();
-    for _ in 0..300 {
+    for _ in 0..195 {
         let t = rig.tick();
-        assert_eq!(t.duty, 3_000);
+        assert!((2_900..=3_100).contains(&t.duty), "{}", t.duty);
     }
-    let res: Vec<&String> = rig.events[before..].iter().collect();
-    assert_eq!(res.len(), 3, "{res:#?}");
-    // The first window holds the transient from the end of the validation record (55 %).
-    for r in &res[1..] {
+    let after = &rig.events[before..];
+    let res: Vec<&String> = after.iter().filter(|e| e.starts_with("RES")).collect();
+    assert!(!res.is_empty(), "{after:#?}");
+    let track: Vec<&String> = after.iter().filter(|e| e.starts_with("TRACK")).collect();
+    assert!(!track.is_empty(), "{after:#?}");
+    assert_eq!(res.len() + track.len(), after.len(), "{after:#?}");
+    for t in &track {
+        assert!((field(t, "sp") - 20.0).abs() < 0.1, "{t}");
+        assert!((field(t, "flow") - 20.0).abs() < 0.1, "{t}");
+        assert!(field(t, "rms") < 0.05, "{t}");
+    }
+    for r in &res {
         assert!(r.starts_with("RES rms="), "{r}");
         assert!(field(r, "rms") < 0.02, "{r}"); // the dither: 1.2 counts RMS
         assert!(field(r, "mean").abs() < 0.005, "{r}");
         assert!((field(r, "flow") - 20.0).abs() < 0.05, "{r}");
-        assert!(r.ends_with(" n=100"), "{r}");
+        // A full window, but the predictor's seed samples in the first (m = 3).
+        assert!((97.0..=100.0).contains(&field(r, "n")), "{r}");
     }
     assert!(!rig.sm.drift());
 }
@@ -470,7 +494,7 @@ fn consecutive_sensor_errors_stop_the_pump_in_every_state() {
 fn assert_latched(rig: &mut Rig) {
     assert_eq!(rig.sm.state(), State::Fault);
     rig.sm.request_reidentification();
-    rig.sm.set_run_duty(9_000);
+    assert_eq!(rig.sm.design(|| {}), None);
     for k in 0..300 {
         let reading = if k % 2 == 0 {
             Ok(2_400)
@@ -537,33 +561,41 @@ fn flow_out_of_range_stops_the_pump_in_the_same_tick() {
 
 #[test]
 fn a_stalled_pump_is_stopped_after_half_a_second() {
-    let cfg = Config {
-        run_duty: 5_000,
-        ..Config::default()
-    };
-    let mut rig = Rig::new(cfg, None, Plant::reference());
+    let mut rig = Rig::new(Config::default(), None, Plant::reference());
     rig.run_to(State::Run);
     for _ in 0..100 {
         rig.tick();
     }
     rig.plant.stuck = Some(10); // 0.083 slm: the rotor is blocked.
-    for k in 1..50 {
+                                // The controller raises the duty as fast as its rate limit allows (5 % per tick) up to
+                                // its limit; from 40 % on the stall is timed: 0.5 s.
+    let mut ticks = 0;
+    let fault = loop {
         let t = rig.tick();
-        assert_eq!(t.duty, 5_000, "tick {k}");
-    }
-    let t = rig.tick();
-    assert_eq!(t.duty, 0);
-    assert_eq!(line(&t.event.unwrap()), "FAULT stall duty=50.00 flow=0.083");
+        ticks += 1;
+        if t.duty == 0 {
+            break t.event.expect("the fault is reported");
+        }
+        assert!(ticks < 60, "no stall fault after {ticks} ticks");
+    };
+    assert!(ticks >= 50, "{ticks}");
+    assert_eq!(line(&fault), "FAULT stall duty=95.00 flow=0.083");
     assert_latched(&mut rig);
 }
 
+/// A low flow setpoint held at a duty below the stall duty is not a stall: the controller
+/// sits at its lowest duty (15 %, where the reference plant gives 5 slm) for 5 s.
 #[test]
 fn low_flow_below_the_stall_duty_is_not_a_stall() {
-    let mut rig = rig_in(State::Run); // 30 % run duty
-    rig.plant.stuck = Some(0);
+    let mut cfg = Config::default();
+    cfg.control.program = Program::Constant(1.0);
+    let mut rig = Rig::new(cfg, None, Plant::reference());
+    rig.run_to(State::Run);
     for _ in 0..500 {
-        assert_eq!(rig.tick().duty, 3_000);
+        rig.tick();
     }
+    assert_eq!(rig.duty, cfg.control.duty_min);
+    assert!(rig.sm.fault().is_none());
     assert_eq!(rig.sm.state(), State::Run);
 }
 
@@ -725,8 +757,17 @@ fn the_tick_that_completes_the_validation_only_holds_the_base_duty_until_the_jud
     assert!(verdict.starts_with("ACCEPT fit="), "{verdict}");
     assert!(!rig.sm.needs_judgement());
     assert_eq!(rig.sm.judge(), None, "judged once");
+    // The controller design follows a settle phase at the base duty.
+    assert_eq!(rig.sm.state(), State::Settle);
+    for _ in 0..Config::default().settle_ticks {
+        assert_eq!(rig.tick_without_judgement().duty, 3_000);
+    }
+    assert_eq!(rig.sm.state(), State::Design);
+    let ctrl = rig.sm.design(|| {}).map(|e| line(&e)).unwrap_or_default();
+    assert!(ctrl.starts_with("CTRL method=pole-placement"), "{ctrl}");
     assert_eq!(rig.sm.state(), State::Run);
-    assert_eq!(rig.tick().duty, Config::default().run_duty);
+    // Bumpless: the first controlled duty is the operating point's, within the dither.
+    assert!((2_900..=3_100).contains(&rig.tick().duty));
 }
 
 #[test]
@@ -739,15 +780,18 @@ fn a_stored_model_skips_identification() {
     let mut rig = Rig::new(Config::default(), Some(&bytes), Plant::reference());
     rig.run_to(State::Run);
     assert_eq!(rig.ticks, 200, "settle only");
-    assert_eq!(rig.events.len(), 1, "{:#?}", rig.events);
+    assert_eq!(rig.events.len(), 2, "{:#?}", rig.events);
     assert!(rig.events[0].starts_with("LOADED p=1 q=1 d=3 off=1 theta=0.9"));
+    assert!(rig.events[1].starts_with("CTRL method=pole-placement"));
     assert_eq!(rig.sm.model(), Some(&model));
     assert_eq!(rig.sm.fit(), first.sm.fit());
-    for _ in 0..300 {
-        assert_eq!(rig.tick().duty, 3_000);
+    // The demo program holds the settled flow for 2 s.
+    for _ in 0..195 {
+        let duty = rig.tick().duty;
+        assert!((2_900..=3_100).contains(&duty), "{duty}");
     }
-    assert!(rig.events[1].starts_with("RES rms="), "{:#?}", rig.events);
-    assert!(field(&rig.events[2], "rms") < 0.02, "{:#?}", rig.events);
+    let res = rig.events.iter().find(|e| e.starts_with("RES")).unwrap();
+    assert!(field(res, "rms") < 0.02, "{:#?}", rig.events);
     // A re-identification request identifies anew.
     rig.sm.request_reidentification();
     rig.run_to(State::Run);
@@ -802,19 +846,23 @@ fn corrupt_stored_bytes_are_reported_and_identification_runs() {
 
 #[test]
 fn drift_is_raised_after_k_seconds_above_the_limit() {
-    let mut rig = rig_in(State::Run);
+    let mut cfg = Config::default();
+    cfg.control.program = Program::Hold;
+    let mut rig = Rig::new(cfg, None, Plant::reference());
+    rig.run_to(State::Run);
     for _ in 0..500 {
         rig.tick();
     }
     assert!(!rig.sm.drift());
     let before = rig.events.len();
-    // The pump loses 60 % of its gain (e.g. a leak upstream of the sensor): 8 slm instead
-    // of 20 at 30 %.
+    // The pump loses 60 % of its gain (e.g. a leak upstream of the sensor): the controller
+    // makes up for it (60 % duty for the 20 slm), the monitor sees the model is wrong.
     rig.plant.b = 4.0;
     rig.plant.c = -0.4;
     for _ in 0..600 {
-        assert_eq!(rig.tick().duty, 3_000);
+        rig.tick();
     }
+    assert!((5_800..=6_200).contains(&rig.duty), "{}", rig.duty);
     let after: Vec<&String> = rig.events[before..].iter().collect();
     let drift = after.iter().position(|e| e.starts_with("DRIFT")).unwrap();
     assert!(after[drift].ends_with("s=3 reid=0"), "{after:#?}");
@@ -844,14 +892,28 @@ fn drift_can_trigger_reidentification() {
     assert!(!rig.sm.drift());
 }
 
+/// An unreachable setpoint (the reference plant gives 85 slm at 95 %): the duty stays at the
+/// controller's limit and the tracking alarm is raised after its 0.5 s; a reachable one again
+/// clears it.
 #[test]
-fn run_duty_setter() {
-    let mut rig = rig_in(State::Run);
-    rig.sm.set_run_duty(6_000);
-    assert_eq!(rig.tick().duty, 6_000);
-    rig.sm.set_run_duty(12_000);
-    assert_eq!(rig.sm.run_duty(), 10_000);
-    assert_eq!(rig.tick().duty, 10_000);
+fn unreachable_setpoint_saturates_and_raises_the_tracking_alarm() {
+    let mut cfg = Config::default();
+    cfg.control.program = Program::Constant(200.0);
+    let mut rig = Rig::new(cfg, None, Plant::reference());
+    rig.run_to(State::Run);
+    let before = rig.events.len();
+    for _ in 0..200 {
+        rig.tick();
+    }
+    assert_eq!(rig.duty, cfg.control.duty_max);
+    assert!(rig.sm.tracking_alarm());
+    let alarms: Vec<&String> = rig.events[before..]
+        .iter()
+        .filter(|e| e.starts_with("ALARM"))
+        .collect();
+    assert_eq!(alarms.len(), 1, "{:#?}", rig.events);
+    assert!(alarms[0].starts_with("ALARM track err=11"), "{}", alarms[0]);
+    assert!(alarms[0].ends_with(" s=0.50"), "{}", alarms[0]);
 }
 
 #[test]
@@ -860,7 +922,7 @@ fn event_lines_are_as_documented() {
         ArxModel::new(&[0.935, -0.125], &[6.5, 0.25], 3, Offset::Intercept, -0.125).unwrap();
     let cases: Vec<(Event, &str)> = vec![
         (
-            Event::StoredRejected(PersistError::Crc),
+            Event::StoredRejected(StoredReason::Record(PersistError::Crc)),
             "STORED-REJECTED crc",
         ),
         (

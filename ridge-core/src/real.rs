@@ -42,8 +42,6 @@ pub trait Real:
     fn sqrt(self) -> Self;
     /// Natural logarithm.
     fn ln(self) -> Self;
-    /// `e^x`.
-    fn exp(self) -> Self;
     /// Absolute value.
     fn abs(self) -> Self;
     /// `true` unless NaN or ±∞.
@@ -91,10 +89,6 @@ impl Real for f32 {
         libm::logf(self)
     }
     #[inline]
-    fn exp(self) -> Self {
-        libm::expf(self)
-    }
-    #[inline]
     fn abs(self) -> Self {
         libm::fabsf(self)
     }
@@ -136,10 +130,6 @@ impl Real for f64 {
     #[inline]
     fn ln(self) -> Self {
         libm::log(self)
-    }
-    #[inline]
-    fn exp(self) -> Self {
-        libm::exp(self)
     }
     #[inline]
     fn abs(self) -> Self {

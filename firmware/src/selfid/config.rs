@@ -1,9 +1,12 @@
 //! [`Config`]: the settings of the self-identification state machine and their defaults.
 
+use ridge_core::control::ModelLimits;
 use ridge_core::Search;
 
 use crate::excitation::Record;
 use crate::monitor::MonitorConfig;
+use crate::setpoint::Program;
+use crate::tracking::TrackingConfig;
 
 /// Settings of the state machine. Duties in 1/10 000 of full scale, flows in SFM3300 counts
 /// (1/120 slm), times in ticks of 10 ms.
@@ -41,10 +44,57 @@ pub struct Config {
     pub stall_flow: i16,
     /// ... for `stall_ticks` consecutive ticks (default 50 = 0.5 s) is a stall.
     pub stall_ticks: u16,
-    /// Duty held in run mode (default 3000 = 30 %).
-    pub run_duty: u16,
-    /// Run-mode monitor.
+    /// Run-mode model monitor (one-step residuals, drift).
     pub monitor: MonitorConfig,
+    /// The flow controller.
+    pub control: ControlConfig,
+}
+
+/// Settings of the flow controller: its design, its limits and what it tracks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ControlConfig {
+    /// The speed knob: time constant of the setpoint response, s. `None` (the default): a
+    /// quarter of the model's open-loop time constant (see `ridge_core::control::Spec`).
+    pub tau: Option<f32>,
+    /// Time constant of the observer pole, s (default 0.095: pole 0.9 at 100 Hz).
+    pub observer: f32,
+    /// Designs before the controller is refused, each 1.5 times slower (default 5).
+    pub tries: u8,
+    /// Smallest duty the controller commands, 1/10 000 (default 1500 = 15 %: below it the
+    /// blowers' dead zones start).
+    pub duty_min: u16,
+    /// Largest duty the controller commands, 1/10 000 (default 9500 = 95 %).
+    pub duty_max: u16,
+    /// Largest duty change per tick, 1/10 000 (default 500 = 5 % per 10 ms).
+    pub duty_step: u16,
+    /// What a model must satisfy before a controller is designed from it (default: poles
+    /// within 0.995, static gain 20..2000 slm per unit duty; the simulated blowers have
+    /// 150..250).
+    pub model: ModelLimits<f32>,
+    /// What run mode tracks (default [`Program::Demo`]).
+    pub program: Program,
+    /// Tracking figures and alarm.
+    pub tracking: TrackingConfig,
+}
+
+impl Default for ControlConfig {
+    fn default() -> Self {
+        ControlConfig {
+            tau: None,
+            observer: 0.095,
+            tries: 5,
+            duty_min: 1_500,
+            duty_max: 9_500,
+            duty_step: 500,
+            model: ModelLimits {
+                stable_radius: 0.995,
+                gain_min: 20.0,
+                gain_max: 2_000.0,
+            },
+            program: Program::Demo,
+            tracking: TrackingConfig::default(),
+        }
+    }
 }
 
 impl Default for Config {
@@ -64,8 +114,8 @@ impl Default for Config {
             stall_duty: 4_000,
             stall_flow: 240,
             stall_ticks: 50,
-            run_duty: 3_000,
             monitor: MonitorConfig::default(),
+            control: ControlConfig::default(),
         }
     }
 }

@@ -7,6 +7,8 @@
 //! ticks meanwhile: the PWM keeps the base duty) or, to keep ticking from the timer interrupt
 //! while the search runs, [`SelfIdentification::take_search`] →
 //! [`SearchJob::run`] → [`SelfIdentification::finish_search`]. When
+//! [`SelfIdentification::needs_design`] is true it runs [`SelfIdentification::design`] the same
+//! blocking way (tens of milliseconds). When
 //! [`SelfIdentification::needs_judgement`] is true (the validation record is complete) it calls
 //! [`SelfIdentification::judge`] after the tick's PWM write, applies [`SelfIdentification::duty`]
 //! if that is 0 (a latched fault), and reports the event. Both are kept out of `tick`, which
@@ -14,11 +16,12 @@
 //!
 //! # States
 //! ```text
-//! WaitSensor ─first good reading─▶ Settle ─┬─(valid stored model)──────────────▶ Run  (LOADED)
-//!                                          └▶ Excite ─▶ Search ─▶ Validate ─┬─▶ Run  (ACCEPT, persist)
+//! WaitSensor ─first good reading─▶ Settle ─┬─(valid stored model)──────────────▶ Design (LOADED) ─▶ Run (CTRL)
+//!                                          └▶ Excite ─▶ Search ─▶ Validate ─┬─▶ Settle (ACCEPT, persist) ─▶ Design ─▶ Run (CTRL)
 //!                        ▲                                     │           │
 //!                        └──────── REJECT (attempt < attempts) ┴───────────┘
-//! any state ─sensor errors / flow out of range / stall / all attempts rejected─▶ Fault (duty 0, latched)
+//! any state ─sensor errors / flow out of range / stall / all attempts rejected
+//!            / controller refused (Design) ─▶ Fault (duty 0, latched)
 //! ```
 //! - **WaitSensor**: duty 0 until the first good reading.
 //! - **Settle**: [`Config::base_duty`] for [`Config::settle_ticks`]. The rounded mean flow of
@@ -28,7 +31,7 @@
 //!   statistics with `IntGram::push(u − u0, y − y0)`, `u` the duty (1/10 000) applied during
 //!   the interval that ends with the reading `y` (counts `raw − 32768`, 1/120 slm).
 //! - **Search**: base duty until the search is done (ridge-core `Search<f32>` on
-//!   `Gram::normal::<f32>(Scale::SFM3300_DUTY_10K)`, [`Config::search`]); the model of the
+//!   `Gram::normal::<f32>(units::SCALE)`, [`Config::search`]); the model of the
 //!   deviations is turned into the absolute model with an intercept ([`absolute_model`]).
 //!
 //! ## Why deviations from the operating point
@@ -44,8 +47,17 @@
 //!   [`Evaluation<f32>`] in physical units (seeded with the first `m` measured samples); a model with
 //!   a free-run fit below [`Config::min_fit`] is rejected by [`SelfIdentification::judge`]
 //!   (base duty from the end of the record until then).
-//! - **Run**: [`Config::run_duty`] ([`SelfIdentification::set_run_duty`]), with the one-step
-//!   residual monitor ([`crate::monitor`]).
+//! - **Design** (after a settle phase at the base duty, so that control starts from the settled
+//!   operating point): base duty until [`SelfIdentification::design`] has checked the model
+//!   (stable, static gain of the expected sign and size; see [`ControlConfig::model`]),
+//!   designed the flow controller (`ridge_core::control`: pole placement with an integrator,
+//!   slowed down and retried while its checks fail) and accepted it ([`Event::Control`]). A
+//!   refused model or design latches [`FaultReason::Control`]: the pump stops (duty 0)
+//!   rather than run without a checked controller.
+//! - **Run**: the controller tracks [`ControlConfig::program`] (setpoints from
+//!   [`crate::setpoint`]) within the duty limits and rate limit, starting bumplessly from the
+//!   base duty and the current flow; the one-step residual monitor ([`crate::monitor`]) and
+//!   the tracking figures and alarm ([`crate::tracking`]) report once a second.
 //! - **Fault**: duty 0 from the tick that detected it on, for ever (until a new
 //!   [`SelfIdentification::new`]).
 //!
@@ -62,11 +74,13 @@
 //! | `search.rs` | the structure search: blocking, or as a [`SearchJob`] while ticks go on |
 
 mod config;
+mod design;
 mod guard;
 mod recording;
+mod run;
 mod search;
 
-pub use config::Config;
+pub use config::{Config, ControlConfig};
 pub use guard::Guard;
 pub use recording::{absolute_model, SETTLE_MEAN_TICKS};
 pub use search::{SearchJob, SearchOutcome};
@@ -74,12 +88,12 @@ pub use search::{SearchJob, SearchOutcome};
 use ridge_core::excitation::Excitation;
 use ridge_core::{ArxModel, Evaluation, IntGram};
 
-use crate::event::{Event, FaultReason, RejectReason, SensorFault};
-use crate::monitor::Monitor;
-use crate::persist::{self, PersistError, RECORD_LEN};
-use crate::units::{DUTY_FULL_SCALE, FRACTION_PER_DUTY, SLM_PER_COUNT};
+use crate::event::{Event, FaultReason, RejectReason, SensorFault, StoredReason};
+use crate::persist::{self, RECORD_LEN};
+use crate::units::{FRACTION_PER_DUTY, SLM_PER_COUNT};
 
 use recording::Recording;
+use run::RunMode;
 
 /// The externally visible state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -94,7 +108,9 @@ pub enum State {
     Search,
     /// Running the validation record.
     Validate,
-    /// Holding the run duty and monitoring the model.
+    /// Waiting for (or running) the controller design, at the base duty.
+    Design,
+    /// Controlling the flow, monitoring the model and the tracking.
     Run,
     /// Stopped (duty 0), latched.
     Fault,
@@ -112,7 +128,11 @@ pub struct Tick {
 /// What follows a settle phase.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Then {
-    Run,
+    /// The stored model: report it (`LOADED`), then design its controller.
+    Load,
+    /// The accepted model: design its controller.
+    Design,
+    /// An identification attempt.
     Excite,
 }
 
@@ -143,9 +163,11 @@ enum Phase {
         /// The record is complete: waiting for [`SelfIdentification::judge`].
         complete: bool,
     },
-    Run {
-        monitor: Monitor,
+    /// The model (accepted or loaded) waits for its controller design.
+    Design {
+        model: ArxModel<f32>,
     },
+    Run(RunMode),
     Fault,
 }
 
@@ -177,7 +199,7 @@ pub struct SelfIdentification {
     generation: u8,
     model: Option<ArxModel<f32>>,
     fit: f32,
-    stored_error: Option<PersistError>,
+    stored_error: Option<StoredReason>,
     fault: Option<FaultReason>,
     fault_announced: bool,
     drift: bool,
@@ -188,16 +210,30 @@ pub struct SelfIdentification {
 // RAM guard: 614 bytes measured on avr-none (656 on x86-64). The search itself runs on the
 // stack (ridge-core `Search::run_with_progress`).
 #[cfg(target_arch = "avr")]
-const _: () = assert!(core::mem::size_of::<SelfIdentification>() <= 640);
+const _: () = assert!(core::mem::size_of::<SelfIdentification>() <= 4000);
 
 impl SelfIdentification {
     /// A state machine with settings `config`. `stored` is the persisted record read from
     /// EEPROM/flash (see [`crate::persist`]) or `None`. A valid record skips identification:
-    /// after settling the pump runs with that model ([`Event::Loaded`]). An invalid one is
-    /// reported once ([`Event::StoredRejected`], on the first tick) and a new model is
-    /// identified.
+    /// after settling, the controller is designed for that model ([`Event::Loaded`]) and the
+    /// pump runs. A record that is invalid, or valid but with a model that fails the checks an
+    /// identified model must pass (stable, static gain of the right sign and size, fit at
+    /// least [`Config::min_fit`]), is reported once ([`Event::StoredRejected`], on the first
+    /// tick) and a new model is identified.
     pub fn new(config: Config, stored: Option<&[u8]>) -> Self {
-        let (model, fit, stored_error) = match stored.map(persist::decode) {
+        let checked = stored.map(|bytes| {
+            let (m, fit) = persist::decode(bytes).map_err(StoredReason::Record)?;
+            ridge_core::control::check_model(&m, &config.control.model)
+                .map_err(StoredReason::Model)?;
+            if !fit.is_finite() || fit < config.min_fit {
+                return Err(StoredReason::Fit {
+                    fit,
+                    min: config.min_fit,
+                });
+            }
+            Ok((m, fit))
+        });
+        let (model, fit, stored_error) = match checked {
             Some(Ok((m, fit))) => (Some(m), fit, None),
             Some(Err(e)) => (None, 0.0, Some(e)),
             None => (None, 0.0, None),
@@ -274,8 +310,8 @@ impl SelfIdentification {
         matches!(self.phase, Phase::Validate { complete: true, .. })
     }
 
-    /// Scores the complete validation record and accepts the model (run mode at
-    /// [`Config::run_duty`] from the next tick; [`Event::Accepted`], whose
+    /// Scores the complete validation record and accepts the model (the controller design
+    /// follows, see [`design`](Self::design); [`Event::Accepted`], whose
     /// [`persist`](Event::persist) asks for [`persist_bytes`](Self::persist_bytes) to be
     /// stored) or rejects it ([`Event::Rejected`]; after the last attempt the fault is latched
     /// and [`duty`](Self::duty) is 0 at once). `None` when no judgement is due.
@@ -299,7 +335,8 @@ impl SelfIdentification {
             Phase::Excite { .. } => State::Excite,
             Phase::SearchReady { .. } | Phase::Searching => State::Search,
             Phase::Validate { .. } => State::Validate,
-            Phase::Run { .. } => State::Run,
+            Phase::Design { .. } => State::Design,
+            Phase::Run(_) => State::Run,
             Phase::Fault => State::Fault,
         }
     }
@@ -338,15 +375,17 @@ impl SelfIdentification {
         }
     }
 
-    /// Sets the duty held in run mode, 1/10 000 of full scale (clamped to 10 000); takes
-    /// effect at the next tick in run mode.
-    pub fn set_run_duty(&mut self, duty: u16) {
-        self.cfg.run_duty = duty.min(DUTY_FULL_SCALE);
+    /// Whether run mode's tracking alarm is raised.
+    pub fn tracking_alarm(&self) -> bool {
+        matches!(&self.phase, Phase::Run(run) if run.alarm())
     }
 
-    /// The duty held in run mode, 1/10 000 of full scale.
-    pub fn run_duty(&self) -> u16 {
-        self.cfg.run_duty
+    /// The setpoint of the interval in progress (run mode), slm.
+    pub fn setpoint(&self) -> Option<f32> {
+        match &self.phase {
+            Phase::Run(run) => Some(run.setpoint()),
+            _ => None,
+        }
     }
 
     /// The settings.
@@ -433,7 +472,7 @@ impl SelfIdentification {
             Phase::Wait => {
                 reading?;
                 let then = if self.model.is_some() && !self.identify {
-                    Then::Run
+                    Then::Load
                 } else {
                     Then::Excite
                 };
@@ -527,9 +566,13 @@ impl SelfIdentification {
                     }
                 }
             }
-            Phase::Run { monitor } => {
-                self.duty = self.cfg.run_duty;
-                let event = monitor.step(applied, reading);
+            Phase::Design { .. } => {
+                self.duty = self.cfg.base_duty;
+                None
+            }
+            Phase::Run(run) => {
+                let (duty, event) = run.step(applied, reading, self.last_counts);
+                self.duty = duty;
                 if let Some(Event::Drift { reidentify, .. }) = event {
                     self.drift = true;
                     if reidentify {
@@ -567,15 +610,18 @@ impl SelfIdentification {
         };
         let u0 = self.cfg.base_duty;
         match (*then, self.model) {
-            (Then::Run, Some(model)) => {
-                self.phase = Phase::Run {
-                    monitor: Monitor::new(model, self.cfg.monitor),
-                };
-                self.duty = self.cfg.run_duty;
+            (Then::Load, Some(model)) => {
+                self.phase = Phase::Design { model };
+                self.duty = self.cfg.base_duty;
                 Some(Event::Loaded {
                     model,
                     fit: self.fit,
                 })
+            }
+            (Then::Design, Some(model)) => {
+                self.phase = Phase::Design { model };
+                self.duty = self.cfg.base_duty;
+                None
             }
             _ => {
                 self.attempt = self.attempt.saturating_add(1);
@@ -637,10 +683,9 @@ impl SelfIdentification {
         self.model = Some(model);
         self.fit = free.fit;
         self.drift = false;
-        self.phase = Phase::Run {
-            monitor: Monitor::new(model, self.cfg.monitor),
-        };
-        self.duty = self.cfg.run_duty;
+        // Settle at the base duty, then design: control starts from the settled operating point.
+        self.phase = settle(self.cfg.settle_ticks, Then::Design);
+        self.duty = self.cfg.base_duty;
         Event::Accepted {
             fit: free.fit,
             rmse: free.rmse,

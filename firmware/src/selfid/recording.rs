@@ -32,13 +32,27 @@ impl Recording {
     }
 
     /// RMS deviation of the flow from its mean, slm (exact integer variance first).
+    ///
+    /// Exact in `i64` for records of up to 65 535 samples (`n Σy² − (Σy)²` stays below 2⁶³
+    /// with |y| ≤ 32 768); longer ones fall back to `f32` sums (128-bit integers would pull
+    /// 1.7 KB of conversion code into the ATmega2560 image for a threshold check).
     pub(super) fn response_rms(&self) -> f32 {
-        let n = i128::from(self.gram.len());
+        let n = self.gram.len();
         if n == 0 {
             return 0.0;
         }
-        let var_n2 = n * i128::from(self.sum_y2) - i128::from(self.sum_y) * i128::from(self.sum_y);
-        let var = var_n2.max(0) as f32 / (n * n) as f32;
+        let var = match u16::try_from(n) {
+            Ok(_) => {
+                let n = i64::from(n);
+                let var_n2 = n * self.sum_y2 - self.sum_y * self.sum_y;
+                var_n2.max(0) as f32 / (n * n) as f32
+            }
+            Err(_) => {
+                let nf = n as f32;
+                let mean = self.sum_y as f32 / nf;
+                (self.sum_y2 as f32 / nf - mean * mean).max(0.0)
+            }
+        };
         ridge_core::Real::sqrt(var) * SLM_PER_COUNT
     }
 }

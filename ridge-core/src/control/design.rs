@@ -12,20 +12,21 @@
 //! A (1 − q⁻¹) R' + q^{−d−1} B S = P,   deg R' = d + q − 1,  deg S = p,  deg P ≤ p + q + d
 //! ```
 //!
-//! (one `(p + q + d)`-square linear solve; no plant zero is cancelled, so zeros near or outside
-//! the unit circle are harmless). The chosen `P` is
+//! (no plant zero is cancelled, so zeros near or outside the unit circle are harmless). The
+//! chosen `P` is
 //!
 //! ```text
-//! P = (1 − α q⁻¹) · (1 − β q⁻¹) · A_fast(q⁻¹)        (the other p + q + d − 2 − deg A_fast poles at 0)
+//! P = (1 − α q⁻¹) · (1 − β q⁻¹) · A_fast(q⁻¹)        (the other poles of the closed loop at 0)
 //! ```
 //!
 //! - `α = e^{−Ts/τ}`: **the speed knob** `τ`, the time constant of the setpoint response;
 //! - `β = e^{−Ts/τ_o}`: an observer pole (`τ_o` ≈ 95 ms by default) that buys robustness:
 //!   the slower it is, the larger the modulus margin, at the price of a slower rejection of
 //!   disturbances (not of a slower setpoint response, see `T`);
-//! - `A_fast`: the model's own poles except its dominant real one, kept where the plant has
-//!   them when they are fast (all within [`Spec::keep_radius`]): the controller then spends no
-//!   effort moving them. Only the slow dominant pole is moved, to `α`.
+//! - `A_fast`: the model's own fast poles (within [`Spec::keep_radius`]), kept where the plant
+//!   has them: the controller spends no effort moving them. Only the slow pole, which must be
+//!   real and alone (a blower's dominant lag), is moved, to `α`; a model with more slow poles
+//!   or a slow complex pair is refused ([`DesignError::SlowPoles`]).
 //!
 //! `T = t₀ (1 − β q⁻¹) A_fast` with `t₀` such that `T(1) = S(1)` cancels everything but `α` from
 //! the setpoint response: `y = q^{−d−1} (B / B(1)) (1 − α) / (1 − α q⁻¹) · r`, a first-order
@@ -35,8 +36,9 @@
 //! The anti-windup observer polynomial is `A_o = (1 − β q⁻¹) A_fast` (see
 //! [`Controller`](super::Controller)).
 //!
-//! Why this method: it needs only the model (no tuning experiment), one small linear solve
-//! (milliseconds on the ATmega2560), it has integral action and anti-windup in the same
+//! Why this method: it needs only the model (no tuning experiment), a solve of the size of the
+//! slow poles (see [`design`]: milliseconds on the ATmega2560), it has integral action and
+//! anti-windup in the same
 //! polynomial form, its closed-loop poles are known by construction (so the check that they
 //! are where they were put is exact), and it separates the setpoint response (`τ`) from the
 //! robustness (`β`). On the simulated pumps this reaches a modulus margin of 0.55–0.65 with
@@ -44,14 +46,11 @@
 
 use crate::model::ArxModel;
 use crate::real::Real;
-use crate::{D_MAX, P_MAX, Q_MAX};
+use crate::P_MAX;
 
 use super::margin::modulus_margin;
-use super::poly::{at_one, deflate, dominant_real_root, mul, roots_within, POLY_LEN};
+use super::poly::{deflate, dominant_real_root, eval, mul, roots_within, POLY_LEN};
 use super::rst::{Rst, R_LEN, S_LEN};
-
-/// Unknowns of the Diophantine equation: `d + q − 1` of `R'` and `p + 1` of `S`.
-const N_MAX: usize = P_MAX + Q_MAX + D_MAX;
 
 /// The design's settings. Times in seconds.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -73,6 +72,7 @@ impl<T: Real> Spec<T> {
     /// model's open-loop time constant `−Ts / ln λ` (`λ` its dominant real pole), at least
     /// `2 Ts` and at most 2 s (`0.1 s` when the model has no real dominant pole); observer
     /// pole `β = 0.9` at 100 Hz (`τ_o = 95 ms`); keep radius 0.8; margin ≥ 0.5.
+    #[inline(never)]
     pub fn for_model(model: &ArxModel<T>, ts: T) -> Self {
         let mut a = [T::ZERO; P_MAX + 1];
         let n = denominator(model, &mut a);
@@ -115,18 +115,8 @@ pub struct Design<T: Real> {
     pub beta: T,
     /// Model poles kept in `P` (0 when none were kept).
     pub kept: u8,
-    /// Coefficients of `P = A R + q^{−d−1} B S` (ascending powers of `q⁻¹`), as designed.
-    p: [T; POLY_LEN],
-    np: u8,
     /// `1 / max_ω |A R / P|` on the unit circle.
     pub modulus_margin: T,
-}
-
-impl<T: Real> Design<T> {
-    /// The closed-loop polynomial `P` the controller was designed for.
-    pub fn closed_loop(&self) -> &[T] {
-        self.p.get(..usize::from(self.np)).unwrap_or(&[])
-    }
 }
 
 /// Why a design was refused.
@@ -138,6 +128,10 @@ pub enum DesignError<T> {
     /// The Diophantine equation is singular: `A (1 − q⁻¹)` and `B` have a common root (the
     /// model cannot be controlled), or the solution is not finite.
     Singular,
+    /// The model has more than one pole outside [`Spec::keep_radius`], or a slow pole that
+    /// is not real (an oscillating plant): this design moves one real slow pole (a blower's
+    /// lag) and keeps the rest.
+    SlowPoles,
     /// The closed loop `A R + q^{−d−1} B S` is not the designed `P` (numerical failure), or not
     /// all its roots lie within the radius of the slowest designed pole plus 0.01.
     Poles,
@@ -153,11 +147,11 @@ const P_TOLERANCE: f64 = 1e-3;
 
 /// `A = [1, −θ₁, …, −θ_p]` of `model` into `a`; returns its length.
 fn denominator<T: Real>(model: &ArxModel<T>, a: &mut [T; P_MAX + 1]) -> usize {
+    let theta = model.theta();
+    let n = theta.len().min(P_MAX) + 1;
     a[0] = T::ONE;
-    let mut n = 1;
-    for (dst, &th) in a.iter_mut().skip(1).zip(model.theta()) {
-        *dst = -th;
-        n += 1;
+    for k in 1..n {
+        a[k] = -theta[k - 1];
     }
     n
 }
@@ -175,6 +169,24 @@ fn clamp<T: Real>(x: T, lo: T, hi: T) -> T {
 /// Designs the controller for `model` with `spec` (see the module docs) and checks it: the
 /// closed loop equals the designed `P` to 1e-3, all its roots lie within the slowest designed
 /// pole plus 0.01, and the modulus margin is at least [`Spec::min_margin`].
+///
+/// # Computation
+/// At most one model pole may lie outside [`Spec::keep_radius`], and it must be real (a
+/// blower's lag: found by Newton's method from `z = 1` and deflated, `A = (1 − λ q⁻¹) A_fast`);
+/// more slow poles, or a slow complex pair, are refused ([`DesignError::SlowPoles`]). The kept
+/// factor `A_fast` is common to `A (1 − q⁻¹)` and `P` and cancels from the Diophantine
+/// equation:
+///
+/// ```text
+/// (1 − λ q⁻¹)(1 − q⁻¹) R' + q^{−d−1} B S'' = (1 − α q⁻¹)(1 − β q⁻¹),   S = A_fast S''
+/// ```
+///
+/// Its two unknowns `S'' = s₀ + s₁ q⁻¹` follow from the equation at `q⁻¹ = 1` and
+/// `q⁻¹ = 1/λ`, where the `R'` term vanishes; `R'` is then the exact quotient of
+/// `P − q^{−d−1} B S''` by `(1 − λ q⁻¹)(1 − q⁻¹)`. No `(p + q + d)`-square Sylvester matrix:
+/// a few hundred bytes of stack
+/// on the ATmega2560 instead of two kilobytes.
+#[inline(never)]
 pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>, DesignError<T>> {
     let positive = |x: T| x.is_finite() && x > T::ZERO;
     if !(positive(spec.ts) && positive(spec.tau) && positive(spec.observer)) {
@@ -182,140 +194,133 @@ pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>,
     }
     let s = model.structure();
     let (p, q, d) = (usize::from(s.p), usize::from(s.q), usize::from(s.d));
-    if q == 0 {
+    // The structure's maxima bound every length below (p ≤ 6, q ≤ 6, d ≤ 6).
+    if q == 0 || p > P_MAX || p + q + d >= POLY_LEN {
         return Err(DesignError::Spec);
     }
+    let tol = T::from_f64(P_TOLERANCE);
+
+    // A = [1, −θ] = A_slow A_fast, with at most one slow pole, real (a blower's lag): the
+    // largest real root λ, if the model is not fast as a whole.
     let mut a = [T::ZERO; P_MAX + 1];
     let na = denominator(model, &mut a);
-    let a = a.get(..na).unwrap_or(&[]);
-
-    // A_fast: the model's poles but the dominant real one, if they are all fast.
-    let mut fast = [T::ZERO; P_MAX + 1];
-    let mut n_fast = 1;
-    fast[0] = T::ONE;
-    if let Some(lambda) = dominant_real_root(a) {
-        let mut rest = [T::ZERO; P_MAX];
-        if deflate(a, lambda, &mut rest).is_some() {
-            let rest = rest.get(..na - 1).unwrap_or(&[]);
-            if roots_within(rest, spec.keep_radius) {
-                for (f, &x) in fast.iter_mut().zip(rest) {
-                    *f = x;
-                }
-                n_fast = rest.len();
-            }
+    let (mut fast, mut nf) = (a, na);
+    let mut lambda = T::ZERO;
+    let slow = !roots_within(&a[..na], spec.keep_radius);
+    if slow {
+        lambda = dominant_real_root(&a[..na]).ok_or(DesignError::SlowPoles)?;
+        let remainder = deflate(&a[..na], lambda, &mut fast).ok_or(DesignError::Spec)?;
+        nf = na - 1;
+        if !at_most(remainder.abs(), tol) || !roots_within(&fast[..nf], spec.keep_radius) {
+            return Err(DesignError::SlowPoles);
         }
     }
-    let fast = fast.get(..n_fast).unwrap_or(&[]);
 
-    let alpha = (-spec.ts / spec.tau).exp();
-    let beta = (-spec.ts / spec.observer).exp();
-    // Po = (1 − β q⁻¹) A_fast;  P = (1 − α q⁻¹) Po, zero-padded to p + q + d + 1.
-    let mut po = [T::ZERO; P_MAX + 1];
-    let npo = mul(&[T::ONE, -beta], fast, &mut po).ok_or(DesignError::Spec)?;
-    let po = po.get(..npo).unwrap_or(&[]);
-    let n = p + q + d;
-    let mut pp = [T::ZERO; POLY_LEN];
-    mul(&[T::ONE, -alpha], po, &mut pp).ok_or(DesignError::Spec)?;
-
-    // A' = A (1 − q⁻¹) (p + 2 coefficients), B' = q^{−d−1} B (d + 1 + q coefficients).
-    let mut a1 = [T::ZERO; P_MAX + 2];
-    let na1 = mul(a, &[T::ONE, -T::ONE], &mut a1).ok_or(DesignError::Spec)?;
+    let alpha = exp_neg(spec.ts / spec.tau);
+    let beta = exp_neg(spec.ts / spec.observer);
+    // The reduced target P_small: (1 − α q⁻¹)(1 − β q⁻¹), or (1 − α q⁻¹) alone when the
+    // reduced equation is too small for two poles (no slow pole and d + q = 1).
+    let mut small = [T::ONE, -alpha, T::ZERO];
+    let ns = if usize::from(slow) + d + q >= 2 {
+        small = [T::ONE, -(alpha + beta), alpha * beta];
+        3
+    } else {
+        2
+    };
+    let small = &small[..ns];
+    // B' = q^{−d−1} B.
     let mut b1 = [T::ZERO; POLY_LEN];
-    for (dst, &ph) in b1.iter_mut().skip(d + 1).zip(model.phi()) {
-        *dst = ph;
-    }
-    let nr1 = d + q - 1; // unknowns r'₁ … r'_{nr1}
-    let ns = p + 1; // unknowns s₀ … s_p
-    let mut m = [[T::ZERO; N_MAX]; N_MAX];
-    let mut x = [T::ZERO; N_MAX];
-    // Row k−1 is the coefficient of q⁻ᵏ, k = 1..=n.
-    for k in 1..=n {
-        let Some(row) = m.get_mut(k - 1) else {
-            return Err(DesignError::Spec);
-        };
-        for i in 1..=nr1.min(k) {
-            if let (Some(cell), Some(&ai)) = (row.get_mut(i - 1), a1.get(k - i)) {
-                if k - i < na1 {
-                    *cell = ai;
-                }
-            }
-        }
-        for j in 0..ns.min(k + 1) {
-            if let (Some(cell), Some(&bj)) = (row.get_mut(nr1 + j), b1.get(k - j)) {
-                *cell = bj;
-            }
-        }
-        let a1k = if k < na1 {
-            a1.get(k).copied().unwrap_or(T::ZERO)
-        } else {
-            T::ZERO
-        };
-        if let Some(xk) = x.get_mut(k - 1) {
-            *xk = pp.get(k).copied().unwrap_or(T::ZERO) - a1k;
-        }
-    }
-    solve(&mut m, &mut x, n)?;
+    let nb = d + 1 + q;
+    b1[d + 1..nb].copy_from_slice(model.phi());
+    let b1 = &b1[..nb];
 
-    // R = (1 − q⁻¹) R', S, T = t₀ Po with T(1) = S(1).
-    let mut r1 = [T::ZERO; R_LEN];
-    r1[0] = T::ONE;
-    for (dst, &v) in r1.iter_mut().skip(1).zip(x.iter().take(nr1)) {
-        *dst = v;
+    // S'' = s₀ (+ s₁ q⁻¹ with the slow pole) from B'(z) S''(z) = P_small(z) at the roots
+    // z = 1 (and z = 1/λ) of A_slow (1 − q⁻¹), where the R' term vanishes.
+    let u = eval(small, T::ONE) / eval(b1, T::ONE);
+    let mut s2 = [u, T::ZERO];
+    let n_s2 = if slow {
+        let z = T::ONE / lambda;
+        // B' vanishing at 1/λ (to rounding) means B shares the slow pole: it cannot be moved.
+        let (bz, mut size) = (eval(b1, z), T::ZERO);
+        for &b in b1.iter().rev() {
+            size = size * z + b.abs();
+        }
+        if !at_most(T::from_f64(1e-4) * size, bz.abs()) {
+            return Err(DesignError::Singular);
+        }
+        let v = eval(small, z) / bz;
+        // s₀ + s₁ = u, s₀ + s₁ z = v.
+        s2[1] = (v - u) / (z - T::ONE);
+        s2[0] = u - s2[1];
+        2
+    } else {
+        1
+    };
+    let s2 = &s2[..n_s2];
+    if !s2.iter().all(|x| x.is_finite()) {
+        return Err(DesignError::Singular);
     }
+
+    // R' = (P_small − B' S'') / (A_slow (1 − q⁻¹)), exactly: divide by each root's factor.
+    let mut num = [T::ZERO; POLY_LEN];
+    let mut nn = mul(b1, s2, &mut num).ok_or(DesignError::Spec)?;
+    for k in 0..nn {
+        num[k] = -num[k];
+    }
+    for k in 0..ns {
+        num[k] += small[k];
+    }
+    nn = nn.max(ns);
+    for root in [lambda, T::ONE].into_iter().skip(usize::from(!slow)) {
+        let mut quotient = [T::ZERO; POLY_LEN];
+        deflate(&num[..nn], root, &mut quotient).ok_or(DesignError::Spec)?;
+        num = quotient;
+        nn -= 1;
+    }
+    // R = (1 − q⁻¹) R', S = A_fast S'', A_o = (1 − β q⁻¹) A_fast, T = t₀ A_o with T(1) = S(1).
     let mut r = [T::ZERO; R_LEN];
-    let nr = mul(r1.get(..nr1 + 1).unwrap_or(&[]), &[T::ONE, -T::ONE], &mut r)
-        .ok_or(DesignError::Spec)?;
+    let nr = mul(&num[..nn], &[T::ONE, -T::ONE], &mut r).ok_or(DesignError::Singular)?;
     let mut sv = [T::ZERO; S_LEN];
-    for (dst, &v) in sv.iter_mut().zip(x.iter().skip(nr1).take(ns)) {
-        *dst = v;
+    let nsv = mul(&fast[..nf], s2, &mut sv).ok_or(DesignError::Singular)?;
+    let mut ao = [T::ZERO; S_LEN];
+    let nao = mul(&[T::ONE, -beta], &fast[..nf], &mut ao).ok_or(DesignError::Spec)?;
+    let t0 = eval(&sv[..nsv], T::ONE) / eval(&ao[..nao], T::ONE);
+    let mut t = ao;
+    for v in t.iter_mut() {
+        *v *= t0;
     }
-    let sv = sv.get(..ns).unwrap_or(&[]);
-    let t0 = at_one(sv) / at_one(po);
-    let mut t = [T::ZERO; S_LEN];
-    for (dst, &v) in t.iter_mut().zip(po) {
-        *dst = t0 * v;
-    }
-    let rst = Rst::new(
-        r.get(..nr).unwrap_or(&[]),
-        sv,
-        t.get(..npo).unwrap_or(&[]),
-        po,
-    )
-    .map_err(|_| DesignError::Singular)?;
+    let rst =
+        Rst::new(&r[..nr], &sv[..nsv], &t[..nao], &ao[..nao]).map_err(|_| DesignError::Singular)?;
 
-    // The closed loop as built: A R + q^{−d−1} B S, against the designed P.
+    // The checks. The closed loop as built, A R + q^{−d−1} B S, against the designed
+    // P = P_small A_fast; its roots; the modulus margin.
+    let mut want = [T::ZERO; POLY_LEN];
+    mul(small, &fast[..nf], &mut want).ok_or(DesignError::Spec)?;
     let mut ar = [T::ZERO; POLY_LEN];
-    let nar = mul(a, rst.r(), &mut ar).ok_or(DesignError::Spec)?;
-    let mut bs = [T::ZERO; POLY_LEN];
-    let nbs = mul(b1.get(..d + 1 + q).unwrap_or(&[]), rst.s(), &mut bs).ok_or(DesignError::Spec)?;
-    let np = nar.max(nbs).max(n + 1);
-    let mut scale = T::ONE;
-    for &v in pp.iter().take(np) {
-        scale = max(scale, v.abs());
-    }
+    let nar = mul(&a[..na], rst.r(), &mut ar).ok_or(DesignError::Spec)?;
     let mut closed = [T::ZERO; POLY_LEN];
+    let nbs = mul(b1, rst.s(), &mut closed).ok_or(DesignError::Spec)?;
+    let np = nar.max(nbs);
+    let mut scale = T::ONE;
     for k in 0..np {
-        let v = ar.get(k).copied().unwrap_or(T::ZERO) + bs.get(k).copied().unwrap_or(T::ZERO);
-        let want = pp.get(k).copied().unwrap_or(T::ZERO);
-        let err = (v - want).abs();
-        if !err.is_finite() || err > T::from_f64(P_TOLERANCE) * scale {
+        closed[k] += ar[k];
+        scale = max(scale, want[k].abs());
+    }
+    for k in 0..np {
+        if !at_most((closed[k] - want[k]).abs(), tol * scale) {
             return Err(DesignError::Poles);
         }
-        if let Some(c) = closed.get_mut(k) {
-            *c = v;
-        }
     }
-    let slowest = max(
-        max(alpha, beta),
-        spec.keep_radius * T::from_u32(u32::from(n_fast > 1)),
-    );
-    let radius = min(slowest + T::from_f64(0.01), T::ONE);
-    let closed_loop = closed.get(..np).unwrap_or(&[]);
-    if !roots_within(closed_loop, radius) {
+    let slowest = if nf > 1 {
+        max(max(alpha, beta), spec.keep_radius)
+    } else {
+        max(alpha, beta)
+    };
+    if !roots_within(&closed[..np], min(slowest + T::from_f64(0.01), T::ONE)) {
         return Err(DesignError::Poles);
     }
-    let margin = modulus_margin(ar.get(..nar).unwrap_or(&[]), closed_loop);
-    if !margin.is_finite() || margin < spec.min_margin {
+    let margin = modulus_margin(&ar[..nar], &closed[..np]);
+    if !at_most(spec.min_margin, margin) {
         return Err(DesignError::Margin { margin });
     }
     Ok(Design {
@@ -323,26 +328,27 @@ pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>,
         spec: *spec,
         alpha,
         beta,
-        kept: (n_fast - 1) as u8,
-        p: closed,
-        np: np as u8,
+        kept: (nf - 1) as u8,
         modulus_margin: margin,
     })
 }
 
 /// Designs with `spec`, and while the margin or the pole check fails, again up to
-/// `tries − 1` times, each [`Spec::slower`] by `factor`. Returns the first design that passes
-/// with the number of designs made, or the last refusal with that number.
+/// `tries − 1` times, each [`Spec::slower`] by `factor`, calling `progress` after each design
+/// (a watchdog). Returns the first design that passes with the number of designs made, or the
+/// last refusal with that number.
 pub fn design_slower_on_failure<T: Real>(
     model: &ArxModel<T>,
     spec: &Spec<T>,
     tries: u8,
     factor: T,
+    mut progress: impl FnMut(),
 ) -> (Result<Design<T>, DesignError<T>>, u8) {
     let mut spec = *spec;
     let mut last = Err(DesignError::Spec);
     for k in 1..=tries.max(1) {
         last = design(model, &spec);
+        progress();
         match last {
             Ok(_) | Err(DesignError::Spec) | Err(DesignError::Singular) => return (last, k),
             Err(_) => spec = spec.slower(factor),
@@ -351,71 +357,38 @@ pub fn design_slower_on_failure<T: Real>(
     (last, tries.max(1))
 }
 
-/// Gaussian elimination with partial pivoting on the leading `n × n` block; the solution
-/// replaces `x`. [`DesignError::Singular`] when a pivot vanishes or the result is not finite.
-fn solve<T: Real>(
-    m: &mut [[T; N_MAX]; N_MAX],
-    x: &mut [T; N_MAX],
-    n: usize,
-) -> Result<(), DesignError<T>> {
-    let n = n.min(N_MAX);
-    let mut norm = T::ZERO;
-    for row in m.iter().take(n) {
-        for &v in row.iter().take(n) {
-            norm = max(norm, v.abs());
-        }
+/// `e^{−x}` for `x ≥ 0`: halved `k` times to at most 1/16, a 6-term Taylor series
+/// (truncation below 1e-10 relative), squared back `k` times: within 2e-8 relative in `f64` for
+/// `x ≤ 5`, and within `2ᵏ` roundings in `f32` (5e-7 for the design's `x = Ts/τ ≤ 0.5`). A few
+/// hundred bytes on the ATmega2560 instead of libm's 1.3 KB `expf`. NaN for `x < 0`.
+#[inline(never)]
+pub fn exp_neg<T: Real>(x: T) -> T {
+    if !x.is_finite() || x < T::ZERO {
+        // NaN: no exponential of a negative or non-finite argument here.
+        return T::from_f64(f64::NAN);
     }
-    let tiny = norm * T::EPSILON * T::from_u32(n as u32 * 4);
-    for col in 0..n {
-        // Pivot: the largest magnitude in this column at or below the diagonal.
-        let mut piv = col;
-        let mut best = T::ZERO;
-        for (i, row) in m.iter().enumerate().take(n).skip(col) {
-            let v = row.get(col).copied().unwrap_or(T::ZERO).abs();
-            if v > best {
-                best = v;
-                piv = i;
-            }
-        }
-        if !best.is_finite() || best <= tiny {
-            return Err(DesignError::Singular);
-        }
-        m.swap(col, piv);
-        x.swap(col, piv);
-        let (top, bottom) = m.split_at_mut(col + 1);
-        let Some(prow) = top.last() else {
-            return Err(DesignError::Singular);
-        };
-        let pv = prow.get(col).copied().unwrap_or(T::ONE);
-        let xc = x.get(col).copied().unwrap_or(T::ZERO);
-        for (off, row) in bottom.iter_mut().take(n - col - 1).enumerate() {
-            let f = row.get(col).copied().unwrap_or(T::ZERO) / pv;
-            if f == T::ZERO {
-                continue;
-            }
-            for (c, &pc) in row.iter_mut().zip(prow.iter()).take(n).skip(col) {
-                *c -= f * pc;
-            }
-            if let Some(xi) = x.get_mut(col + 1 + off) {
-                *xi -= f * xc;
-            }
-        }
+    let sixteenth = T::from_f64(0.0625);
+    let half = T::from_f64(0.5);
+    let mut y = x;
+    let mut k = 0u8;
+    while y > sixteenth && k < 40 {
+        y *= half;
+        k += 1;
     }
-    for col in (0..n).rev() {
-        let row = m.get(col).ok_or(DesignError::Singular)?;
-        let mut v = x.get(col).copied().unwrap_or(T::ZERO);
-        for (c, &xc) in row.iter().zip(x.iter()).take(n).skip(col + 1) {
-            v -= *c * xc;
-        }
-        let v = v / row.get(col).copied().unwrap_or(T::ONE);
-        if !v.is_finite() {
-            return Err(DesignError::Singular);
-        }
-        if let Some(xc) = x.get_mut(col) {
-            *xc = v;
-        }
+    // 1 − y + y²/2 − y³/6 + y⁴/24 − y⁵/120, Horner.
+    let mut e = T::ONE;
+    for d in [5.0, 4.0, 3.0, 2.0, 1.0] {
+        e = T::ONE - y * e / T::from_f64(d);
     }
-    Ok(())
+    for _ in 0..k {
+        e *= e;
+    }
+    e
+}
+
+/// `a ≤ b`, false when either is NaN.
+fn at_most<T: Real>(a: T, b: T) -> bool {
+    a <= b
 }
 
 fn max<T: Real>(a: T, b: T) -> T {

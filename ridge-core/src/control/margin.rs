@@ -22,6 +22,7 @@ const REFINE_STEPS: usize = 24;
 /// series from the coefficients' autocorrelation, summed by Clenshaw's recurrence), then a
 /// golden-section refinement of the peak in `cos ω` between the largest point's neighbours.
 /// 0 when `P` vanishes on the unit circle (or for NaNs).
+#[inline(never)]
 pub fn modulus_margin<T: Real>(ar: &[T], p: &[T]) -> T {
     let mut rar = [T::ZERO; POLY_LEN];
     let mut rp = [T::ZERO; POLY_LEN];

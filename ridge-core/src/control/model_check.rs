@@ -4,7 +4,7 @@ use crate::model::ArxModel;
 use crate::real::Real;
 use crate::P_MAX;
 
-use super::poly::{at_one, roots_within};
+use super::poly::{eval, roots_within};
 
 /// What a model must satisfy.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,22 +39,21 @@ pub fn check_model<T: Real>(
     model: &ArxModel<T>,
     limits: &ModelLimits<T>,
 ) -> Result<(), ModelFault<T>> {
+    let theta = model.theta();
+    let n = theta.len().min(P_MAX) + 1;
     let mut a = [T::ZERO; P_MAX + 1];
     a[0] = T::ONE;
-    for (dst, &th) in a.iter_mut().skip(1).zip(model.theta()) {
-        if !th.is_finite() {
-            return Err(ModelFault::NonFinite);
-        }
-        *dst = -th;
+    for k in 1..n {
+        a[k] = -theta[k - 1];
     }
-    let a = a.get(..model.theta().len() + 1).unwrap_or(&[]);
-    if model.phi().iter().any(|v| !v.is_finite()) || !model.intercept().is_finite() {
+    let finite = |x: &[T]| x.iter().all(|v| v.is_finite());
+    if !finite(&a) || !finite(model.phi()) || !model.intercept().is_finite() {
         return Err(ModelFault::NonFinite);
     }
-    if !roots_within(a, limits.stable_radius) {
+    if !roots_within(&a[..n], limits.stable_radius) {
         return Err(ModelFault::Unstable);
     }
-    let gain = at_one(model.phi()) / at_one(a);
+    let gain = eval(model.phi(), T::ONE) / eval(&a[..n], T::ONE);
     if !(gain >= limits.gain_min && gain <= limits.gain_max) {
         return Err(ModelFault::Gain { gain });
     }

@@ -3,6 +3,10 @@
 //!
 //! A polynomial `A(q⁻¹) = a₀ + a₁q⁻¹ + … + aₙq⁻ⁿ` has the roots of `a₀zⁿ + a₁zⁿ⁻¹ + … + aₙ`:
 //! those are the poles it stands for (`A y = …` is stable when they lie inside the unit circle).
+//!
+//! Written with index loops rather than iterator adapters: on the ATmega2560 each adapter
+//! chain costs tens of instructions per loop, and this code runs there (the indices are bounded
+//! by the slices' lengths, checked once).
 
 use crate::real::Real;
 
@@ -13,29 +17,31 @@ pub const POLY_LEN: usize = crate::P_MAX + crate::Q_MAX + crate::D_MAX + 1;
 /// `out[..n] = a · b` with `n = a.len() + b.len() − 1`; the rest of `out` is left alone.
 /// Returns `n`, or `None` when `out` is shorter than `n` or a factor is empty.
 pub fn mul<T: Real>(a: &[T], b: &[T], out: &mut [T]) -> Option<usize> {
-    let n = (a.len() + b.len()).checked_sub(1)?;
     if a.is_empty() || b.is_empty() {
         return None;
     }
+    let n = a.len() + b.len() - 1;
     let out = out.get_mut(..n)?;
-    for o in out.iter_mut() {
-        *o = T::ZERO;
-    }
+    out.fill(T::ZERO);
     for (i, &ai) in a.iter().enumerate() {
-        for (o, &bj) in out.iter_mut().skip(i).zip(b) {
-            *o += ai * bj;
+        for (j, &bj) in b.iter().enumerate() {
+            // i + j < n = out.len() by construction.
+            if let Some(o) = out.get_mut(i + j) {
+                *o += ai * bj;
+            }
         }
     }
     Some(n)
 }
 
-/// `A(1) = Σ aₖ`: the polynomial at `q = 1` (its static gain).
-pub fn at_one<T: Real>(a: &[T]) -> T {
-    let mut s = T::ZERO;
-    for &x in a {
-        s += x;
+/// `A(z) = Σ aₖ zᵏ`: the polynomial at `q⁻¹ = z` (Horner from the highest power). `A(1)` is
+/// the static gain of `1 / A`'s inverse, the sum of the coefficients.
+pub fn eval<T: Real>(a: &[T], z: T) -> T {
+    let mut v = T::ZERO;
+    for &c in a.iter().rev() {
+        v = v * z + c;
     }
-    s
+    v
 }
 
 /// Whether every root of `a` lies strictly inside the circle `|z| < radius` (`a[0] ≠ 0`,
@@ -45,34 +51,25 @@ pub fn at_one<T: Real>(a: &[T]) -> T {
 /// than [`POLY_LEN`] coefficients.
 pub fn roots_within<T: Real>(a: &[T], radius: T) -> bool {
     let mut c = [T::ZERO; POLY_LEN];
-    let Some(c) = c.get_mut(..a.len()) else {
-        return false;
-    };
-    if !radius.is_finite() || radius <= T::ZERO {
+    let mut prev = [T::ZERO; POLY_LEN];
+    let mut n = a.len();
+    if n > POLY_LEN || !radius.is_finite() || radius <= T::ZERO {
         return false;
     }
     let mut scale = T::ONE;
-    for (ci, &ai) in c.iter_mut().zip(a) {
-        *ci = ai * scale;
+    for i in 0..n {
+        c[i] = a[i] * scale;
         scale = scale / radius;
     }
-    let mut n = c.len();
-    let mut prev = [T::ZERO; POLY_LEN];
     while n > 1 {
-        let (Some(&c0), Some(&cn)) = (c.first(), c.get(n - 1)) else {
-            return false;
-        };
-        let k = cn / c0;
+        let k = c[n - 1] / c[0];
         if !k.is_finite() || k.abs() >= T::ONE {
             return false;
         }
         // cᵢ ← cᵢ − k cₙ₋₁₋ᵢ for i < n − 1, from a snapshot (the new cₙ₋₁ is 0).
-        for (p, &ci) in prev.iter_mut().zip(c.iter()) {
-            *p = ci;
-        }
-        for (i, ci) in c.iter_mut().enumerate().take(n - 1) {
-            let mirror = prev.get(n - 1 - i).copied().unwrap_or(T::ZERO);
-            *ci -= k * mirror;
+        prev[..n].copy_from_slice(&c[..n]);
+        for i in 0..n - 1 {
+            c[i] -= k * prev[n - 1 - i];
         }
         n -= 1;
     }
@@ -84,7 +81,7 @@ pub fn roots_within<T: Real>(a: &[T], radius: T) -> bool {
 /// monotonically onto the largest real root. `None` when `A(1) ≤ 0`, the iteration leaves
 /// `(0, 1)`, or it does not settle in 60 steps.
 pub fn dominant_real_root<T: Real>(a: &[T]) -> Option<T> {
-    let a1 = at_one(a);
+    let a1 = eval(a, T::ONE);
     if !a1.is_finite() || a1 <= T::ZERO {
         return None;
     }
@@ -95,9 +92,6 @@ pub fn dominant_real_root<T: Real>(a: &[T]) -> Option<T> {
         for &ak in a {
             df = df * z + f;
             f = f * z + ak;
-        }
-        if !df.is_finite() || df == T::ZERO {
-            return None;
         }
         let step = f / df;
         let next = z - step;
@@ -119,22 +113,21 @@ pub fn deflate<T: Real>(a: &[T], lambda: T, out: &mut [T]) -> Option<T> {
     let n = a.len().checked_sub(1)?;
     let out = out.get_mut(..n)?;
     let mut carry = T::ZERO;
-    for (o, &ak) in out.iter_mut().zip(a) {
-        carry = ak + lambda * carry;
-        *o = carry;
+    for k in 0..n {
+        carry = a[k] + lambda * carry;
+        out[k] = carry;
     }
-    let last = *a.get(n)?;
-    Some(last + lambda * carry)
+    Some(a[n] + lambda * carry)
 }
 
-/// `r[k] = Σᵢ aᵢ aᵢ₊ₖ` for `k = 0..a.len()`, so that `|A(e^{−jω})|² = r₀ + 2 Σₖ rₖ cos kω`.
+/// `r[k] = Σᵢ aᵢ aᵢ₊ₖ` for `k = 0..r.len()`, so that `|A(e^{−jω})|² = r₀ + 2 Σₖ rₖ cos kω`.
 pub fn autocorrelation<T: Real>(a: &[T], r: &mut [T]) {
-    for (k, rk) in r.iter_mut().enumerate() {
+    for k in 0..r.len() {
         let mut s = T::ZERO;
-        for (x, y) in a.iter().zip(a.iter().skip(k)) {
-            s += *x * *y;
+        for i in k..a.len() {
+            s += a[i] * a[i - k];
         }
-        *rk = s;
+        r[k] = s;
     }
 }
 
@@ -143,11 +136,13 @@ pub fn autocorrelation<T: Real>(a: &[T], r: &mut [T]) {
 pub fn magnitude_sq<T: Real>(r: &[T], x: T) -> T {
     let two = T::ONE + T::ONE;
     let (mut b1, mut b2) = (T::ZERO, T::ZERO);
-    for &rk in r.iter().skip(1).rev() {
-        let b0 = two * rk + two * x * b1 - b2;
+    for k in (1..r.len()).rev() {
+        let b0 = two * (r[k] + x * b1) - b2;
         b2 = b1;
         b1 = b0;
     }
-    let r0 = r.first().copied().unwrap_or(T::ZERO);
-    r0 + x * b1 - b2
+    match r.first() {
+        Some(&r0) => r0 + x * b1 - b2,
+        None => T::ZERO,
+    }
 }

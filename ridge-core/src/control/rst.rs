@@ -49,40 +49,33 @@ impl<T: Real> Rst<T> {
     /// follows while its output is limited; `[1]` is the simplest, the design's observer
     /// polynomial the best, see [`Controller`]). `r[0]` and `ao[0]` must be 1.
     pub fn new(r: &[T], s: &[T], t: &[T], ao: &[T]) -> Result<Self, RstError> {
-        if r.is_empty() || s.is_empty() || t.is_empty() || ao.is_empty() {
+        let sizes_ok = |x: &[T], cap: usize| !x.is_empty() && x.len() <= cap;
+        if !(sizes_ok(r, R_LEN) && sizes_ok(s, S_LEN) && sizes_ok(t, S_LEN) && sizes_ok(ao, S_LEN))
+        {
             return Err(RstError::Size);
+        }
+        if r[0] != T::ONE || ao[0] != T::ONE {
+            return Err(RstError::NotMonic);
         }
         let mut out = Rst {
             r: [T::ZERO; R_LEN],
             s: [T::ZERO; S_LEN],
             t: [T::ZERO; S_LEN],
             ao: [T::ZERO; S_LEN],
-            nr: 0,
-            ns: 0,
-            nt: 0,
-            nao: 0,
+            nr: r.len() as u8,
+            ns: s.len() as u8,
+            nt: t.len() as u8,
+            nao: ao.len() as u8,
         };
-        for (dst, src) in [
-            (&mut out.r[..], r),
-            (&mut out.s[..], s),
-            (&mut out.t[..], t),
-            (&mut out.ao[..], ao),
-        ] {
-            let dst = dst.get_mut(..src.len()).ok_or(RstError::Size)?;
-            for (d, &x) in dst.iter_mut().zip(src) {
-                if !x.is_finite() {
-                    return Err(RstError::NonFinite);
-                }
-                *d = x;
-            }
+        // The lengths were checked above.
+        out.r[..r.len()].copy_from_slice(r);
+        out.s[..s.len()].copy_from_slice(s);
+        out.t[..t.len()].copy_from_slice(t);
+        out.ao[..ao.len()].copy_from_slice(ao);
+        let all = out.r.iter().chain(&out.s).chain(&out.t).chain(&out.ao);
+        if all.clone().any(|x| !x.is_finite()) {
+            return Err(RstError::NonFinite);
         }
-        if r.first().copied() != Some(T::ONE) || ao.first().copied() != Some(T::ONE) {
-            return Err(RstError::NotMonic);
-        }
-        out.nr = r.len() as u8;
-        out.ns = s.len() as u8;
-        out.nt = t.len() as u8;
-        out.nao = ao.len() as u8;
         Ok(out)
     }
 

@@ -1,0 +1,70 @@
+//! The controller design for the accepted or loaded model, run from the board's main loop
+//! (blocking, like the search: tens of milliseconds on the ATmega2560, the pump at the base
+//! duty meanwhile).
+
+use ridge_core::control::{check_model, design_slower_on_failure, Spec};
+
+use crate::event::{ControlRefusal, Event, FaultReason};
+use crate::units::TS_S;
+
+use super::run::RunMode;
+use super::{Phase, SelfIdentification};
+
+/// Each retry of a refused design is this much slower (`τ` and the observer pole).
+pub const SLOWDOWN: f32 = 1.5;
+
+impl SelfIdentification {
+    /// `true` while the controller design is due: the board should call
+    /// [`design`](Self::design) from its main loop.
+    pub fn needs_design(&self) -> bool {
+        matches!(self.phase, Phase::Design { .. })
+    }
+
+    /// Checks the model, designs the controller (slower on each failed check, up to
+    /// `ControlConfig::tries` designs) and starts run mode with it: [`Event::Control`]. A model
+    /// or a design that fails latches [`FaultReason::Control`] (duty 0 at once; the event is
+    /// [`Event::Fault`]). Calls `pet` between the steps. `None` when no design was due.
+    #[inline(never)]
+    pub fn design(&mut self, mut pet: impl FnMut()) -> Option<Event> {
+        let Phase::Design { model } = self.phase else {
+            return None;
+        };
+        let c = self.cfg.control;
+        pet();
+        if let Err(fault) = check_model(&model, &c.model) {
+            return Some(self.fault_detected(FaultReason::Control(ControlRefusal::Model(fault))));
+        }
+        let mut spec = Spec::for_model(&model, TS_S);
+        spec.observer = c.observer;
+        if let Some(tau) = c.tau {
+            spec.tau = tau;
+        }
+        let (result, tries) = design_slower_on_failure(&model, &spec, c.tries, SLOWDOWN, &mut pet);
+        pet();
+        match result {
+            Ok(d) => {
+                self.phase = Phase::Run(RunMode::new(
+                    &self.cfg,
+                    model,
+                    &d,
+                    self.duty,
+                    self.last_counts,
+                ));
+                Some(Event::Control {
+                    tau: d.spec.tau,
+                    alpha: d.alpha,
+                    beta: d.beta,
+                    kept: d.kept,
+                    margin: d.modulus_margin,
+                    tries,
+                })
+            }
+            Err(error) => Some(
+                self.fault_detected(FaultReason::Control(ControlRefusal::Design {
+                    error,
+                    tries,
+                })),
+            ),
+        }
+    }
+}

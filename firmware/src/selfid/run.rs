@@ -1,0 +1,87 @@
+//! Run mode: the flow controller tracking the setpoint program, with the model monitor and the
+//! tracking figures.
+
+use ridge_core::control::{Controller, Design, Limits};
+use ridge_core::ArxModel;
+
+use crate::event::Event;
+use crate::monitor::Monitor;
+use crate::setpoint::Setpoint;
+use crate::tracking::Tracking;
+use crate::units::{DUTY_FULL_SCALE, FRACTION_PER_DUTY, SLM_PER_COUNT};
+
+use super::Config;
+
+/// Everything run mode keeps.
+#[derive(Debug, Clone)]
+pub(super) struct RunMode {
+    monitor: Monitor,
+    ctrl: Controller<f32>,
+    setpoint: Setpoint,
+    tracking: Tracking,
+    /// The setpoint of the interval in progress (for the tracking figures), slm.
+    current: f32,
+}
+
+impl RunMode {
+    /// Run mode with `design` for `model`, starting bumplessly from the duty `applied` and the
+    /// reading `counts`.
+    pub(super) fn new(
+        cfg: &Config,
+        model: ArxModel<f32>,
+        design: &Design<f32>,
+        applied: u16,
+        counts: i16,
+    ) -> Self {
+        let c = &cfg.control;
+        let limits = Limits {
+            min: f32::from(c.duty_min) * FRACTION_PER_DUTY,
+            max: f32::from(c.duty_max.min(DUTY_FULL_SCALE)) * FRACTION_PER_DUTY,
+            max_step: f32::from(c.duty_step) * FRACTION_PER_DUTY,
+        };
+        let mut ctrl = Controller::new(design.rst, limits);
+        let y0 = f32::from(counts) * SLM_PER_COUNT;
+        ctrl.start(f32::from(applied) * FRACTION_PER_DUTY, y0);
+        RunMode {
+            monitor: Monitor::new(model, cfg.monitor),
+            ctrl,
+            setpoint: Setpoint::new(c.program, y0),
+            // Half a window out of step with the monitor's lines.
+            tracking: Tracking::new(c.tracking, c.tracking.window / 2),
+            current: y0,
+        }
+    }
+
+    /// One tick: the duty `applied` during the interval that ended with `reading` (counts;
+    /// `None` after a sensor error, `last` is then the held reading). Returns the duty for the
+    /// next interval and at most one event (the monitor's; the tracking's waits a tick when
+    /// both fall on the same tick).
+    pub(super) fn step(
+        &mut self,
+        applied: u16,
+        reading: Option<i16>,
+        last: i16,
+    ) -> (u16, Option<Event>) {
+        let y = f32::from(reading.unwrap_or(last)) * SLM_PER_COUNT;
+        let r = self.setpoint.advance();
+        let u = self.ctrl.step(r, y);
+        let duty = (u * f32::from(DUTY_FULL_SCALE) + 0.5) as u16;
+        let measured = reading.map(|c| f32::from(c) * SLM_PER_COUNT);
+        let monitor = self.monitor.step(applied, reading);
+        let track = self
+            .tracking
+            .step(self.current, measured, applied, monitor.is_some());
+        self.current = r;
+        (duty.min(DUTY_FULL_SCALE), monitor.or(track))
+    }
+
+    /// Whether the tracking alarm is raised.
+    pub(super) fn alarm(&self) -> bool {
+        self.tracking.alarm()
+    }
+
+    /// The setpoint of the interval in progress, slm.
+    pub(super) fn setpoint(&self) -> f32 {
+        self.current
+    }
+}

@@ -1,0 +1,154 @@
+//! Run-mode tracking figures and the tracking alarm.
+//!
+//! Every tick takes the setpoint the controller was given for the interval that just ended, the
+//! reading at its end and the duty applied. Once per window ([`TrackingConfig::window`] ticks,
+//! 1 s) it reports [`Event::Track`]: mean setpoint, mean flow, RMS and largest |error|, mean
+//! duty. The **alarm** ([`Event::Alarm`]) is raised when the error `setpoint − flow` stays
+//! outside the band `band_abs + band_rel · |setpoint|` for [`TrackingConfig::alarm_ticks`]
+//! consecutive ticks (an occlusion, a leak, a pump that cannot deliver the setpoint), and
+//! cleared when it has been back inside for as long. Ticks without a reading are not scored.
+
+use crate::event::Event;
+use crate::units::DUTY_FULL_SCALE;
+
+/// Settings of the tracking figures and the alarm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackingConfig {
+    /// Ticks per [`Event::Track`] (100 = 1 s); 0 counts as 1.
+    pub window: u8,
+    /// Absolute part of the alarm band, slm (default 3).
+    pub band_abs: f32,
+    /// Relative part of the alarm band, fraction of |setpoint| (default 0.15).
+    pub band_rel: f32,
+    /// Consecutive ticks out of (back in) the band that raise (clear) the alarm (default 50 =
+    /// 0.5 s: longer than the transient of a setpoint step or a breath's rise).
+    pub alarm_ticks: u16,
+}
+
+impl Default for TrackingConfig {
+    fn default() -> Self {
+        TrackingConfig {
+            window: 100,
+            band_abs: 3.0,
+            band_rel: 0.15,
+            alarm_ticks: 50,
+        }
+    }
+}
+
+/// The tracking figures of run mode (see the [module docs](self)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tracking {
+    cfg: TrackingConfig,
+    ticks: u8,
+    n: u16,
+    sum_r: f32,
+    sum_y: f32,
+    sum_e2: f32,
+    max_e: f32,
+    sum_duty: u32,
+    /// Consecutive ticks out of the band (raising) or in it (clearing).
+    run: u16,
+    alarm: bool,
+    /// A window closed in a tick that reported an alarm change: report it next tick.
+    pending: bool,
+}
+
+impl Tracking {
+    /// Figures at zero. The first window closes after `offset` ticks (so that its line does
+    /// not fall on the same tick as another once-a-second line), then every window.
+    pub fn new(cfg: TrackingConfig, offset: u8) -> Self {
+        Tracking {
+            cfg,
+            ticks: cfg
+                .window
+                .max(1)
+                .saturating_sub(offset.min(cfg.window.max(1) - 1)),
+            n: 0,
+            sum_r: 0.0,
+            sum_y: 0.0,
+            sum_e2: 0.0,
+            max_e: 0.0,
+            sum_duty: 0,
+            run: 0,
+            alarm: false,
+            pending: false,
+        }
+    }
+
+    /// Whether the alarm is raised.
+    pub fn alarm(&self) -> bool {
+        self.alarm
+    }
+
+    /// One tick: the setpoint `r` (slm) of the interval that ended, its reading `y` (slm,
+    /// `None` after a sensor error) and the duty applied (1/10 000). Returns an alarm change,
+    /// or the window's figures when it closes. With `busy` (another event takes this tick's
+    /// line) nothing is returned and both wait for the next tick: none is lost.
+    pub fn step(&mut self, r: f32, y: Option<f32>, duty: u16, busy: bool) -> Option<Event> {
+        let mut event = None;
+        if let Some(y) = y {
+            let e = r - y;
+            let ae = if e < 0.0 { -e } else { e };
+            self.n = self.n.saturating_add(1);
+            self.sum_r += r;
+            self.sum_y += y;
+            self.sum_e2 += e * e;
+            if ae > self.max_e || ae.is_nan() {
+                self.max_e = ae;
+            }
+            self.sum_duty = self.sum_duty.saturating_add(u32::from(duty));
+            let ar = if r < 0.0 { -r } else { r };
+            // Out of band, or NaN.
+            let band = self.cfg.band_abs + self.cfg.band_rel * ar;
+            let out = ae > band || ae.is_nan();
+            if out != self.alarm {
+                self.run = self.run.saturating_add(1);
+                if self.run >= self.cfg.alarm_ticks.max(1) && !busy {
+                    self.alarm = out;
+                    self.run = 0;
+                    event = Some(Event::Alarm {
+                        on: out,
+                        error: e,
+                        ticks: self.cfg.alarm_ticks.max(1),
+                    });
+                }
+            } else {
+                self.run = 0;
+            }
+        }
+        self.ticks = self.ticks.saturating_sub(1);
+        if self.ticks == 0 {
+            self.ticks = self.cfg.window.max(1);
+            self.pending = true;
+        }
+        if event.is_none() && self.pending && !busy {
+            self.pending = false;
+            event = self.close_window();
+        }
+        event
+    }
+
+    /// The window's figures (none without a scored sample), and a fresh window.
+    fn close_window(&mut self) -> Option<Event> {
+        let n = self.n;
+        let out = (n > 0).then(|| {
+            let k = f32::from(n);
+            let mean_duty = self.sum_duty / u32::from(n);
+            Event::Track {
+                setpoint: self.sum_r / k,
+                flow: self.sum_y / k,
+                rms: ridge_core::Real::sqrt(self.sum_e2 / k),
+                max: self.max_e,
+                duty: mean_duty.min(u32::from(DUTY_FULL_SCALE)) as u16,
+            }
+        });
+        self.n = 0;
+        self.sum_r = 0.0;
+        self.sum_y = 0.0;
+        self.sum_e2 = 0.0;
+        self.max_e = 0.0;
+        self.sum_duty = 0;
+        out
+    }
+}
