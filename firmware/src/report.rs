@@ -230,7 +230,12 @@ fn fit(value: f32, digits: u8) -> (Scaled, u8) {
 
 /// `10^digits` for `digits ≤ MAX_DIGITS` (larger values are treated as `MAX_DIGITS`).
 fn pow10(digits: u8) -> u32 {
-    10u32.pow(u32::from(digits.min(MAX_DIGITS)))
+    // A plain loop: `u32::pow` costs 200 bytes of ATmega2560 flash.
+    let mut p = 1u32;
+    for _ in 0..digits.min(MAX_DIGITS) {
+        p *= 10;
+    }
+    p
 }
 
 /// Exact `round(|value| · 10^digits)`, halves away from zero, from the bits of `value`.

@@ -29,7 +29,7 @@ impl SelfIdentification {
         let Phase::Design { model } = self.phase else {
             return None;
         };
-        let c = self.cfg.control;
+        let c = &self.cfg.control;
         pet();
         if let Err(fault) = check_model(&model, &c.model) {
             return Some(self.fault_detected(FaultReason::Control(ControlRefusal::Model(fault))));
@@ -39,7 +39,8 @@ impl SelfIdentification {
         if let Some(tau) = c.tau {
             spec.tau = tau;
         }
-        let (result, tries) = design_slower_on_failure(&model, &spec, c.tries, SLOWDOWN, &mut pet);
+        let tries = c.tries;
+        let (result, tries) = design_slower_on_failure(&model, &spec, tries, SLOWDOWN, &mut pet);
         pet();
         match result {
             Ok(d) => {

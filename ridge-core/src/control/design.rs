@@ -182,14 +182,17 @@ fn clamp<T: Real>(x: T, lo: T, hi: T) -> T {
 /// ```
 ///
 /// Its two unknowns `S'' = s₀ + s₁ q⁻¹` follow from the equation at `q⁻¹ = 1` and
-/// `q⁻¹ = 1/λ`, where the `R'` term vanishes; `R'` is then the exact quotient of
-/// `P − q^{−d−1} B S''` by `(1 − λ q⁻¹)(1 − q⁻¹)`. No `(p + q + d)`-square Sylvester matrix:
+/// `q⁻¹ = 1/λ`, where the `R'` term vanishes; `R = (1 − q⁻¹) R'` is then the exact quotient
+/// of `P_small − q^{−d−1} B S''` by `1 − λ q⁻¹`. No `(p + q + d)`-square Sylvester matrix:
 /// a few hundred bytes of stack
 /// on the ATmega2560 instead of two kilobytes.
 #[inline(never)]
 pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>, DesignError<T>> {
-    let positive = |x: T| x.is_finite() && x > T::ZERO;
-    if !(positive(spec.ts) && positive(spec.tau) && positive(spec.observer)) {
+    // Positive and finite (NaN fails every comparison; +∞ makes Ts/τ 0 or ∞).
+    let ratio_a = spec.ts / spec.tau;
+    let ratio_b = spec.ts / spec.observer;
+    let fine = |x: T| at_most(T::ZERO, x) && at_most(x, T::MAX) && x != T::ZERO;
+    if !(fine(spec.ts) && fine(ratio_a) && fine(ratio_b)) {
         return Err(DesignError::Spec);
     }
     let s = model.structure();
@@ -209,15 +212,15 @@ pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>,
     let slow = !roots_within(&a[..na], spec.keep_radius);
     if slow {
         lambda = dominant_real_root(&a[..na]).ok_or(DesignError::SlowPoles)?;
-        let remainder = deflate(&a[..na], lambda, &mut fast).ok_or(DesignError::Spec)?;
+        let remainder = deflate(&a[..na], lambda, &mut fast);
         nf = na - 1;
         if !at_most(remainder.abs(), tol) || !roots_within(&fast[..nf], spec.keep_radius) {
             return Err(DesignError::SlowPoles);
         }
     }
 
-    let alpha = exp_neg(spec.ts / spec.tau);
-    let beta = exp_neg(spec.ts / spec.observer);
+    let alpha = exp_neg(ratio_a);
+    let beta = exp_neg(ratio_b);
     // The reduced target P_small: (1 − α q⁻¹)(1 − β q⁻¹), or (1 − α q⁻¹) alone when the
     // reduced equation is too small for two poles (no slow pole and d + q = 1).
     let mut small = [T::ONE, -alpha, T::ZERO];
@@ -261,29 +264,28 @@ pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>,
         return Err(DesignError::Singular);
     }
 
-    // R' = (P_small − B' S'') / (A_slow (1 − q⁻¹)), exactly: divide by each root's factor.
+    // R = (1 − q⁻¹) R' = (P_small − B' S'') / A_slow, an exact division: the numerator
+    // vanishes at q⁻¹ = 1/λ by the choice of S''. Monic: B' starts with d + 1 zeros.
     let mut num = [T::ZERO; POLY_LEN];
-    let mut nn = mul(b1, s2, &mut num).ok_or(DesignError::Spec)?;
+    let nn = mul(b1, s2, &mut num).max(ns);
     for k in 0..nn {
         num[k] = -num[k];
     }
     for k in 0..ns {
         num[k] += small[k];
     }
-    nn = nn.max(ns);
-    for root in [lambda, T::ONE].into_iter().skip(usize::from(!slow)) {
-        let mut quotient = [T::ZERO; POLY_LEN];
-        deflate(&num[..nn], root, &mut quotient).ok_or(DesignError::Spec)?;
-        num = quotient;
-        nn -= 1;
-    }
-    // R = (1 − q⁻¹) R', S = A_fast S'', A_o = (1 − β q⁻¹) A_fast, T = t₀ A_o with T(1) = S(1).
     let mut r = [T::ZERO; R_LEN];
-    let nr = mul(&num[..nn], &[T::ONE, -T::ONE], &mut r).ok_or(DesignError::Singular)?;
+    let nr = if slow {
+        deflate(&num[..nn], lambda, &mut r);
+        nn - 1
+    } else {
+        r[..nn].copy_from_slice(&num[..nn]);
+        nn
+    };
     let mut sv = [T::ZERO; S_LEN];
-    let nsv = mul(&fast[..nf], s2, &mut sv).ok_or(DesignError::Singular)?;
+    let nsv = mul(&fast[..nf], s2, &mut sv);
     let mut ao = [T::ZERO; S_LEN];
-    let nao = mul(&[T::ONE, -beta], &fast[..nf], &mut ao).ok_or(DesignError::Spec)?;
+    let nao = mul(&[T::ONE, -beta], &fast[..nf], &mut ao);
     let t0 = eval(&sv[..nsv], T::ONE) / eval(&ao[..nao], T::ONE);
     let mut t = ao;
     for v in t.iter_mut() {
@@ -295,11 +297,11 @@ pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>,
     // The checks. The closed loop as built, A R + q^{−d−1} B S, against the designed
     // P = P_small A_fast; its roots; the modulus margin.
     let mut want = [T::ZERO; POLY_LEN];
-    mul(small, &fast[..nf], &mut want).ok_or(DesignError::Spec)?;
+    mul(small, &fast[..nf], &mut want);
     let mut ar = [T::ZERO; POLY_LEN];
-    let nar = mul(&a[..na], rst.r(), &mut ar).ok_or(DesignError::Spec)?;
+    let nar = mul(&a[..na], rst.r(), &mut ar);
     let mut closed = [T::ZERO; POLY_LEN];
-    let nbs = mul(b1, rst.s(), &mut closed).ok_or(DesignError::Spec)?;
+    let nbs = mul(b1, rst.s(), &mut closed);
     let np = nar.max(nbs);
     let mut scale = T::ONE;
     for k in 0..np {
@@ -377,8 +379,10 @@ pub fn exp_neg<T: Real>(x: T) -> T {
     }
     // 1 − y + y²/2 − y³/6 + y⁴/24 − y⁵/120, Horner.
     let mut e = T::ONE;
-    for d in [5.0, 4.0, 3.0, 2.0, 1.0] {
-        e = T::ONE - y * e / T::from_f64(d);
+    // The divisors as integers: a runtime f64 → f32 conversion would pull 0.8 KB of
+    // soft-float code into the ATmega2560 image.
+    for d in (1..=5u32).rev() {
+        e = T::ONE - y * e / T::from_u32(d);
     }
     for _ in 0..k {
         e *= e;

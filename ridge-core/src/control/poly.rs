@@ -14,24 +14,21 @@ use crate::real::Real;
 /// `P = A R + q^{−d−1} B S` has degree at most `p + q + d ≤ 18`.
 pub const POLY_LEN: usize = crate::P_MAX + crate::Q_MAX + crate::D_MAX + 1;
 
-/// `out[..n] = a · b` with `n = a.len() + b.len() − 1`; the rest of `out` is left alone.
-/// Returns `n`, or `None` when `out` is shorter than `n` or a factor is empty.
-pub fn mul<T: Real>(a: &[T], b: &[T], out: &mut [T]) -> Option<usize> {
-    if a.is_empty() || b.is_empty() {
-        return None;
-    }
-    let n = a.len() + b.len() - 1;
-    let out = out.get_mut(..n)?;
+/// `out[..n] = a · b` with `n = a.len() + b.len() − 1` (0 when a factor is empty), the
+/// product's coefficients beyond `out.len()` dropped; the rest of `out` is left alone.
+/// Returns `n` capped at `out.len()`.
+pub fn mul<T: Real>(a: &[T], b: &[T], out: &mut [T]) -> usize {
+    let n = (a.len() + b.len()).saturating_sub(1).min(out.len());
+    let out = &mut out[..n];
     out.fill(T::ZERO);
     for (i, &ai) in a.iter().enumerate() {
         for (j, &bj) in b.iter().enumerate() {
-            // i + j < n = out.len() by construction.
             if let Some(o) = out.get_mut(i + j) {
                 *o += ai * bj;
             }
         }
     }
-    Some(n)
+    n
 }
 
 /// `A(z) = Σ aₖ zᵏ`: the polynomial at `q⁻¹ = z` (Horner from the highest power). `A(1)` is
@@ -106,18 +103,21 @@ pub fn dominant_real_root<T: Real>(a: &[T]) -> Option<T> {
     None
 }
 
-/// `out[..a.len() − 1] = a / (1 − λq⁻¹)` by synthetic division, exact when `λ` is a root.
-/// Returns the remainder `a₀λⁿ + a₁λⁿ⁻¹ + … + aₙ` (0 for a root), or `None` when `a` is empty
-/// or `out` too short.
-pub fn deflate<T: Real>(a: &[T], lambda: T, out: &mut [T]) -> Option<T> {
-    let n = a.len().checked_sub(1)?;
-    let out = out.get_mut(..n)?;
+/// `out[..a.len() − 1] = a / (1 − λq⁻¹)` by synthetic division, exact when `λ` is a root
+/// (quotient coefficients beyond `out.len()` dropped). Returns the remainder
+/// `a₀λⁿ + a₁λⁿ⁻¹ + … + aₙ`: 0 for a root (and for an empty `a`).
+pub fn deflate<T: Real>(a: &[T], lambda: T, out: &mut [T]) -> T {
     let mut carry = T::ZERO;
-    for k in 0..n {
-        carry = a[k] + lambda * carry;
-        out[k] = carry;
+    for (k, &ak) in a.iter().enumerate() {
+        if k + 1 == a.len() {
+            return ak + lambda * carry;
+        }
+        carry = ak + lambda * carry;
+        if let Some(o) = out.get_mut(k) {
+            *o = carry;
+        }
     }
-    Some(a[n] + lambda * carry)
+    T::ZERO
 }
 
 /// `r[k] = Σᵢ aᵢ aᵢ₊ₖ` for `k = 0..r.len()`, so that `|A(e^{−jω})|² = r₀ + 2 Σₖ rₖ cos kω`.

@@ -183,19 +183,22 @@ impl<T: Real> Controller<T> {
     pub fn step(&mut self, r_next: T, y: T) -> T {
         shift_in(&mut self.y, y);
         shift_in(&mut self.r, r_next);
+        // Index loops bounded by the capacities: on the ATmega2560 iterator chains cost
+        // tens of instructions each, and this runs every tick.
+        let c = &self.rst;
         let mut v = T::ZERO;
-        for (tk, rk) in self.rst.t().iter().zip(&self.r) {
-            v += *tk * *rk;
+        for k in 0..usize::from(c.nt).min(S_LEN) {
+            v += c.t[k] * self.r[k];
         }
-        for (sk, yk) in self.rst.s().iter().zip(&self.y) {
-            v -= *sk * *yk;
+        for k in 0..usize::from(c.ns).min(S_LEN) {
+            v -= c.s[k] * self.y[k];
         }
         // (A_o − R) û − (A_o − 1) v: coefficients 1.. multiply u_t, u_{t−1}, …
-        for (rk, uk) in self.rst.r().iter().skip(1).zip(&self.u) {
-            v -= *rk * *uk;
+        for k in 1..usize::from(c.nr).min(R_LEN) {
+            v -= c.r[k] * self.u[k - 1];
         }
-        for ((ak, uk), vk) in self.rst.ao().iter().skip(1).zip(&self.u).zip(&self.v) {
-            v += *ak * (*uk - *vk);
+        for k in 1..usize::from(c.nao).min(S_LEN) {
+            v += c.ao[k] * (self.u[k - 1] - self.v[k - 1]);
         }
         let last = self.u[0];
         let lo = max(self.limits.min, last - self.limits.max_step);
