@@ -147,7 +147,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             wait_tick(board);
             board.pet();
             if self.sensor.start_continuous().is_ok() {
-                uwriteln!(self.out, "SENSOR ready tries={}", tries).ok();
+                uwriteln!(self.out, "SENSOR ready tries={}", u32::from(tries)).ok();
                 return;
             }
         }
@@ -339,9 +339,22 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
                 Job::Search => "SEARCH",
                 Job::Design => "DESIGN",
             };
-            uwriteln!(self.out, "{} ticks={} lost={}", name, ticks, lost).ok();
+            uwriteln!(
+                self.out,
+                "{} ticks={} lost={}",
+                name,
+                u32::from(ticks),
+                u32::from(lost)
+            )
+            .ok();
             if let Some((used, free)) = board.stack() {
-                uwriteln!(self.out, "STACK used={} free={}", used, free).ok();
+                uwriteln!(
+                    self.out,
+                    "STACK used={} free={}",
+                    u32::from(used),
+                    u32::from(free)
+                )
+                .ok();
             }
         }
     }
@@ -353,7 +366,13 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             self.summary_in = SUMMARY_TICKS;
             if (self.late, self.lost) != self.reported {
                 self.reported = (self.late, self.lost);
-                uwriteln!(self.out, "MISSED late={} lost={}", self.late, self.lost).ok();
+                uwriteln!(
+                    self.out,
+                    "MISSED late={} lost={}",
+                    u32::from(self.late),
+                    u32::from(self.lost)
+                )
+                .ok();
             }
         }
     }

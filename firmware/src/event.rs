@@ -454,7 +454,14 @@ where
         Offset::None => 0,
         Offset::Intercept => 1,
     };
-    ufmt::uwrite!(f, "p={} q={} d={} off={} theta=", s.p, s.q, s.d, off)?;
+    ufmt::uwrite!(
+        f,
+        "p={} q={} d={} off={} theta=",
+        u32::from(s.p),
+        u32::from(s.q),
+        u32::from(s.d),
+        u32::from(off)
+    )?;
     write_list(f, m.theta(), COEF_DIGITS)?;
     f.write_str(" phi=")?;
     write_list(f, m.phi(), COEF_DIGITS)?;
@@ -485,7 +492,7 @@ impl uDisplay for RejectReason {
                 ufmt::uwrite!(f, "fit={}<{}", Fixed::new(fit, 1), Fixed::new(min, 1))
             }
             RejectReason::NonFinite => f.write_str("nonfinite"),
-            RejectReason::SensorGaps { gaps } => ufmt::uwrite!(f, "gaps={}", gaps),
+            RejectReason::SensorGaps { gaps } => ufmt::uwrite!(f, "gaps={}", u32::from(gaps)),
         }
     }
 }
@@ -497,14 +504,14 @@ impl uDisplay for FaultReason {
     {
         match *self {
             FaultReason::Sensor { error, count } => {
-                ufmt::uwrite!(f, "sensor={} n={}", error.name(), count)
+                ufmt::uwrite!(f, "sensor={} n={}", error.name(), u32::from(count))
             }
             FaultReason::FlowRange { counts } => ufmt::uwrite!(f, "range flow={}", slm(counts)),
             FaultReason::Stall { duty, counts } => {
                 ufmt::uwrite!(f, "stall duty={} flow={}", percent(duty), slm(counts))
             }
             FaultReason::Unidentified { attempts } => {
-                ufmt::uwrite!(f, "unidentified attempts={}", attempts)
+                ufmt::uwrite!(f, "unidentified attempts={}", u32::from(attempts))
             }
             FaultReason::Control(r) => ufmt::uwrite!(f, "control {}", r),
         }
@@ -540,7 +547,7 @@ impl uDisplay for ControlRefusal {
                         ufmt::uwrite!(f, "margin={}", Fixed::new(*margin, 3))?
                     }
                 }
-                ufmt::uwrite!(f, " tries={}", *tries)
+                ufmt::uwrite!(f, " tries={}", u32::from(*tries))
             }
         }
     }
@@ -587,8 +594,8 @@ impl uDisplay for Event {
                 *samples,
                 percent(*u0),
                 slm(*y0),
-                *attempt,
-                *attempts
+                u32::from(*attempt),
+                u32::from(*attempts)
             ),
             Event::Identified { model, stats } => {
                 f.write_str("ID ")?;
@@ -597,9 +604,9 @@ impl uDisplay for Event {
                     f,
                     " score={} eval={}/{} skip={} iters={}",
                     Fixed::new(stats.score, 1),
-                    stats.evaluated,
-                    stats.candidates,
-                    stats.skipped,
+                    u32::from(stats.evaluated),
+                    u32::from(stats.candidates),
+                    u32::from(stats.skipped),
                     stats.iterations
                 )
             }
@@ -623,7 +630,13 @@ impl uDisplay for Event {
                 reason,
                 attempt,
                 attempts,
-            } => ufmt::uwrite!(f, "REJECT {} attempt={}/{}", reason, *attempt, *attempts),
+            } => ufmt::uwrite!(
+                f,
+                "REJECT {} attempt={}/{}",
+                reason,
+                u32::from(*attempt),
+                u32::from(*attempts)
+            ),
             Event::Control {
                 tau,
                 alpha,
@@ -637,9 +650,9 @@ impl uDisplay for Event {
                 Fixed::new(*tau, 3),
                 Fixed::new(*alpha, 3),
                 Fixed::new(*beta, 3),
-                *kept,
+                u32::from(*kept),
                 Fixed::new(*margin, 3),
-                *tries
+                u32::from(*tries)
             ),
             Event::Track {
                 setpoint,
@@ -678,7 +691,7 @@ impl uDisplay for Event {
                 Fixed::new(*rms, 3),
                 Fixed::new(*mean, 3),
                 Fixed::new(*flow, 3),
-                *samples
+                u32::from(*samples)
             ),
             Event::Drift {
                 rms,
@@ -692,8 +705,8 @@ impl uDisplay for Event {
                 Fixed::new(*rms, 3),
                 Fixed::new(*mean, 3),
                 Fixed::new(*flow, 3),
-                *seconds,
-                u8::from(*reidentify)
+                u32::from(*seconds),
+                u32::from(*reidentify)
             ),
             Event::Fault(reason) => ufmt::uwrite!(f, "FAULT {}", reason),
         }

@@ -60,9 +60,15 @@ pub struct MonitorConfig {
 }
 
 impl Default for MonitorConfig {
-    /// 1 s windows; RMS limit 0.5 slm + 6 % of the flow, bias limit 0.6 slm + 2 % of the
-    /// flow; 3 windows; scored from 20 % duty; no automatic re-identification.
     fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+impl MonitorConfig {
+    /// The defaults: 1 s windows; RMS limit 0.5 slm + 6 % of the flow, bias limit 0.6 slm +
+    /// 2 % of the flow; 3 windows; scored from 20 % duty; no automatic re-identification.
+    pub const DEFAULT: MonitorConfig = {
         MonitorConfig {
             window: 100,
             rms_abs: 0.5,
@@ -73,7 +79,7 @@ impl Default for MonitorConfig {
             min_duty: 2_000,
             reidentify: false,
         }
-    }
+    };
 }
 
 /// The run-mode monitor (see the [module docs](self)).

@@ -262,29 +262,24 @@ fn scale_f32(value: f32, digits: u8) -> Scaled {
     };
     let product = u64::from(mantissa) * u64::from(pow10(digits));
     let magnitude = if exponent >= 0 {
+        // Only results below 2^32 are kept: a left shift of 32 or more of a non-zero product
+        // always overflows.
         let shift = exponent.unsigned_abs();
         if product == 0 {
             0
-        } else if shift >= product.leading_zeros() {
-            // product · 2^shift would need 64 bits or more: ≥ 2^63.
+        } else if shift >= 32 {
             return Scaled::Overflow;
         } else {
             product << shift
         }
     } else {
+        // Round half up on the magnitude: keep one more bit than the result, add one, drop it.
+        // (product < 2^54, so shifts of 55 or more round to 0.)
         let shift = exponent.unsigned_abs();
-        if shift >= 64 {
-            // product < 2^54, so product / 2^64 < 1/2: rounds to 0.
+        if shift > 55 {
             0
         } else {
-            let quotient = product >> shift;
-            let remainder = product & ((1u64 << shift) - 1);
-            let half = 1u64 << (shift - 1);
-            if remainder >= half {
-                quotient + 1
-            } else {
-                quotient
-            }
+            ((product >> (shift - 1)) + 1) >> 1
         }
     };
     match u32::try_from(magnitude) {

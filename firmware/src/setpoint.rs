@@ -72,43 +72,26 @@ impl Breath {
         self.period() / (1.0 + self.ie)
     }
 
-    /// The setpoint `t` seconds into a breath (`0 ≤ t < period`), slm.
+    /// The setpoint `t` seconds into a breath (`0 ≤ t < period`), slm: `bias + (peak −
+    /// bias) · f(t)` with `f` the rise (`t / rise`, at most 1) capped by the shape during the
+    /// inspiration (square: 1; ramp: falling linearly from 1 at `rise` to 0 at `T_i`), and after
+    /// it the square's fall (`1 − (t − T_i) / rise`, at least 0) or 0 for the ramp.
     pub fn at(&self, t: f32) -> f32 {
         let ti = self.inspiration();
-        let rise = |x: f32| {
-            if self.rise > 0.0 && x < self.rise {
-                x / self.rise
-            } else {
-                1.0
-            }
-        };
-        let span = self.peak - self.bias;
-        if t >= ti {
-            // Square: the fall to the bias flow takes `rise` into the expiration.
-            return match self.shape {
-                Shape::Square if self.rise > 0.0 && t < ti + self.rise => {
-                    self.peak - span * (t - ti) / self.rise
-                }
-                _ => self.bias,
+        let ramp = |x: f32, over: f32| if over > 0.0 { x / over } else { 1.0 };
+        let f = if t < ti {
+            let up = ramp(t, self.rise);
+            let shape = match self.shape {
+                Shape::Square => 1.0,
+                Shape::Ramp => 1.0 - ramp(t - self.rise, ti - self.rise),
             };
-        }
-        match self.shape {
-            Shape::Square => self.bias + span * rise(t),
-            Shape::Ramp => {
-                if t < self.rise {
-                    self.bias + span * rise(t)
-                } else {
-                    // From the peak at `rise` down to the bias flow at `ti`.
-                    let down = ti - self.rise;
-                    let f = if down > 0.0 {
-                        (t - self.rise) / down
-                    } else {
-                        1.0
-                    };
-                    self.peak - span * f
-                }
-            }
-        }
+            up.min(shape).min(1.0)
+        } else if self.shape == Shape::Square {
+            (1.0 - ramp(t - ti, self.rise)).max(0.0)
+        } else {
+            0.0
+        };
+        self.bias + (self.peak - self.bias) * f
     }
 }
 

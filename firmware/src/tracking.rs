@@ -27,13 +27,18 @@ pub struct TrackingConfig {
 
 impl Default for TrackingConfig {
     fn default() -> Self {
-        TrackingConfig {
-            window: 100,
-            band_abs: 3.0,
-            band_rel: 0.15,
-            alarm_ticks: 50,
-        }
+        Self::DEFAULT
     }
+}
+
+impl TrackingConfig {
+    /// The defaults: 1 s windows, band 3 slm + 15 %, 0.5 s to raise or clear the alarm.
+    pub const DEFAULT: TrackingConfig = TrackingConfig {
+        window: 100,
+        band_abs: 3.0,
+        band_rel: 0.15,
+        alarm_ticks: 50,
+    };
 }
 
 /// The tracking figures of run mode (see the [module docs](self)).

@@ -20,7 +20,7 @@ use embedded_hal::pwm::{self, SetDutyCycle};
 use ridge_pump_firmware::app::{App, Board, START_TICKS};
 use ridge_pump_firmware::persist;
 use ridge_pump_firmware::pump::Pump;
-use ridge_pump_firmware::selfid::{Config, SelfIdentification, State};
+use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, DEFAULT_CONFIG};
 use ridge_pump_firmware::sfm3300::{crc8, Sfm3300, ADDRESS};
 use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_OFFSET};
 
@@ -253,7 +253,7 @@ type TestApp = App<FakeSensor, FakePwm, Uart>;
 fn app(w: &Shared, uart: &Uart) -> TestApp {
     let sensor = Sfm3300::new(FakeSensor(w.clone()));
     let pump = Pump::new(FakePwm(w.clone())).unwrap();
-    let sid = SelfIdentification::new(Config::default(), None);
+    let sid = SelfIdentification::new(&DEFAULT_CONFIG, None);
     App::new(sensor, pump, uart.clone(), sid, 400_000)
 }
 

@@ -9,7 +9,7 @@ use ridge_pump_firmware::event::{
 };
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
-use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, Tick};
+use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, Tick, DEFAULT_CONFIG};
 use ridge_pump_firmware::setpoint::Program;
 use ridge_pump_firmware::units::SCALE;
 
@@ -70,7 +70,7 @@ struct Rig {
 impl Rig {
     fn new(cfg: Config, stored: Option<&[u8]>, plant: Plant) -> Self {
         Rig {
-            sm: SelfIdentification::new(cfg, stored),
+            sm: SelfIdentification::new(Box::leak(Box::new(cfg)), stored),
             plant,
             duty: 0,
             ticks: 0,
@@ -289,7 +289,7 @@ fn the_record_is_the_exact_statistics_of_applied_duty_and_next_reading() {
 
 #[test]
 fn search_is_only_run_when_due() {
-    let mut sm = SelfIdentification::new(Config::default(), None);
+    let mut sm = SelfIdentification::new(&DEFAULT_CONFIG, None);
     assert!(!sm.needs_search());
     assert_eq!(sm.search(|| {}), None);
     assert!(sm.take_search().is_none());
@@ -298,7 +298,7 @@ fn search_is_only_run_when_due() {
 
 #[test]
 fn waits_for_the_sensor_then_settles_at_base_duty() {
-    let mut sm = SelfIdentification::new(Config::default(), None);
+    let mut sm = SelfIdentification::new(&DEFAULT_CONFIG, None);
     for _ in 0..4 {
         assert_eq!(
             sm.tick(Err(SensorFault::Nack)),
@@ -367,7 +367,7 @@ fn a_flat_response_is_rejected_as_not_excited_then_faults() {
 #[test]
 fn a_noisy_but_unresponsive_flow_is_not_excited() {
     // ±3 counts of noise around 5 slm: RMS well below the 1 slm minimum.
-    let mut sm = SelfIdentification::new(Config::default(), None);
+    let mut sm = SelfIdentification::new(&DEFAULT_CONFIG, None);
     let mut duty = 0;
     let mut k: i32 = 0;
     let mut reject = None;
@@ -826,7 +826,7 @@ fn corrupt_stored_bytes_are_reported_and_identification_runs() {
     cases.push((old.to_vec(), "version"));
 
     for (bytes, reason) in &cases {
-        let mut sm = SelfIdentification::new(Config::default(), Some(bytes));
+        let mut sm = SelfIdentification::new(&DEFAULT_CONFIG, Some(bytes));
         assert!(sm.model().is_none());
         let t = sm.tick(Ok(0));
         assert_eq!(line(&t.event.unwrap()), format!("STORED-REJECTED {reason}"));
@@ -838,7 +838,7 @@ fn corrupt_stored_bytes_are_reported_and_identification_runs() {
         assert!(matches!(t.event, Some(Event::Excite { attempt: 1, .. })));
     }
     // The good record loads.
-    let mut sm = SelfIdentification::new(Config::default(), Some(&good));
+    let mut sm = SelfIdentification::new(&DEFAULT_CONFIG, Some(&good));
     assert_eq!(sm.model(), Some(&model));
     assert_eq!(sm.tick(Ok(0)).event, None);
     let _ = PersistError::Crc;

@@ -138,16 +138,36 @@ pub struct RidgeM<T> {
     pub max_iter: u32,
 }
 
+/// The paper's regularisation `γ`.
+pub const PAPER_GAMMA: f64 = 1000.0;
+/// The paper's momentum weight `β`.
+pub const PAPER_BETA: f64 = 0.01;
+/// Stopping tolerance `ε` (the paper gives none; 1e-6 in coefficient units).
+pub const PAPER_TOL: f64 = 1e-6;
+/// Iterate limit (the paper's Tables 2–3 settle after ~150–180 iterates).
+pub const PAPER_MAX_ITER: u32 = 200;
+
 impl<T: Real> Default for RidgeM<T> {
     /// γ = 1000, β = 0.01, ε = 1e-6, 200 iterates (the paper's values; its Tables 2–3 settle after ~150–180 iterates).
     fn default() -> Self {
         RidgeM {
-            gamma: T::from_f64(1000.0),
-            beta: T::from_f64(0.01),
-            tol: T::from_f64(1e-6),
-            max_iter: 200,
+            gamma: T::from_f64(PAPER_GAMMA),
+            beta: T::from_f64(PAPER_BETA),
+            tol: T::from_f64(PAPER_TOL),
+            max_iter: PAPER_MAX_ITER,
         }
     }
+}
+
+impl RidgeM<f32> {
+    /// [`RidgeM::default`] as a constant, in `f32` (for `static` settings on a device, which
+    /// cost data rather than code).
+    pub const PAPER: RidgeM<f32> = RidgeM {
+        gamma: PAPER_GAMMA as f32,
+        beta: PAPER_BETA as f32,
+        tol: PAPER_TOL as f32,
+        max_iter: PAPER_MAX_ITER,
+    };
 }
 
 impl<T: Real> RidgeM<T> {

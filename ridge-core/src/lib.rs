@@ -61,7 +61,7 @@ pub use normal::{Factor, Normal, Regressor, System};
 pub use real::Real;
 pub use rls::Rls;
 pub use search::{Criterion, Method, MethodKind, Search, Selection};
-pub use structure::{Grid, Offset, OrderRange, Structure, GRID_MAX};
+pub use structure::{Grid, GridIter, Offset, OrderRange, Structure, GRID_MAX};
 
 /// Largest autoregressive order `p`.
 pub const P_MAX: usize = 6;

@@ -216,17 +216,32 @@ pub struct Search<T> {
     pub prune: bool,
 }
 
+/// The paper's penalty weight `α` per parameter.
+pub const PAPER_ALPHA: f64 = 12.0;
+
 impl<T: Real> Default for Search<T> {
     fn default() -> Self {
         Search {
-            grid: Grid::default(),
+            grid: Grid::PAPER,
             offset: Offset::None,
-            criterion: Criterion::default(),
-            alpha: T::from_f64(12.0),
+            criterion: Criterion::Aic,
+            alpha: T::from_f64(PAPER_ALPHA),
             method: Method::default(),
             prune: true,
         }
     }
+}
+
+impl Search<f32> {
+    /// [`Search::default`] as a constant, in `f32` (for `static` settings on a device).
+    pub const DEFAULT: Search<f32> = Search {
+        grid: Grid::PAPER,
+        offset: Offset::None,
+        criterion: Criterion::Aic,
+        alpha: PAPER_ALPHA as f32,
+        method: Method::RidgeM(RidgeM::PAPER),
+        prune: true,
+    };
 }
 
 /// The winner of a search.

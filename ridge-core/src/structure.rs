@@ -129,12 +129,17 @@ pub struct Grid {
 impl Default for Grid {
     /// The paper's grid: p ∈ 1..=6, q ∈ 1..=6, d ∈ 0..=6 (252 candidates).
     fn default() -> Self {
-        Grid {
-            p: OrderRange::new(1, P_MAX as u8),
-            q: OrderRange::new(1, Q_MAX as u8),
-            d: OrderRange::new(0, D_MAX as u8),
-        }
+        Grid::PAPER
     }
+}
+
+impl Grid {
+    /// The paper's grid: p ∈ 1..=6, q ∈ 1..=6, d ∈ 0..=6 (252 candidates).
+    pub const PAPER: Grid = Grid {
+        p: OrderRange::new(1, P_MAX as u8),
+        q: OrderRange::new(1, Q_MAX as u8),
+        d: OrderRange::new(0, D_MAX as u8),
+    };
 }
 
 impl Grid {
@@ -184,9 +189,50 @@ impl Grid {
         })
     }
 
-    /// Iterates over all candidates in grid order.
-    pub fn iter(&self) -> impl Iterator<Item = Structure> + '_ {
-        (0..self.len()).filter_map(move |i| self.get(i))
+    /// Iterates over all candidates in grid order (p slowest, d fastest: [`Grid::get`]'s).
+    pub fn iter(&self) -> GridIter {
+        let start = Structure {
+            p: self.p.min,
+            q: self.q.min,
+            d: self.d.min,
+        };
+        GridIter {
+            grid: *self,
+            next: (!self.is_empty()).then_some(start),
+        }
+    }
+}
+
+/// The candidates of a [`Grid`] in order, by counting `d`, then `q`, then `p` up (no division
+/// per candidate; on the ATmega2560 the index form cost 0.7 KB).
+#[derive(Debug, Clone)]
+pub struct GridIter {
+    grid: Grid,
+    next: Option<Structure>,
+}
+
+impl Iterator for GridIter {
+    type Item = Structure;
+    fn next(&mut self) -> Option<Structure> {
+        let s = self.next?;
+        let g = &self.grid;
+        let mut n = s;
+        self.next = if n.d < g.d.max {
+            n.d += 1;
+            Some(n)
+        } else if n.q < g.q.max {
+            n.d = g.d.min;
+            n.q += 1;
+            Some(n)
+        } else if n.p < g.p.max {
+            n.d = g.d.min;
+            n.q = g.q.min;
+            n.p += 1;
+            Some(n)
+        } else {
+            None
+        };
+        Some(s)
     }
 }
 

@@ -123,7 +123,7 @@ fn dense_margin(ar: &[f64], p: &[f64]) -> f64 {
 /// The default design, slowed down until it passes (the textbook plant with a zero outside
 /// the unit circle needs it).
 fn designed(name: &str, m: &ArxModel<f64>) -> ridge_core::control::Design<f64> {
-    design_slower_on_failure(m, &Spec::for_model(m, TS), 6, 1.5, || {})
+    design_slower_on_failure(m, &Spec::new(TS), 6, 1.5, || {})
         .0
         .unwrap_or_else(|e| panic!("{name}: {e:?}"))
 }
@@ -189,7 +189,7 @@ fn modulus_margin_agrees_with_a_dense_sweep() {
         for slower in [1.0, 1.5, 3.0] {
             let spec = Spec {
                 min_margin: 0.0,
-                ..Spec::for_model(&m, TS).slower(slower)
+                ..Spec::new(TS).slower(slower)
             };
             let d = design(&m, &spec).unwrap();
             let ar = conv(&a_poly(&m), d.rst.r());
@@ -206,7 +206,7 @@ fn modulus_margin_agrees_with_a_dense_sweep() {
 #[test]
 fn default_designs_of_the_pumps_meet_the_margin() {
     for (name, m) in plants().into_iter().take(3) {
-        let d = design(&m, &Spec::for_model(&m, TS)).unwrap();
+        let d = design(&m, &Spec::new(TS)).unwrap();
         assert!(d.modulus_margin >= 0.55, "{name}: {}", d.modulus_margin);
         assert!(d.kept > 0, "{name}: the fast poles are kept");
     }
@@ -225,12 +225,8 @@ fn f32_design_matches_f64() {
         )
         .unwrap();
         let d64 = designed(name, &m);
-        let d32 = design(
-            &m32,
-            &Spec::for_model(&m32, TS as f32)
-                .slower(d64.spec.tau as f32 / Spec::for_model(&m32, TS as f32).tau),
-        )
-        .unwrap_or_else(|e| panic!("{name}: f32 {e:?}"));
+        let d32 = design(&m32, &Spec::new(TS as f32).slower(d64.spec.slowdown as f32))
+            .unwrap_or_else(|e| panic!("{name}: f32 {e:?}"));
         for (a, b) in [
             (d64.rst.r(), d32.rst.r()),
             (d64.rst.s(), d32.rst.s()),
@@ -324,7 +320,7 @@ fn wide() -> Limits<f64> {
 #[test]
 fn setpoint_response_is_first_order_without_overshoot_and_offset_steps_leave_no_error() {
     for (name, m) in plants().into_iter().take(3) {
-        let d = design(&m, &Spec::for_model(&m, TS)).unwrap();
+        let d = design(&m, &Spec::new(TS)).unwrap();
         let mut plant = Plant::new(&m, 1.0, -5.0, 0.3);
         let y0 = plant.y[0];
         let mut ctrl = Controller::new(d.rst, wide());
@@ -346,7 +342,7 @@ fn setpoint_response_is_first_order_without_overshoot_and_offset_steps_leave_no_
         // Before the disturbance: the designed first-order response after the loop delay.
         let overshoot = ys[..300].iter().fold(f64::MIN, |a, &b| a.max(b)) - target;
         assert!(overshoot < 0.01 * 20.0, "{name}: overshoot {overshoot}");
-        let tau_samples = d.spec.tau / TS;
+        let tau_samples = d.tau / TS;
         let t63 = ys.iter().position(|&y| y - y0 >= 0.632 * 20.0).unwrap();
         assert!(
             (t63 as f64) <= delay as f64 + tau_samples + 3.0,
@@ -362,7 +358,7 @@ fn setpoint_response_is_first_order_without_overshoot_and_offset_steps_leave_no_
 #[test]
 fn gain_errors_of_a_factor_two_are_tolerated() {
     for (name, m) in plants().into_iter().take(3) {
-        let d = design(&m, &Spec::for_model(&m, TS)).unwrap();
+        let d = design(&m, &Spec::new(TS)).unwrap();
         for gain in [0.5, 2.0] {
             let mut plant = Plant::new(&m, gain, 0.0, 0.3);
             let y0 = plant.y[0];
@@ -381,7 +377,7 @@ fn gain_errors_of_a_factor_two_are_tolerated() {
 #[test]
 fn saturation_then_recovery_without_windup() {
     let (name, m) = plants().remove(0);
-    let d = design(&m, &Spec::for_model(&m, TS)).unwrap();
+    let d = design(&m, &Spec::new(TS)).unwrap();
     let limits = Limits {
         min: 0.0,
         max: 0.5,
@@ -430,7 +426,7 @@ fn saturation_then_recovery_without_windup() {
 #[test]
 fn rate_limit_bounds_every_step_and_start_is_bumpless() {
     let (_, m) = plants().remove(0);
-    let d = design(&m, &Spec::for_model(&m, TS)).unwrap();
+    let d = design(&m, &Spec::new(TS)).unwrap();
     let limits = Limits {
         min: 0.0,
         max: 1.0,
@@ -489,17 +485,14 @@ fn refusals() {
     // Not controllable: B has the slow root of A (a common factor): the slow pole cannot be
     // moved, the Diophantine is singular.
     let common = m(&[1.4, -0.45], &[1.0, -0.9], 0); // A = (1 − 0.9q⁻¹)(1 − 0.5q⁻¹)
-    assert_eq!(
-        design(&common, &Spec::for_model(&common, TS)),
-        Err(DesignError::Singular)
-    );
+    assert_eq!(design(&common, &Spec::new(TS)), Err(DesignError::Singular));
     // A setpoint response far too fast for a long delay: the margin is refused, and slower
     // designs are tried until one passes.
     let sluggish = plants().remove(2).1;
     let greedy = Spec {
-        tau: 0.01,
+        tau: Some(0.01),
         observer: 0.01,
-        ..Spec::for_model(&sluggish, TS)
+        ..Spec::new(TS)
     };
     match design(&sluggish, &greedy) {
         Err(DesignError::Margin { margin }) => assert!(margin < 0.5, "{margin}"),
@@ -511,19 +504,19 @@ fn refusals() {
         tries > 1 && slower.modulus_margin >= 0.5,
         "{tries} {slower:?}"
     );
-    assert!(slower.spec.tau > greedy.tau);
+    assert!(slower.tau > 0.01 && slower.spec.slowdown > 1.0);
     let (refused, tries) = design_slower_on_failure(&sluggish, &greedy, 1, 1.5, || {});
     assert!(matches!(refused, Err(DesignError::Margin { .. })) && tries == 1);
     // Slow complex poles (0.9 ± 0.3j, an oscillating plant): this design moves real poles only.
     let oscillating = m(&[1.8, -0.9], &[1.0], 1);
     assert_eq!(
-        design(&oscillating, &Spec::for_model(&oscillating, TS)),
+        design(&oscillating, &Spec::new(TS)),
         Err(DesignError::SlowPoles)
     );
     // Nonsense settings.
     let bad = Spec {
-        tau: f64::NAN,
-        ..Spec::for_model(&sluggish, TS)
+        tau: Some(f64::NAN),
+        ..Spec::new(TS)
     };
     assert_eq!(design(&sluggish, &bad), Err(DesignError::Spec));
 }

@@ -57,3 +57,28 @@ fn criterion_values_follow_their_formulas() {
     assert_eq!(v(Criterion::Bic, Offset::None), fit + 1000f64.ln() * 5.0);
     assert_eq!(v(Criterion::Validation, Offset::Intercept), fit);
 }
+
+/// The grid's iterator visits exactly `Grid::get(0..len)`, in that order, for every grid of
+/// the maxima (and none for an empty one).
+#[test]
+fn grid_iteration_is_the_indexed_order() {
+    use ridge_core::{Grid, OrderRange, D_MAX, P_MAX, Q_MAX};
+    let mut grids = 0;
+    for (p0, p1) in [(1, 1), (1, 6), (2, 4), (6, 6), (3, 2)] {
+        for (q0, q1) in [(1, 1), (1, 6), (3, 5)] {
+            for (d0, d1) in [(0, 0), (0, 6), (2, 3), (5, 4)] {
+                let g = Grid {
+                    p: OrderRange::new(p0, p1),
+                    q: OrderRange::new(q0, q1),
+                    d: OrderRange::new(d0, d1),
+                };
+                let indexed: Vec<_> = (0..g.len()).map(|i| g.get(i).unwrap()).collect();
+                let iterated: Vec<_> = g.iter().collect();
+                assert_eq!(iterated, indexed, "{g:?}");
+                grids += 1;
+            }
+        }
+    }
+    assert_eq!(grids, 60);
+    assert_eq!(Grid::PAPER.iter().count(), P_MAX * Q_MAX * (D_MAX + 1));
+}

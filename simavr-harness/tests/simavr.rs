@@ -239,11 +239,12 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
 /// AVR-specific defect (code generation, float library) from one of the algorithm.
 fn replay(o: &Outcome) -> String {
     use ridge_pump_firmware::event::Event;
-    use ridge_pump_firmware::selfid::SelfIdentification;
+    use ridge_pump_firmware::selfid::{SelfIdentification, DEFAULT_CONFIG};
+    use ridge_pump_firmware::sfm3300::raw_to_counts;
     let frames = o.bench.sensor.borrow().served();
-    let mut sid = SelfIdentification::new(Config::default(), None);
+    let mut sid = SelfIdentification::new(&DEFAULT_CONFIG, None);
     for (_, raw) in frames {
-        sid.tick(Ok((i32::from(raw) - 32_768) as i16));
+        sid.tick(Ok(raw_to_counts(raw)));
         if sid.needs_search() {
             return match sid.search(|| {}) {
                 Some(Event::Identified { model, .. }) => {

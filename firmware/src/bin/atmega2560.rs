@@ -30,7 +30,7 @@ mod image {
     use ridge_pump_firmware::app::{App, Board};
     use ridge_pump_firmware::persist::RECORD_LEN;
     use ridge_pump_firmware::pump::Pump;
-    use ridge_pump_firmware::selfid::{Config, SelfIdentification};
+    use ridge_pump_firmware::selfid::{SelfIdentification, DEFAULT_CONFIG};
     use ridge_pump_firmware::sfm3300::Sfm3300;
     use ufmt::uwriteln;
 
@@ -100,7 +100,7 @@ mod image {
         let sensor = Sfm3300::new(twi::Twi::new(dp.TWI, dp.PORTD, I2C_HZ));
         let mut eeprom = eeprom::Eeprom::<RECORD_LEN>::new(dp.EEPROM);
         let stored = eeprom.load();
-        let sid = SelfIdentification::new(Config::default(), stored.as_ref().map(|r| &r[..]));
+        let sid = SelfIdentification::new(&DEFAULT_CONFIG, stored.as_ref().map(|r| &r[..]));
 
         let ticker = timer::Ticker::new(dp.TC3);
         // SAFETY: all interrupt handlers (Timer3 compare, USART0 UDRE) only use state that is

@@ -79,43 +79,57 @@ pub struct ControlConfig {
 
 impl Default for ControlConfig {
     fn default() -> Self {
-        ControlConfig {
-            tau: None,
-            observer: 0.095,
-            tries: 5,
-            duty_min: 1_500,
-            duty_max: 9_500,
-            duty_step: 500,
-            model: ModelLimits {
-                stable_radius: 0.995,
-                gain_min: 20.0,
-                gain_max: 2_000.0,
-            },
-            program: Program::Demo,
-            tracking: TrackingConfig::default(),
-        }
+        Self::DEFAULT
     }
+}
+
+impl ControlConfig {
+    /// The defaults (see each field).
+    pub const DEFAULT: ControlConfig = ControlConfig {
+        tau: None,
+        observer: 0.095,
+        tries: 5,
+        duty_min: 1_500,
+        duty_max: 9_500,
+        duty_step: 500,
+        model: ModelLimits {
+            stable_radius: 0.995,
+            gain_min: 20.0,
+            gain_max: 2_000.0,
+        },
+        program: Program::Demo,
+        tracking: TrackingConfig::DEFAULT,
+    };
 }
 
 impl Default for Config {
     fn default() -> Self {
-        Config {
-            base_duty: 3_000,
-            settle_ticks: 200,
-            excitation: Record::AMultistep,
-            validation: Record::BMultistep,
-            search: Search::default(),
-            min_fit: 70.0,
-            min_response: 1.0,
-            max_gaps: 10,
-            attempts: 3,
-            sensor_fault_limit: 5,
-            flow_limit: 30_000,
-            stall_duty: 4_000,
-            stall_flow: 240,
-            stall_ticks: 50,
-            monitor: MonitorConfig::default(),
-            control: ControlConfig::default(),
-        }
+        Self::DEFAULT
     }
+}
+
+/// The default settings as a `static`: what the board images run with. (A static costs its
+/// bytes of data; building the settings at run time cost the ATmega2560 1 KB of code.)
+pub static DEFAULT_CONFIG: Config = Config::DEFAULT;
+
+impl Config {
+    /// The defaults (see each field).
+    pub const DEFAULT: Config = Config {
+        base_duty: 3_000,
+        settle_ticks: 200,
+        excitation: Record::AMultistep,
+        validation: Record::BMultistep,
+        search: Search::DEFAULT,
+        min_fit: 70.0,
+        min_response: 1.0,
+        max_gaps: 10,
+        attempts: 3,
+        sensor_fault_limit: 5,
+        flow_limit: 30_000,
+        stall_duty: 4_000,
+        stall_flow: 240,
+        stall_ticks: 50,
+        monitor: MonitorConfig::DEFAULT,
+        control: ControlConfig::DEFAULT,
+    };
 }

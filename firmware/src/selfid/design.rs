@@ -34,25 +34,25 @@ impl SelfIdentification {
         if let Err(fault) = check_model(&model, &c.model) {
             return Some(self.fault_detected(FaultReason::Control(ControlRefusal::Model(fault))));
         }
-        let mut spec = Spec::for_model(&model, TS_S);
-        spec.observer = c.observer;
-        if let Some(tau) = c.tau {
-            spec.tau = tau;
-        }
+        let spec = Spec {
+            tau: c.tau,
+            observer: c.observer,
+            ..Spec::new(TS_S)
+        };
         let tries = c.tries;
         let (result, tries) = design_slower_on_failure(&model, &spec, tries, SLOWDOWN, &mut pet);
         pet();
         match result {
             Ok(d) => {
                 self.phase = Phase::Run(RunMode::new(
-                    &self.cfg,
+                    self.cfg,
                     model,
                     &d,
                     self.duty,
                     self.last_counts,
                 ));
                 Some(Event::Control {
-                    tau: d.spec.tau,
+                    tau: d.tau,
                     alpha: d.alpha,
                     beta: d.beta,
                     kept: d.kept,

@@ -80,7 +80,7 @@ mod recording;
 mod run;
 mod search;
 
-pub use config::{Config, ControlConfig};
+pub use config::{Config, ControlConfig, DEFAULT_CONFIG};
 pub use guard::Guard;
 pub use recording::{absolute_model, SETTLE_MEAN_TICKS};
 pub use search::{SearchJob, SearchOutcome};
@@ -184,7 +184,9 @@ fn settle(left: u16, then: Then) -> Phase {
 /// (see the [module docs](self)).
 #[derive(Debug, Clone)]
 pub struct SelfIdentification {
-    cfg: Config,
+    /// The settings (static: on the ATmega2560 a static costs data, a by-value copy built at
+    /// run time cost 1 KB of code).
+    cfg: &'static Config,
     phase: Phase,
     /// Duty returned by the last tick: applied during the interval that ends with the next
     /// reading.
@@ -220,7 +222,7 @@ impl SelfIdentification {
     /// identified model must pass (stable, static gain of the right sign and size, fit at
     /// least [`Config::min_fit`]), is reported once ([`Event::StoredRejected`], on the first
     /// tick) and a new model is identified.
-    pub fn new(config: Config, stored: Option<&[u8]>) -> Self {
+    pub fn new(config: &'static Config, stored: Option<&[u8]>) -> Self {
         let checked = stored.map(|bytes| {
             let (m, fit) = persist::decode(bytes).map_err(StoredReason::Record)?;
             ridge_core::control::check_model(&m, &config.control.model)
@@ -243,7 +245,7 @@ impl SelfIdentification {
             phase: Phase::Wait,
             duty: 0,
             last_counts: 0,
-            guard: Guard::new(&config),
+            guard: Guard::new(config),
             attempt: 0,
             generation: 0,
             model,
@@ -389,8 +391,8 @@ impl SelfIdentification {
     }
 
     /// The settings.
-    pub fn config(&self) -> &Config {
-        &self.cfg
+    pub fn config(&self) -> &'static Config {
+        self.cfg
     }
 
     /// The duty returned by the last tick, 1/10 000 of full scale.

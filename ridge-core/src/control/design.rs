@@ -57,10 +57,14 @@ use super::rst::{Rst, R_LEN, S_LEN};
 pub struct Spec<T> {
     /// Sample period (0.01 s at 100 Hz).
     pub ts: T,
-    /// The speed knob: time constant of the setpoint response after the loop delay.
-    pub tau: T,
-    /// Time constant of the observer pole `β`.
+    /// The speed knob: time constant of the setpoint response after the loop delay. `None`:
+    /// a quarter of the model's open-loop time constant `−Ts / ln λ` (`λ` its slow pole), at
+    /// least `2 Ts` and at most 2 s; 0.1 s when the model has no slow pole.
+    pub tau: Option<T>,
+    /// Time constant of the observer pole `β` (0.095 s: `β = 0.9` at 100 Hz).
     pub observer: T,
+    /// Both time constants are multiplied by this (1; [`Spec::slower`] raises it).
+    pub slowdown: T,
     /// Model poles within this radius (all but the dominant one) are kept in `P` (0.8).
     pub keep_radius: T,
     /// Smallest accepted modulus margin (0.5).
@@ -68,35 +72,22 @@ pub struct Spec<T> {
 }
 
 impl<T: Real> Spec<T> {
-    /// The default design for `model` sampled every `ts` seconds: `τ` a quarter of the
-    /// model's open-loop time constant `−Ts / ln λ` (`λ` its dominant real pole), at least
-    /// `2 Ts` and at most 2 s (`0.1 s` when the model has no real dominant pole); observer
-    /// pole `β = 0.9` at 100 Hz (`τ_o = 95 ms`); keep radius 0.8; margin ≥ 0.5.
-    #[inline(never)]
-    pub fn for_model(model: &ArxModel<T>, ts: T) -> Self {
-        let mut a = [T::ZERO; P_MAX + 1];
-        let n = denominator(model, &mut a);
-        let tau = match dominant_real_root(a.get(..n).unwrap_or(&[])) {
-            Some(l) if l > T::ZERO => {
-                let tau_ol = -ts / l.ln();
-                clamp(tau_ol / T::from_f64(4.0), ts + ts, T::from_f64(2.0))
-            }
-            _ => T::from_f64(0.1),
-        };
+    /// The default design at the sample period `ts` (see each field).
+    pub fn new(ts: T) -> Self {
         Spec {
             ts,
-            tau,
+            tau: None,
             observer: T::from_f64(0.095),
+            slowdown: T::ONE,
             keep_radius: T::from_f64(0.8),
             min_margin: T::from_f64(0.5),
         }
     }
 
-    /// The same design `factor` times slower (`τ` and the observer time constant scaled).
+    /// The same design `factor` times slower (both time constants scaled).
     pub fn slower(&self, factor: T) -> Self {
         Spec {
-            tau: self.tau * factor,
-            observer: self.observer * factor,
+            slowdown: self.slowdown * factor,
             ..*self
         }
     }
@@ -109,6 +100,8 @@ pub struct Design<T: Real> {
     pub rst: Rst<T>,
     /// The settings it was made with.
     pub spec: Spec<T>,
+    /// The time constant of the setpoint response, s (the speed knob as resolved and slowed).
+    pub tau: T,
     /// Closed-loop pole of the setpoint response, `e^{−Ts/τ}`.
     pub alpha: T,
     /// Observer pole, `e^{−Ts/τ_o}`.
@@ -188,13 +181,6 @@ fn clamp<T: Real>(x: T, lo: T, hi: T) -> T {
 /// on the ATmega2560 instead of two kilobytes.
 #[inline(never)]
 pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>, DesignError<T>> {
-    // Positive and finite (NaN fails every comparison; +∞ makes Ts/τ 0 or ∞).
-    let ratio_a = spec.ts / spec.tau;
-    let ratio_b = spec.ts / spec.observer;
-    let fine = |x: T| at_most(T::ZERO, x) && at_most(x, T::MAX) && x != T::ZERO;
-    if !(fine(spec.ts) && fine(ratio_a) && fine(ratio_b)) {
-        return Err(DesignError::Spec);
-    }
     let s = model.structure();
     let (p, q, d) = (usize::from(s.p), usize::from(s.q), usize::from(s.d));
     // The structure's maxima bound every length below (p ≤ 6, q ≤ 6, d ≤ 6).
@@ -219,6 +205,23 @@ pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>,
         }
     }
 
+    // The speed knob, resolved from the slow pole when not given; then slowed down.
+    let tau = match spec.tau {
+        Some(tau) => tau,
+        None if slow => clamp(
+            -spec.ts / (lambda.ln() * T::from_f64(4.0)),
+            spec.ts + spec.ts,
+            T::from_f64(2.0),
+        ),
+        None => T::from_f64(0.1),
+    } * spec.slowdown;
+    // Positive and finite (NaN fails every comparison; +∞ makes Ts/τ 0 or ∞).
+    let ratio_a = spec.ts / tau;
+    let ratio_b = spec.ts / (spec.observer * spec.slowdown);
+    let fine = |x: T| at_most(T::ZERO, x) && at_most(x, T::MAX) && x != T::ZERO;
+    if !(fine(spec.ts) && fine(ratio_a) && fine(ratio_b)) {
+        return Err(DesignError::Spec);
+    }
     let alpha = exp_neg(ratio_a);
     let beta = exp_neg(ratio_b);
     // The reduced target P_small: (1 − α q⁻¹)(1 − β q⁻¹), or (1 − α q⁻¹) alone when the
@@ -328,6 +331,7 @@ pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>,
     Ok(Design {
         rst,
         spec: *spec,
+        tau,
         alpha,
         beta,
         kept: (nf - 1) as u8,
