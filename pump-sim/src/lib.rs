@@ -13,6 +13,7 @@
 //! argument: the same seed gives bit-identical logs.
 
 pub mod arx;
+pub mod lung;
 pub mod paper;
 pub mod pump;
 pub mod sfm3300;
@@ -25,6 +26,7 @@ use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::units::{DUTY_FULL_SCALE, SAMPLE_RATE_HZ};
 
 pub use arx::simulate_arx;
+pub use lung::{Lung, LungParams};
 pub use pump::{Pump, PumpParams};
 pub use sfm3300::{Sfm3300, Sfm3300Params};
 
@@ -103,29 +105,53 @@ impl Log {
     }
 }
 
-/// The rig: a pump and a sensor, stepped once per sample.
+/// The rig: a pump, optionally a test lung behind it, and a sensor, stepped once per sample.
 #[derive(Clone, Debug)]
 pub struct Rig {
     /// The blower (public for fault injection, e.g. `rig.pump.set_stalled(true)`).
     pub pump: Pump,
+    /// The test lung, or `None` for an open outlet.
+    pub lung: Option<Lung>,
     /// The flow sensor.
     pub sensor: Sfm3300,
 }
 
 impl Rig {
-    /// A rig at rest with pump `pump`, sensor error model `sensor` and noise seed `seed`.
+    /// A rig at rest with pump `pump`, an open outlet, sensor error model `sensor` and noise
+    /// seed `seed`.
     pub fn new(pump: PumpParams, sensor: Sfm3300Params, seed: u64) -> Self {
         Self {
             pump: Pump::new(pump),
+            lung: None,
             sensor: Sfm3300::new(sensor, seed),
         }
+    }
+
+    /// The same rig with a relaxed test lung `lung` behind the blower.
+    pub fn with_lung(mut self, lung: LungParams) -> Self {
+        self.lung = Some(Lung::new(lung));
+        self
     }
 
     /// Applies `duty` (units of 1/[`DUTY_FULL_SCALE`], clamped to full scale) for one sample
     /// period and returns the sensor word measured at its end.
     pub fn step(&mut self, duty: u16) -> u16 {
-        let flow = self.pump.step(duty_to_f64(duty.min(DUTY_FULL_SCALE)));
+        let flow = self.true_flow(duty);
         self.sensor.measure_raw(flow)
+    }
+
+    /// Applies `duty` for one sample period and returns the true flow at its end, slm: the
+    /// blower's open-outlet flow, or with a lung the flow against its back pressure.
+    pub fn true_flow(&mut self, duty: u16) -> f64 {
+        let open = self.pump.step(duty_to_f64(duty.min(DUTY_FULL_SCALE)));
+        match &mut self.lung {
+            Some(lung) => {
+                let p = self.pump.params();
+                let shutoff = p.shutoff_of_speed(self.pump.speed());
+                lung.step(open, shutoff, p.ts_s)
+            }
+            None => open,
+        }
     }
 
     /// Runs a whole duty sequence (e.g. an excitation generator) and logs it.

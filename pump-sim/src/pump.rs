@@ -44,11 +44,15 @@ pub struct PumpParams {
     pub max_flow_slm: f64,
     /// Transport delay in samples (the plant's ARX delay).
     pub delay_samples: usize,
+    /// Shut-off pressure at full speed (no flow), cmH₂O; the pressure at speed `s` is
+    /// `shutoff_cmh2o · s²` (fan law). Only a [`crate::lung::Lung`] behind the blower uses it.
+    pub shutoff_cmh2o: f64,
 }
 
 impl Default for PumpParams {
     /// The reference blower: dead zone 12 % (start at 15 %), τ = 0.15 s both ways,
-    /// flow ∝ speed^1.3, 150 slm at 100 %, 3 samples (30 ms) of transport delay.
+    /// flow ∝ speed^1.3, 150 slm at 100 %, 3 samples (30 ms) of transport delay, 100 cmH₂O
+    /// shut-off pressure.
     fn default() -> Self {
         Self {
             ts_s: 0.01,
@@ -59,6 +63,7 @@ impl Default for PumpParams {
             flow_exponent: 1.3,
             max_flow_slm: 150.0,
             delay_samples: 3,
+            shutoff_cmh2o: 100.0,
         }
     }
 }
@@ -113,6 +118,11 @@ impl PumpParams {
     /// Fan curve: flow (slm) at normalised speed `speed` (0..1).
     pub fn flow_of_speed(&self, speed: f64) -> f64 {
         self.max_flow_slm * speed.max(0.0).powf(self.flow_exponent)
+    }
+
+    /// Shut-off pressure (cmH₂O) at normalised speed `speed` (0..1): `shutoff · speed²`.
+    pub fn shutoff_of_speed(&self, speed: f64) -> f64 {
+        self.shutoff_cmh2o * speed.max(0.0).powi(2)
     }
 }
 
