@@ -15,6 +15,7 @@
 pub mod arx;
 pub mod lung;
 pub mod paper;
+pub mod plant;
 pub mod pump;
 pub mod sfm3300;
 
@@ -27,6 +28,7 @@ use ridge_pump_firmware::units::{DUTY_FULL_SCALE, SAMPLE_RATE_HZ};
 
 pub use arx::simulate_arx;
 pub use lung::{Lung, LungParams};
+pub use plant::{Blower, Outlet, PlantArgs};
 pub use pump::{Pump, PumpParams};
 pub use sfm3300::{Sfm3300, Sfm3300Params};
 
