@@ -125,14 +125,14 @@ pub const DEMO_STEPS: &[Level] = &[
 ];
 
 /// The breath profile of the [`Program::Demo`] program: square, 20 breaths/min, I:E 1:2,
-/// 60 slm peak, 10 slm bias, 0.1 s rise.
+/// 60 slm peak, 10 slm bias, 0.2 s rise.
 pub const DEMO_BREATH: Breath = Breath {
     shape: Shape::Square,
     rate: 20.0,
     ie: 2.0,
     peak: 60.0,
     bias: 10.0,
-    rise: 0.1,
+    rise: 0.3,
 };
 
 /// What run mode tracks.
@@ -182,6 +182,12 @@ impl Setpoint {
     /// Ticks since the start.
     pub fn ticks(&self) -> u32 {
         self.tick
+    }
+
+    /// The setpoint `ticks` ticks after the coming one (slm), without advancing: a program is
+    /// known ahead, which lets a controller be given it early by the loop's delay.
+    pub fn ahead(&self, ticks: u32) -> f32 {
+        value(self.program, self.start, self.tick.saturating_add(ticks))
     }
 
     /// The setpoint for the coming tick (slm), and advances by one tick.

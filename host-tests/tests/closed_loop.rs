@@ -304,7 +304,11 @@ fn run_mode_tracks_and_reports_residuals_without_drift_on_the_healthy_pump() {
             // A large step can hold the flow outside the alarm band for more than 0.5 s (the
             // sluggish blower coasts down with τ = 0.45 s): an alarm then, cleared again.
             let alarms = after.iter().filter(|e| e.starts_with("ALARM")).count();
-            assert_eq!(res.len() + track.len() + alarms, after.len(), "{name}: {after:#?}");
+            assert_eq!(
+                res.len() + track.len() + alarms,
+                after.len(),
+                "{name}: {after:#?}"
+            );
             assert!(!lp.sm.tracking_alarm(), "{name} {}: {after:#?}", level.slm);
             // Steady windows: residual RMS near the sensor noise (3 % of the flow), the flow
             // on its setpoint within the noise, no steady error.

@@ -21,6 +21,9 @@ pub(super) struct RunMode {
     tracking: Tracking,
     /// The setpoint of the interval in progress (for the tracking figures), slm.
     current: f32,
+    /// Ticks the controller sees the program ahead of time: the mean delay of the designed
+    /// setpoint response ([`Design::mean_delay`]), so that the flow follows the program in time.
+    preview: u8,
 }
 
 impl RunMode {
@@ -49,6 +52,7 @@ impl RunMode {
             // Half a window out of step with the monitor's lines.
             tracking: Tracking::new(c.tracking, c.tracking.window / 2),
             current: y0,
+            preview: preview_ticks(design.mean_delay(&model)),
         }
     }
 
@@ -63,8 +67,9 @@ impl RunMode {
         last: i16,
     ) -> (u16, Option<Event>) {
         let y = f32::from(reading.unwrap_or(last)) * SLM_PER_COUNT;
+        let ahead = self.setpoint.ahead(u32::from(self.preview));
         let r = self.setpoint.advance();
-        let u = self.ctrl.step(r, y);
+        let u = self.ctrl.step(ahead, y);
         let duty = (u * f32::from(DUTY_FULL_SCALE) + 0.5) as u16;
         let measured = reading.map(|c| f32::from(c) * SLM_PER_COUNT);
         let monitor = self.monitor.step(applied, reading);
@@ -83,5 +88,16 @@ impl RunMode {
     /// The setpoint of the interval in progress, slm.
     pub(super) fn setpoint(&self) -> f32 {
         self.current
+    }
+}
+
+/// Whole ticks of setpoint preview for a mean delay of `delay` samples
+/// ([`Design::mean_delay`]): rounded, within 0..=255, 0 when not finite.
+fn preview_ticks(delay: f32) -> u8 {
+    let ticks = delay + 0.5;
+    if ticks.is_finite() && ticks > 0.0 {
+        ticks.min(255.0) as u8
+    } else {
+        0
     }
 }

@@ -112,6 +112,26 @@ pub struct Design<T: Real> {
     pub modulus_margin: T,
 }
 
+impl<T: Real> Design<T> {
+    /// The mean delay of the designed setpoint response, in samples: the centre of gravity of
+    /// the impulse response of `q^{−d−1} (B / B(1)) (1 − α) / (1 − α q⁻¹)`, which is
+    /// `d + 1 + Σ k φₖ / Σ φₖ + α / (1 − α)`. Given a setpoint known ahead (a breath program)
+    /// this many samples early, the flow follows it in time (a ramp without lag). `model` is
+    /// the model the design was made for; the result is not finite when `B(1) = 0`.
+    pub fn mean_delay(&self, model: &ArxModel<T>) -> T {
+        let (mut sum, mut moment, mut k) = (T::ZERO, T::ZERO, T::ZERO);
+        for &phi in model.phi() {
+            sum = sum + phi;
+            moment = moment + k * phi;
+            k = k + T::ONE;
+        }
+        T::from_u32(u32::from(model.structure().d))
+            + T::ONE
+            + moment / sum
+            + self.alpha / (T::ONE - self.alpha)
+    }
+}
+
 /// Why a design was refused.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum DesignError<T> {
