@@ -390,6 +390,15 @@ impl SelfIdentification {
         }
     }
 
+    /// How many ticks ahead run mode gives the controller the setpoint program (the designed
+    /// setpoint response's mean delay, rounded), `None` outside run mode.
+    pub fn preview(&self) -> Option<u8> {
+        match &self.phase {
+            Phase::Run(run) => Some(run.preview()),
+            _ => None,
+        }
+    }
+
     /// The settings.
     pub fn config(&self) -> &'static Config {
         self.cfg

@@ -89,6 +89,11 @@ impl RunMode {
     pub(super) fn setpoint(&self) -> f32 {
         self.current
     }
+
+    /// Ticks of setpoint preview.
+    pub(super) fn preview(&self) -> u8 {
+        self.preview
+    }
 }
 
 /// Whole ticks of setpoint preview for a mean delay of `delay` samples
