@@ -191,7 +191,9 @@ impl<P: SetDutyCycle> Pump<P> {
         if duty == 0 {
             0
         } else {
-            duty.clamp(self.min_duty, self.max_duty)
+            // Not Ord::clamp: its min > max panic path would be compiled in (min ≤ max holds
+            // by set_limits, but the compiler cannot see it).
+            duty.max(self.min_duty).min(self.max_duty)
         }
     }
 

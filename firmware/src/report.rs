@@ -304,7 +304,8 @@ where
     if negative && magnitude != 0 {
         f.write_str("-")?;
     }
-    let divisor = pow10(digits);
+    // At least 1 (it is: 10^0..10^9), stated so that no divide-by-zero panic is compiled in.
+    let divisor = pow10(digits).max(1);
     uDisplay::fmt(&(magnitude / divisor), f)?;
     if digits > 0 {
         f.write_str(".")?;

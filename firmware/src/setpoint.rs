@@ -14,7 +14,7 @@
 //! Everything is computed from the tick count in `f32`, no state but the counter: the
 //! sequence is exactly repeatable, and a host tool regenerates it from the same code.
 
-use crate::units::TS_S;
+use crate::units::{SAMPLE_RATE_HZ, TS_S};
 
 /// The shape of the inspiratory flow.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -77,17 +77,30 @@ impl Breath {
     /// inspiration (square: 1; ramp: falling linearly from 1 at `rise` to 0 at `T_i`), and after
     /// it the square's fall (`1 − (t − T_i) / rise`, at least 0) or 0 for the ramp.
     pub fn at(&self, t: f32) -> f32 {
-        let ti = self.inspiration();
-        let ramp = |x: f32, over: f32| if over > 0.0 { x / over } else { 1.0 };
+        self.level(t, self.inspiration())
+    }
+
+    /// [`at`](Self::at) with the inspiration time `ti` (s) already computed.
+    fn level(&self, t: f32, ti: f32) -> f32 {
+        // Comparisons rather than f32::min/max: those are 280 bytes of libm on the ATmega2560.
         let f = if t < ti {
-            let up = ramp(t, self.rise);
-            let shape = match self.shape {
-                Shape::Square => 1.0,
-                Shape::Ramp => 1.0 - ramp(t - self.rise, ti - self.rise),
-            };
-            up.min(shape).min(1.0)
-        } else if self.shape == Shape::Square {
-            (1.0 - ramp(t - ti, self.rise)).max(0.0)
+            let mut f = 1.0;
+            if t < self.rise {
+                f = t / self.rise;
+            }
+            if self.shape == Shape::Ramp {
+                let fall = if ti > self.rise {
+                    1.0 - (t - self.rise) / (ti - self.rise)
+                } else {
+                    0.0
+                };
+                if fall < f {
+                    f = fall;
+                }
+            }
+            f
+        } else if self.shape == Shape::Square && t - ti < self.rise {
+            1.0 - (t - ti) / self.rise
         } else {
             0.0
         };
@@ -125,7 +138,7 @@ pub const DEMO_STEPS: &[Level] = &[
 ];
 
 /// The breath profile of the [`Program::Demo`] program: square, 20 breaths/min, I:E 1:2,
-/// 60 slm peak, 10 slm bias, 0.2 s rise.
+/// 60 slm peak, 10 slm bias, 0.3 s rise.
 pub const DEMO_BREATH: Breath = Breath {
     shape: Shape::Square,
     rate: 20.0,
@@ -236,9 +249,10 @@ fn steps_at(levels: &[Level], tick: u32) -> f32 {
 }
 
 fn breath_at(b: &Breath, tick: u32) -> f32 {
-    let period_ticks = (b.period() / TS_S + 0.5) as u32;
+    let period = b.period();
+    let period_ticks = (period * f32::from(SAMPLE_RATE_HZ) + 0.5) as u32;
     if period_ticks == 0 {
         return b.bias;
     }
-    b.at((tick % period_ticks) as f32 * TS_S)
+    b.level((tick % period_ticks) as f32 * TS_S, period / (1.0 + b.ie))
 }

@@ -62,7 +62,7 @@ pub trait Accumulator: Copy + Default + core::fmt::Debug + PartialEq + sealed::S
     fn magnitude(s: Self::Sample) -> Self;
     /// A sample count up to which the sums cannot overflow when every sample is bounded by
     /// `max_abs` (each sum is at most `n · max_abs²`); may be below the largest such count
-    /// (the integer path rounds it down to a power of two, at most a factor 2).
+    /// (the integer path rounds it down to a power of two, at most a factor 8).
     fn capacity(max_abs: Self) -> u32;
     /// `a · b` as an accumulator value.
     fn product(a: Self::Sample, b: Self::Sample) -> Self;
@@ -106,16 +106,21 @@ impl Accumulator for i64 {
     }
     #[inline]
     fn capacity(max_abs: i64) -> u32 {
-        // Every accumulator is bounded by n · max², every sum by n · max ≤ n · max².
-        // Conservative power of two instead of `i64::MAX / max²`: with `sq < 2^bits`,
-        // `2^(63 − bits) · sq < 2^63`, at most a factor 2 below the exact bound (16-bit counts
-        // still get 2^31 samples), and no 64-bit division, which costs ~4000 cycles (0.25 ms)
-        // on an 8-bit MCU in the tick where a new extreme arrives.
-        let m = max_abs.unsigned_abs();
-        let sq = m.saturating_mul(m).max(1);
-        let bits = u64::BITS - sq.leading_zeros();
-        match 63u32.checked_sub(bits) {
-            Some(shift) => u32::try_from(1u64 << shift).unwrap_or(u32::MAX),
+        // Every accumulator is bounded by n · max², every sum by n · max ≤ n · max². With
+        // `max ≤ 2^b`, `n ≤ 2^(62 − 2b)` keeps `n · max² ≤ 2^62 < 2^63`: at most a factor 8
+        // below the exact bound (16-bit counts get the whole u32 range). Found by shifting,
+        // not by `i64::MAX / max²` (a 64-bit division costs ~4000 cycles on an 8-bit MCU, in
+        // the tick where a new extreme arrives) nor `leading_zeros`/`saturating_mul` on `u64`
+        // (1.2 KB of inline AVR code).
+        let mut m = max_abs.unsigned_abs().saturating_sub(1); // < 2^b ⇔ max ≤ 2^b
+        let mut b = 0u32;
+        while m != 0 {
+            m >>= 1;
+            b += 1;
+        }
+        match 62u32.checked_sub(2 * b) {
+            Some(shift) if shift < 32 => 1u32 << shift,
+            Some(_) => u32::MAX,
             None => 0,
         }
     }
@@ -557,4 +562,33 @@ fn shift_in<S: Copy>(h: &mut [S], v: S) {
 fn lag_pair(i: u8, j: u8) -> (usize, usize) {
     let (lo, hi) = if i <= j { (i, j) } else { (j, i) };
     (usize::from(lo), usize::from(hi - lo))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Accumulator;
+
+    /// The integer capacity is safe (`capacity · max² ≤ i64::MAX`, checked in 128 bits) and
+    /// at most a factor 8 below the exact bound `⌊i64::MAX / max²⌋` (or the whole `u32`
+    /// range), for every magnitude up to 2¹⁷ and both sides of every power of two up to 2³¹
+    /// (the largest `i32` magnitude).
+    #[test]
+    fn integer_capacity_is_safe_and_within_a_factor_8() {
+        let powers = (0..=31).flat_map(|k| {
+            let p = 1i64 << k;
+            [p - 1, p, p + 1]
+        });
+        // Samples are i32: magnitudes up to 2³¹.
+        for m in (0..=1i64 << 17).chain(powers.filter(|&m| m <= 1 << 31)) {
+            let cap = i128::from(<i64 as Accumulator>::capacity(m));
+            let sq = i128::from(m) * i128::from(m);
+            let max = i128::from(i64::MAX);
+            assert!(cap * sq <= max, "max {m}: capacity {cap} overflows");
+            let exact = if sq == 0 { max } else { max / sq };
+            assert!(
+                cap == i128::from(u32::MAX) || 8 * cap > exact,
+                "max {m}: capacity {cap}, exact {exact}"
+            );
+        }
+    }
 }

@@ -177,10 +177,13 @@ pub fn sqrt_f32(x: f32) -> f32 {
     let mut exp = (bits >> 23) as i32 - 127;
     let mut sig = bits & 0x007F_FFFF;
     if exp == -127 {
-        // Subnormal: shift the leading one up to bit 23.
-        let shift = sig.leading_zeros() - 8;
-        sig <<= shift;
-        exp = -126 - shift as i32;
+        // Subnormal: shift the leading one up to bit 23 (a loop: `leading_zeros` is ~290
+        // bytes of AVR code, and subnormals never occur in the solves).
+        exp = -126;
+        while sig & 0x0080_0000 == 0 {
+            sig <<= 1;
+            exp -= 1;
+        }
     } else {
         sig |= 0x0080_0000;
     }

@@ -29,6 +29,7 @@ pub(super) struct RunMode {
 impl RunMode {
     /// Run mode with `design` for `model`, starting bumplessly from the duty `applied` and the
     /// reading `counts`.
+    #[inline(never)]
     pub(super) fn new(
         cfg: &Config,
         model: ArxModel<f32>,
@@ -97,12 +98,7 @@ impl RunMode {
 }
 
 /// Whole ticks of setpoint preview for a mean delay of `delay` samples
-/// ([`Design::mean_delay`]): rounded, within 0..=255, 0 when not finite.
+/// ([`Design::mean_delay`]): rounded, within 0..=255 (`as` saturates), 0 when NaN.
 fn preview_ticks(delay: f32) -> u8 {
-    let ticks = delay + 0.5;
-    if ticks.is_finite() && ticks > 0.0 {
-        ticks.min(255.0) as u8
-    } else {
-        0
-    }
+    (delay + 0.5) as u8
 }

@@ -121,9 +121,9 @@ impl<T: Real> Design<T> {
     pub fn mean_delay(&self, model: &ArxModel<T>) -> T {
         let (mut sum, mut moment, mut k) = (T::ZERO, T::ZERO, T::ZERO);
         for &phi in model.phi() {
-            sum = sum + phi;
-            moment = moment + k * phi;
-            k = k + T::ONE;
+            sum += phi;
+            moment += k * phi;
+            k += T::ONE;
         }
         T::from_u32(u32::from(model.structure().d))
             + T::ONE
