@@ -761,21 +761,21 @@ impl ControlReport {
                 } else if !slow_pole {
                     "derived: ridge-core's 0.1 s for a model without a slow pole"
                 } else if (base - 2.0).abs() < 1e-9 && base < 2.0 * ts {
-                    "derived: ridge-core's 2 s ceiling, below its 2 Ts floor; set --speed"
+                    "derived: ridge-core's 2 s ceiling, below its 2 Ts floor (set --speed)"
                 } else if (base - 2.0).abs() < 1e-9 {
                     "derived: ridge-core's 2 s ceiling"
                 } else {
-                    "derived from the model's slow pole"
+                    "derived: a quarter of the slow pole's time constant"
                 };
                 let slowed = if c.tries > 1 {
-                    format!(", slowed {} times", num(d.spec.slowdown))
+                    format!(" = {} s x {} (slowed)", num(base), num(d.spec.slowdown))
                 } else {
                     String::new()
                 };
+                let _ = writeln!(o, "  tau           {} s{slowed}, {how}", num(d.tau));
                 let _ = writeln!(
                     o,
-                    "  tau           {} s ({how}{slowed}): setpoint response pole alpha = {}",
-                    num(d.tau),
+                    "  alpha         {} (setpoint response pole, exp(-Ts/tau))",
                     num(d.alpha)
                 );
                 let _ = writeln!(

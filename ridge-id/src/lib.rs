@@ -283,12 +283,12 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
                 let d = &designed.design;
                 let title = format!(
                     "closed-loop setpoint steps (simulated on the model): {}   ({},{},{})   \
-                     pole placement, tau {:.4} s, margin {:.2}",
+                     pole placement, tau {} s, margin {:.2}",
                     path_name(&opts.input),
                     s.p,
                     s.q,
                     s.d,
-                    d.tau,
+                    (d.tau * 1e4).round() / 1e4,
                     d.modulus_margin
                 );
                 let out = control_plot_path(path);
