@@ -12,9 +12,11 @@ use ridge_core::{
     Criterion, Grid, MethodKind, Offset, OrderRange, Structure, UnknownName, D_MAX, P_MAX, Q_MAX,
 };
 
+use crate::control::{ControlOptions, DEFAULT_TS, EXIT_REFUSED};
 use crate::options::{parse_range, parse_structure, Options};
 use crate::report::Hyper;
 use crate::run;
+use ridge_core::control::Spec;
 
 /// `ridge-id`: identify an ARX model from a logged CSV record.
 #[derive(Debug, Parser)]
@@ -31,9 +33,35 @@ pub enum Command {
     /// Identify y_t = Σθ_i y_{t-i} + Σφ_j u_{t-j-d} (+ c) from a CSV log with columns u and y
     /// (other columns, such as t, are ignored). Scores are one-step and free-run RMSE / fit %
     /// from measured initial conditions: both predictors are seeded with the first
-    /// m = max(p, d+q-1) measured samples and scored on samples m..N.
+    /// m = max(p, d+q-1) measured samples and scored on samples m..N. With --control, also
+    /// design the firmware's flow controller for the model.
+    #[command(after_long_help = EXIT_HELP, after_help = EXIT_HELP)]
     Identify(IdentifyArgs),
 }
+
+/// The exit statuses, in `--help`.
+const EXIT_HELP: &str = "Exit status: 0 success; 1 an identification error (one line on stderr); \
+2 a command-line error; 3 the controller of --control was refused (the report, with the reason, \
+is still printed).";
+
+/// `--help` of `--control`: what is designed and the conventions.
+const CONTROL_HELP: &str = "\
+Design the firmware's flow controller for the identified model, with the same ridge-core code \
+(pole placement with integral action, in f64), and print it (with --json: a \"control\" object; \
+with --plot OUT.png: also OUT-control.png, a closed-loop setpoint step simulated on the model).
+
+Conventions: polynomials in q^-1, coefficients in ascending powers. Model \
+A(q^-1) y_t = q^-d B(q^-1) u_t + c, A = [1, -theta_1, ...], B = [phi_0, ...]. Controller \
+R(q^-1) u_{t+1} = T(q^-1) r_{t+1} - S(q^-1) y_t, R monic (R(1) = 0: integral action; \
+T(1) = S(1)). Closed loop P = A R + q^-(d+1) B S; its poles are the roots of P. Modulus margin \
+1 / max_w |A R / P| (at least 0.5 required).
+
+Checked first: every model pole within 0.995; static gain B(1)/A(1) above 0, or within \
+--gain-min/--gain-max (no absolute size limit by default, the log's units being unknown), and \
+large enough that the log's u span moves y by at least 1 % of the log's y span at steady state. \
+The design is then retried up to 5 times, each 1.5 times slower, while its pole or margin check fails (the \
+firmware's defaults). A refusal prints which check failed, with its numbers, and exits with \
+status 3.";
 
 /// A clap parser of the names of `all`: it accepts exactly `name(v)` for each `v` of `all`
 /// (ridge-core's one name table) and converts with the enum's `FromStr`; `--help` lists
@@ -162,9 +190,75 @@ pub struct IdentifyArgs {
     /// Print exactly one JSON object instead of the readable report.
     #[arg(long)]
     pub json: bool,
-    /// Write a PNG of measured vs one-step vs free-run output.
+    /// Write a PNG of measured vs one-step vs free-run output (with --control, also
+    /// OUT-control.png: the simulated closed-loop step).
     #[arg(long, value_name = "OUT.png")]
     pub plot: Option<PathBuf>,
+    /// Design the flow controller for the identified model (see --help).
+    #[arg(long, long_help = CONTROL_HELP)]
+    pub control: bool,
+    /// The speed knob of --control: time constant of the closed-loop setpoint response, in
+    /// seconds [default: a quarter of the model's open-loop time constant (its slow pole),
+    /// within 2 Ts..2 s; 0.1 s without a slow pole].
+    #[arg(
+        long,
+        value_name = "TAU_S",
+        requires = "control",
+        allow_negative_numbers = true
+    )]
+    pub speed: Option<f64>,
+    /// --control: time constant of the observer pole, in seconds (beta = exp(-Ts/tau_o)): the
+    /// slower, the larger the modulus margin and the slower the disturbance rejection. The
+    /// default is the firmware's (beta 0.9 at 100 Hz); at another --ts, scale it with Ts
+    /// (9.5 Ts keeps beta 0.9).
+    #[arg(long, value_name = "TAU_O_S", default_value_t = Spec::<f64>::new(DEFAULT_TS).observer, requires = "control", allow_negative_numbers = true)]
+    pub observer: f64,
+    /// Sample period of the log in seconds, for --control (default: the pump's 100 Hz; the
+    /// CSV's t column is not read).
+    #[arg(long, value_name = "SECONDS", default_value_t = DEFAULT_TS, requires = "control", allow_negative_numbers = true)]
+    pub ts: f64,
+    /// --control: smallest accepted static gain B(1)/A(1), output units per input unit
+    /// [default: any gain above 0].
+    #[arg(
+        long,
+        value_name = "G",
+        requires = "control",
+        allow_negative_numbers = true
+    )]
+    pub gain_min: Option<f64>,
+    /// --control: largest accepted static gain [default: no limit].
+    #[arg(
+        long,
+        value_name = "G",
+        requires = "control",
+        allow_negative_numbers = true
+    )]
+    pub gain_max: Option<f64>,
+    /// --control --plot: smallest input of the simulated loop [default: the log's smallest u].
+    #[arg(
+        long,
+        value_name = "U",
+        requires = "control",
+        allow_negative_numbers = true
+    )]
+    pub u_min: Option<f64>,
+    /// --control --plot: largest input of the simulated loop [default: the log's largest u].
+    #[arg(
+        long,
+        value_name = "U",
+        requires = "control",
+        allow_negative_numbers = true
+    )]
+    pub u_max: Option<f64>,
+    /// --control --plot: largest input change per sample of the simulated loop (rate limit)
+    /// [default: none].
+    #[arg(
+        long,
+        value_name = "DU",
+        requires = "control",
+        allow_negative_numbers = true
+    )]
+    pub u_step: Option<f64>,
 }
 
 impl IdentifyArgs {
@@ -192,6 +286,16 @@ impl IdentifyArgs {
             structure: self.structure,
             offset: self.offset,
             plot: self.plot.clone(),
+            control: self.control.then_some(ControlOptions {
+                ts: self.ts,
+                speed: self.speed,
+                observer: self.observer,
+                gain_min: self.gain_min,
+                gain_max: self.gain_max,
+                u_min: self.u_min,
+                u_max: self.u_max,
+                u_step: self.u_step,
+            }),
         }
     }
 }
@@ -206,7 +310,9 @@ fn print(text: &str) -> bool {
 }
 
 /// `main` of the `ridge-id` binary: exit 0 on success, 1 on an identification error
-/// (one line `error: …` on stderr), 2 on a command-line error (clap's message).
+/// (one line `error: …` on stderr), 2 on a command-line error (clap's message),
+/// [`EXIT_REFUSED`] (3) when the controller of `--control` was refused (the report, with the
+/// reason, is printed as on success).
 pub fn main() -> ExitCode {
     // Defence in depth: a bug must still end in one line, not a backtrace.
     std::panic::set_hook(Box::new(|info| {
@@ -236,8 +342,16 @@ pub fn main() -> ExitCode {
                 } else {
                     report.to_text()
                 };
+                let refused = report
+                    .control
+                    .as_ref()
+                    .is_some_and(|c| c.refusal().is_some());
                 if print(&text) {
-                    ExitCode::SUCCESS
+                    if refused {
+                        ExitCode::from(EXIT_REFUSED)
+                    } else {
+                        ExitCode::SUCCESS
+                    }
                 } else {
                     eprintln!("error: cannot write to standard output");
                     ExitCode::FAILURE

@@ -5,6 +5,7 @@
 //!
 //! ```text
 //! cargo run --release -p ridge-id -- identify --input LOG.csv [--validate VAL.csv] [--json]
+//!     [--control [--speed TAU_S] [--ts SECONDS]]
 //! ```
 //!
 //! Everything else is here, so that other programs (e.g. the paper tables, the whole-firmware
@@ -22,10 +23,17 @@
 //! - [`run`]: the whole identification of [`Options`] → [`Report`] (`src/report.rs`: text
 //!   or JSON); every failure is an [`IdError`] (`src/error.rs`), one line naming the file,
 //!   the line and the problem.
+//! - [`control`] (`--control`): the firmware's controller design (ridge-core's pole placement
+//!   with integral action, in `f64`) for the identified model, its checks, closed-loop poles
+//!   and a simulated setpoint step ([`control::simulate_step`], [`plot::write_step_png`]). A
+//!   refused controller is part of the [`Report`], not an error; the binary then exits with
+//!   [`control::EXIT_REFUSED`] (3).
 //!
 //! Tests: `tests/cli.rs` runs the binary (JSON shape, bad input, a known ARX plant from
 //! `pump-sim`, 10⁶ rows in flat memory); `tests/logged_data.rs` checks the library on the
-//! two real records of `shared/data/` against an explicit regression built with nalgebra.
+//! two real records of `shared/data/` against an explicit regression built with nalgebra;
+//! `tests/control.rs` checks `--control` against a known plant (closed-loop polynomial and
+//! poles rebuilt from the JSON, the loop simulated on the true plant, refusals).
 //!
 //! Memory is independent of the record length: the estimation record is read once for
 //! the statistics, once more to score the model (and once more for RLS); the
@@ -33,6 +41,7 @@
 //! keeps at most ~2000 points per signal (a min/max envelope for longer records).
 
 pub mod cli;
+pub mod control;
 pub mod csv;
 pub mod error;
 pub mod eval;
@@ -40,6 +49,7 @@ pub mod options;
 pub mod plot;
 pub mod report;
 
+pub use control::{ControlOptions, ControlReport};
 pub use error::IdError;
 pub use eval::{evaluate_file, read_record, Figures, RecordStats, Trace};
 pub use options::Options;
@@ -50,6 +60,20 @@ use ridge_core::{
 };
 
 use csv::CsvRecord;
+
+/// Where `--plot OUT.png` puts the closed-loop step of `--control`: `OUT-control.png`, next
+/// to it.
+pub fn control_plot_path(plot: &std::path::Path) -> std::path::PathBuf {
+    let stem = plot
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = plot
+        .extension()
+        .map(|e| format!(".{}", e.to_string_lossy()))
+        .unwrap_or_default();
+    plot.with_file_name(format!("{stem}-control{ext}"))
+}
 
 /// Points kept per signal for the plot.
 pub const PLOT_POINTS: usize = 2000;
@@ -147,6 +171,9 @@ fn run_rls(opts: &Options, structure: Structure) -> Result<(ArxModel<f64>, u32),
 
 /// Identifies an ARX model as `opts` says and scores it (see the [module docs](self)).
 ///
+/// With [`Options::control`], also checks the model and designs its controller
+/// ([`control::control`]); a refusal is reported in [`Report::control`], not as an error.
+///
 /// Errors: bad options ([`IdError::Usage`]); unreadable or malformed records, records
 /// too short for the grid or without excitation (file and line named); a plot that
 /// cannot be written.
@@ -231,17 +258,52 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         None => None,
     };
 
+    let span = control::LogSpan {
+        u: est.u_range.1 - est.u_range.0,
+        y: est.y_range.1 - est.y_range.0,
+    };
+    let control = opts
+        .control
+        .as_ref()
+        .map(|c| control::control(&model, c, span));
+    // The simulated loop's limits are checked even without --plot: bad ones are a usage
+    // error whatever is printed.
+    let limits = opts
+        .control
+        .as_ref()
+        .map(|c| c.limits(est.u_range))
+        .transpose()?;
+    let mut control_plot = None;
+    if let (Some(path), Some(report), Some(limits)) = (&opts.plot, &control, limits) {
+        if let Some(designed) = report.designed() {
+            if let Some(step) =
+                control::simulate_step(&model, &designed.design, limits, report.options.ts)
+            {
+                let s = structure;
+                let d = &designed.design;
+                let title = format!(
+                    "closed-loop setpoint steps (simulated on the model): {}   ({},{},{})   \
+                     pole placement, tau {} s, margin {:.2}",
+                    path_name(&opts.input),
+                    s.p,
+                    s.q,
+                    s.d,
+                    (d.tau * 1e4).round() / 1e4,
+                    d.modulus_margin
+                );
+                let out = control_plot_path(path);
+                plot::write_step_png(&out, &title, &step)?;
+                control_plot = Some(out);
+            }
+        }
+    }
+
     if let (Some(path), Some(et)) = (&opts.plot, &est_trace) {
         let s = structure;
-        let name = |p: &std::path::Path| {
-            p.file_name()
-                .map(|f| f.to_string_lossy().into_owned())
-                .unwrap_or_default()
-        };
         let title = |what: &str, p: &std::path::Path, f: &Figures| {
             format!(
                 "{what}: {}   {} ({},{},{})   free-run fit {:.1} %, RMSE {:.4}",
-                name(p),
+                path_name(p),
                 opts.method.name(),
                 s.p,
                 s.q,
@@ -284,7 +346,16 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         estimation,
         validation,
         plot: opts.plot.clone(),
+        control,
+        control_plot,
     })
+}
+
+/// The file name of `p`, for plot titles.
+fn path_name(p: &std::path::Path) -> String {
+    p.file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_default()
 }
 
 /// `true` when no candidate of `grid` can be fitted on `normal` (least squares).

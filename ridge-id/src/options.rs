@@ -9,6 +9,7 @@ use ridge_core::{
     RidgeM, Structure, D_MAX, P_MAX, Q_MAX,
 };
 
+use crate::control::ControlOptions;
 use crate::error::IdError;
 use crate::report::Hyper;
 
@@ -75,8 +76,11 @@ pub struct Options {
     pub structure: Option<Structure>,
     /// Constant term (default none, the paper's model).
     pub offset: Offset,
-    /// Write a PNG of measured, one-step and free-run output here.
+    /// Write a PNG of measured, one-step and free-run output here (with `control`, also the
+    /// simulated closed-loop step to [`crate::control_plot_path`] of it).
     pub plot: Option<PathBuf>,
+    /// Design a controller for the identified model (`--control`; see [`crate::control`]).
+    pub control: Option<ControlOptions>,
 }
 
 impl Options {
@@ -92,6 +96,7 @@ impl Options {
             structure: None,
             offset: Offset::None,
             plot: None,
+            control: None,
         }
     }
 
@@ -163,6 +168,9 @@ impl Options {
         }
         if let Err(e) = self.effective_grid().check() {
             return bad(format!("search ranges: {e}"));
+        }
+        if let Some(c) = &self.control {
+            c.check()?;
         }
         Ok(())
     }

@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use ridge_core::{ArxModel, Criterion, MethodKind, Offset};
 use serde::Serialize;
 
+use crate::control::ControlReport;
 use crate::eval::Figures;
 
 /// Hyper-parameters of a run (all of them, whether the method uses them or not).
@@ -91,6 +92,10 @@ pub struct Report {
     pub validation: Option<Figures>,
     /// The PNG written, if any.
     pub plot: Option<PathBuf>,
+    /// The controller design of `--control` (or why it was refused).
+    pub control: Option<ControlReport>,
+    /// The PNG of the simulated closed-loop step written (`--control --plot`), if any.
+    pub control_plot: Option<PathBuf>,
 }
 
 #[derive(Serialize)]
@@ -142,10 +147,68 @@ struct Json<'a> {
     estimation: JsonFigures,
     #[serde(skip_serializing_if = "Option::is_none")]
     validation: Option<JsonFigures>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    control: Option<JsonControl<'a>>,
+}
+
+#[derive(Serialize)]
+#[serde(untagged)]
+enum JsonControl<'a> {
+    Designed {
+        method: &'static str,
+        ts_s: f64,
+        tau_s: f64,
+        alpha: f64,
+        beta: f64,
+        kept: u8,
+        tries: u8,
+        modulus_margin: f64,
+        mean_delay_samples: f64,
+        r: &'a [f64],
+        s: &'a [f64],
+        t: &'a [f64],
+        ao: &'a [f64],
+        poles: Vec<[f64; 2]>,
+    },
+    Refused {
+        refused: &'a str,
+        check: &'static str,
+        tries: u8,
+        ts_s: f64,
+    },
+}
+
+impl<'a> From<&'a ControlReport> for JsonControl<'a> {
+    fn from(c: &'a ControlReport) -> Self {
+        match &c.outcome {
+            Ok(d) => JsonControl::Designed {
+                method: "pole-placement",
+                ts_s: c.options.ts,
+                tau_s: d.design.tau,
+                alpha: d.design.alpha,
+                beta: d.design.beta,
+                kept: d.design.kept,
+                tries: d.tries,
+                modulus_margin: d.design.modulus_margin,
+                mean_delay_samples: d.mean_delay,
+                r: d.design.rst.r(),
+                s: d.design.rst.s(),
+                t: d.design.rst.t(),
+                ao: d.design.rst.ao(),
+                poles: d.poles.iter().map(|p| [p.re, p.im]).collect(),
+            },
+            Err(r) => JsonControl::Refused {
+                refused: &r.reason,
+                check: r.check.name(),
+                tries: r.tries,
+                ts_s: c.options.ts,
+            },
+        }
+    }
 }
 
 /// `1.234568`, `-1.2e-7`: six significant digits, plain or scientific.
-fn num(v: f64) -> String {
+pub(crate) fn num(v: f64) -> String {
     if !v.is_finite() {
         return format!("{v}");
     }
@@ -172,9 +235,22 @@ impl Report {
     /// `{"method", "criterion", "structure": {"p","q","d"}, "theta", "phi", "offset",
     /// "score", "iterations", "hyper": {"gamma","beta","alpha","max_iter","tol"},
     /// "estimation": {"n","rmse_one_step","rmse_free_run","fit_free_run"},
-    /// "validation": {…} (only with a validation record)}`.
+    /// "validation": {…} (only with a validation record), "control": {…} (only with
+    /// --control)}`.
     /// `offset` is the intercept (0 without one); `n` counts the scored samples `m..N`.
     /// A non-finite number (a diverging free run) is written as `null`.
+    ///
+    /// `"control"` is, for a designed controller,
+    /// `{"method": "pole-placement", "ts_s", "tau_s", "alpha", "beta", "kept", "tries",
+    /// "modulus_margin", "mean_delay_samples", "r", "s", "t", "ao", "poles": [[re, im], …]}`
+    /// (`ts_s` the sample period and `tau_s` the setpoint response's time constant, s;
+    /// `alpha = e^{−Ts/τ}`, `beta` the observer pole; `kept` model poles kept in `P`;
+    /// `tries` designs made; `mean_delay_samples` of the setpoint response; `r`, `s`, `t` the
+    /// controller `R u_{t+1} = T r_{t+1} − S y_t` and `ao` its anti-windup observer
+    /// polynomial, ascending powers of `q⁻¹`; `poles` the roots of
+    /// `P = A R + q^{−d−1} B S`, by decreasing `|z|`), and for a refused one
+    /// `{"refused": "reason", "check": "unstable"|"gain"|…, "tries", "ts_s"}` (see
+    /// [`crate::control::Check::name`]; `tries` is 0 when the model check failed).
     pub fn to_json(&self) -> serde_json::Value {
         serde_json::to_value(self.json_view()).unwrap_or(serde_json::Value::Null)
     }
@@ -208,6 +284,7 @@ impl Report {
             },
             estimation: JsonFigures::from(&self.estimation),
             validation: self.validation.as_ref().map(JsonFigures::from),
+            control: self.control.as_ref().map(JsonControl::from),
         }
     }
 
@@ -375,9 +452,16 @@ impl Report {
         if let (Some(p), Some(r)) = (&self.validate, self.validate_rows) {
             let _ = writeln!(o, "  (validation record: {}, {r} samples)", p.display());
         }
+        if let Some(c) = &self.control {
+            let _ = writeln!(o);
+            o.push_str(&c.to_text());
+        }
         if let Some(p) = &self.plot {
             let _ = writeln!(o);
             let _ = writeln!(o, "  plot written to {}", p.display());
+        }
+        if let Some(p) = &self.control_plot {
+            let _ = writeln!(o, "  closed-loop step plot written to {}", p.display());
         }
         o
     }
