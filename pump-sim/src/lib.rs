@@ -13,6 +13,7 @@
 //! argument: the same seed gives bit-identical logs.
 
 pub mod arx;
+pub mod baseline;
 pub mod lung;
 pub mod paper;
 pub mod plant;
