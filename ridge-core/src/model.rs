@@ -160,15 +160,20 @@ pub enum Mode {
 ///
 /// The first `m = max(p, d + q − 1)` samples seed the history with measured values and
 /// produce no prediction (as MATLAB `compare` and SysIdentPy seed them), so a model is never charged for a start-up
-/// transient it cannot know. Memory: the last 6 outputs and 12 inputs.
+/// transient it cannot know. Memory: the last 6 outputs and 12 inputs, in rings (on the
+/// ATmega2560 shifting arrays instead cost ~500 cycles a tick).
 #[derive(Debug, Clone)]
 pub struct Predictor<T: Real> {
     model: ArxModel<T>,
     mode: Mode,
     seed: usize,
     seen: usize,
+    /// Past outputs, newest (`y_{t−1}` before a step) at `hy`, older ones after it (wrapping).
     y_past: [T; P_MAX],
+    /// Past inputs, newest (`u_t` after it is taken) at `hu`.
     u_past: [T; L_MAX],
+    hy: u8,
+    hu: u8,
 }
 
 impl<T: Real> Predictor<T> {
@@ -181,16 +186,27 @@ impl<T: Real> Predictor<T> {
             seen: 0,
             y_past: [T::ZERO; P_MAX],
             u_past: [T::ZERO; L_MAX],
+            hy: 0,
+            hu: 0,
         }
     }
 
     /// Takes the input `u_t` and the measurement `y_t`; returns `ŷ_t`, or `None` while
     /// seeding. In [`Mode::OneStep`] the prediction uses only `y_{t-1}` and earlier.
     pub fn step(&mut self, u: T, y: T) -> Option<T> {
-        self.u_past.copy_within(0..L_MAX - 1, 1);
-        self.u_past[0] = u;
+        let hu = ring_back(usize::from(self.hu), L_MAX);
+        if let Some(x) = self.u_past.get_mut(hu) {
+            *x = u;
+        }
+        let hy = usize::from(self.hy);
         let out = if self.seen >= self.seed {
-            Some(self.model.predict(&self.y_past, &self.u_past))
+            // ŷ_t = c + Σ θ_i y_{t−i} + Σ φ_j u_{t−j−d} (eq. 1).
+            let m = &self.model;
+            let d = usize::from(m.structure.d);
+            Some(
+                m.c + ring_dot(m.theta(), &self.y_past, hy)
+                    + ring_dot(m.phi(), &self.u_past, hu + d),
+            )
         } else {
             None
         };
@@ -198,8 +214,13 @@ impl<T: Real> Predictor<T> {
             (Mode::FreeRun, Some(yhat)) => yhat,
             _ => y,
         };
-        self.y_past.copy_within(0..P_MAX - 1, 1);
-        self.y_past[0] = next;
+        let hy = ring_back(hy, P_MAX);
+        if let Some(x) = self.y_past.get_mut(hy) {
+            *x = next;
+        }
+        // Both below their capacities (6 and 12).
+        self.hy = hy as u8;
+        self.hu = hu as u8;
         self.seen = self.seen.saturating_add(1);
         out
     }
@@ -208,6 +229,42 @@ impl<T: Real> Predictor<T> {
     pub fn seed_len(&self) -> usize {
         self.seed
     }
+}
+
+/// The ring index one place before `i` (where the next newest entry goes) in a ring of `len`
+/// entries (`i < len`).
+pub(crate) fn ring_back(i: usize, len: usize) -> usize {
+    if i == 0 {
+        len - 1
+    } else {
+        i - 1
+    }
+}
+
+/// The ring index one place after `i` (the next older entry) in a ring of `len` entries.
+pub(crate) fn ring_next(i: usize, len: usize) -> usize {
+    if i + 1 >= len {
+        0
+    } else {
+        i + 1
+    }
+}
+
+/// `Σ_k coefs[k] · ring[(start + k) mod len]`: a polynomial applied to a history kept in a
+/// ring (newest at `start`, `start < 2 len`). Out of line: one copy of the loop serves the
+/// predictor and the controller (on the ATmega2560 each inlined copy cost ~100 bytes).
+#[inline(never)]
+pub(crate) fn ring_dot<T: Real>(coefs: &[T], ring: &[T], start: usize) -> T {
+    let len = ring.len();
+    let mut i = if start >= len { start - len } else { start };
+    let mut s = T::ZERO;
+    for &c in coefs {
+        if let Some(&x) = ring.get(i) {
+            s += c * x;
+        }
+        i = ring_next(i, len);
+    }
+    s
 }
 
 /// RMSE (eq. 16) and fit % of predictions against measurements, accumulated in one pass.

@@ -194,8 +194,10 @@ fn modulus_margin_agrees_with_a_dense_sweep() {
             let d = design(&m, &spec).unwrap();
             let ar = conv(&a_poly(&m), d.rst.r());
             let truth = dense_margin(&ar, &closed_loop(&m, d.rst.r(), d.rst.s()));
+            // The sweep samples the peak (32 coarse, 17 fine points): within 5e-4 relative,
+            // 0.0003 at the 0.5 the design requires.
             assert!(
-                (d.modulus_margin - truth).abs() <= 1e-4 * truth,
+                (d.modulus_margin - truth).abs() <= 5e-4 * truth,
                 "{name} ×{slower}: {} vs dense {truth}",
                 d.modulus_margin
             );
@@ -314,6 +316,45 @@ fn wide() -> Limits<f64> {
         min: -1e9,
         max: 1e9,
         max_step: 1e9,
+    }
+}
+
+/// Without limits the running controller (histories in rings, `T = t₀ A_o` folded into the
+/// observer terms) is the plain difference equation `R u_{t+1} = T r_{t+1} − S y_t` of its
+/// polynomials, evaluated here directly over the whole history.
+#[test]
+fn unlimited_controller_is_the_rst_difference_equation() {
+    for (name, m) in plants() {
+        let d = design(&m, &Spec::new(TS)).unwrap();
+        let (r_p, s_p, t_p) = (d.rst.r(), d.rst.s(), d.rst.t());
+        let mut ctrl = Controller::new(d.rst, wide());
+        let (u0, y0) = (0.4, 30.0);
+        ctrl.start(u0, y0);
+        // Histories padded with the start values (the controller's bumpless start).
+        let pad = 16;
+        let (mut us, mut ys, mut rs) = (vec![u0; pad], vec![y0; pad], vec![y0; pad]);
+        for t in 0..300usize {
+            // Arbitrary bounded inputs: a pseudo-random reading and a stepping setpoint.
+            let y = y0 + 5.0 * ((t * 7919 % 101) as f64 / 50.0 - 1.0);
+            let r = y0 + if (t / 40) % 2 == 0 { 10.0 } else { -8.0 };
+            ys.push(y);
+            rs.push(r);
+            let u = ctrl.step(r, y);
+            let n = us.len();
+            // R(q⁻¹) u_{t+1} with u_{t+1} = u, the others from the history.
+            let lhs = u + (1..r_p.len()).map(|k| r_p[k] * us[n - k]).sum::<f64>();
+            let rhs = (0..t_p.len())
+                .map(|k| t_p[k] * rs[rs.len() - 1 - k])
+                .sum::<f64>()
+                - (0..s_p.len())
+                    .map(|k| s_p[k] * ys[ys.len() - 1 - k])
+                    .sum::<f64>();
+            assert!(
+                (lhs - rhs).abs() <= 1e-9 * (1.0 + rhs.abs()),
+                "{name} t={t}: R u = {lhs}, T r − S y = {rhs}"
+            );
+            us.push(u);
+        }
     }
 }
 

@@ -155,6 +155,9 @@ pub enum DesignError<T> {
     },
 }
 
+/// Factor on [`Spec::min_margin`] covering the margin sweep's sampling error.
+const MARGIN_SLACK: f64 = 1.001;
+
 /// Largest relative mismatch between the designed `P` and `A R + q^{−d−1} B S`.
 const P_TOLERANCE: f64 = 1e-3;
 
@@ -309,13 +312,9 @@ pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>,
     let nsv = mul(&fast[..nf], s2, &mut sv);
     let mut ao = [T::ZERO; S_LEN];
     let nao = mul(&[T::ONE, -beta], &fast[..nf], &mut ao);
+    // T = t₀ A_o with T(1) = S(1): unit static gain.
     let t0 = eval(&sv[..nsv], T::ONE) / eval(&ao[..nao], T::ONE);
-    let mut t = ao;
-    for v in t.iter_mut() {
-        *v *= t0;
-    }
-    let rst =
-        Rst::new(&r[..nr], &sv[..nsv], &t[..nao], &ao[..nao]).map_err(|_| DesignError::Singular)?;
+    let rst = Rst::new(&r[..nr], &sv[..nsv], t0, &ao[..nao]).map_err(|_| DesignError::Singular)?;
 
     // The checks. The closed loop as built, A R + q^{−d−1} B S, against the designed
     // P = P_small A_fast; its roots; the modulus margin.
@@ -345,7 +344,9 @@ pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>,
         return Err(DesignError::Poles);
     }
     let margin = modulus_margin(&ar[..nar], &closed[..np]);
-    if !at_most(spec.min_margin, margin) {
+    // The sweep can miss the top of the peak (up to 5e-4 relative, on the high side): ask
+    // for 0.1 % more than the minimum.
+    if !at_most(spec.min_margin * T::from_f64(MARGIN_SLACK), margin) {
         return Err(DesignError::Margin { margin });
     }
     Ok(Design {

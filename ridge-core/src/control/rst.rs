@@ -2,6 +2,7 @@
 //! `R(q⁻¹) u_{t+1} = T(q⁻¹) r_{t+1} − S(q⁻¹) y_t`, and [`Controller`]: one running with duty
 //! limits, a duty rate limit, anti-windup and a bumpless start.
 
+use crate::model::{ring_back, ring_dot};
 use crate::real::Real;
 use crate::{D_MAX, P_MAX, Q_MAX};
 
@@ -26,6 +27,8 @@ pub struct Rst<T: Real> {
     t: [T; S_LEN],
     /// The anti-windup observer polynomial `A_o` (monic, stable).
     ao: [T; S_LEN],
+    /// `T = t₀ A_o`.
+    t0: T,
     nr: u8,
     ns: u8,
     nt: u8,
@@ -44,14 +47,15 @@ pub enum RstError {
 }
 
 impl<T: Real> Rst<T> {
-    /// The controller with these coefficients (ascending powers of `q⁻¹`) and the anti-windup
+    /// The controller with these coefficients (ascending powers of `q⁻¹`), the anti-windup
     /// observer polynomial `ao` (`A_o`, monic and stable: the dynamics the controller's state
-    /// follows while its output is limited; `[1]` is the simplest, the design's observer
-    /// polynomial the best, see [`Controller`]). `r[0]` and `ao[0]` must be 1.
-    pub fn new(r: &[T], s: &[T], t: &[T], ao: &[T]) -> Result<Self, RstError> {
+    /// follows while its output is limited, see [`Controller`]) and `T = t0 · A_o`: the
+    /// setpoint enters through the observer polynomial, so that it excites only the designed
+    /// setpoint response (the observer's poles cancel), and the running controller needs one
+    /// product for the setpoint instead of `deg A_o + 1`. `r[0]` and `ao[0]` must be 1.
+    pub fn new(r: &[T], s: &[T], t0: T, ao: &[T]) -> Result<Self, RstError> {
         let sizes_ok = |x: &[T], cap: usize| !x.is_empty() && x.len() <= cap;
-        if !(sizes_ok(r, R_LEN) && sizes_ok(s, S_LEN) && sizes_ok(t, S_LEN) && sizes_ok(ao, S_LEN))
-        {
+        if !(sizes_ok(r, R_LEN) && sizes_ok(s, S_LEN) && sizes_ok(ao, S_LEN)) {
             return Err(RstError::Size);
         }
         if r[0] != T::ONE || ao[0] != T::ONE {
@@ -62,16 +66,19 @@ impl<T: Real> Rst<T> {
             s: [T::ZERO; S_LEN],
             t: [T::ZERO; S_LEN],
             ao: [T::ZERO; S_LEN],
+            t0,
             nr: r.len() as u8,
             ns: s.len() as u8,
-            nt: t.len() as u8,
+            nt: ao.len() as u8,
             nao: ao.len() as u8,
         };
         // The lengths were checked above.
         out.r[..r.len()].copy_from_slice(r);
         out.s[..s.len()].copy_from_slice(s);
-        out.t[..t.len()].copy_from_slice(t);
         out.ao[..ao.len()].copy_from_slice(ao);
+        for (t, &a) in out.t.iter_mut().zip(ao) {
+            *t = t0 * a;
+        }
         let all = out.r.iter().chain(&out.s).chain(&out.t).chain(&out.ao);
         if all.clone().any(|x| !x.is_finite()) {
             return Err(RstError::NonFinite);
@@ -89,7 +96,7 @@ impl<T: Real> Rst<T> {
         self.s.get(..usize::from(self.ns)).unwrap_or(&[])
     }
 
-    /// `T`, ascending powers of `q⁻¹`.
+    /// `T = t₀ A_o`, ascending powers of `q⁻¹`.
     pub fn t(&self) -> &[T] {
         self.t.get(..usize::from(self.nt)).unwrap_or(&[])
     }
@@ -131,26 +138,44 @@ pub struct Limits<T> {
 pub struct Controller<T: Real> {
     rst: Rst<T>,
     limits: Limits<T>,
-    /// Applied inputs, newest first: `u[0] = u_t`.
+    /// `R − A_o` from its coefficient 1 on: the weights of the past applied inputs
+    /// `u_t, u_{t−1}, …` in the observer form (one product per input instead of two).
+    ru: [T; R_LEN],
+    nru: u8,
+    /// Applied inputs, a ring with the newest (`u_t`) at `hu`, older ones at `hu + 1, …`
+    /// (wrapping). Rings instead of shifted arrays: on the ATmega2560 shifting the histories
+    /// cost ~700 cycles a tick, a ring index a few per coefficient.
     u: [T; R_LEN],
-    /// Readings, newest first: `y[0] = y_t`.
+    /// Readings (`y_t` at `hs` after a step), a ring sharing `hs` with `z`.
     y: [T; S_LEN],
-    /// Setpoints, newest first: `r[0] = r_{t+1}` after a step.
-    r: [T; S_LEN],
-    /// Unlimited outputs `v`, newest first: `v[0] = v_t`.
-    v: [T; S_LEN],
+    /// `z_t = t₀ r_t − v_t` (`z_t` at `hs` after a step), with `r_t` the setpoint the step
+    /// was given and `v_t` its unlimited output: `T r − (A_o − 1) v` is then
+    /// `t₀ r_{t+1} + Σ_{k≥1} a_k z_{t+1−k}`, one product per observer coefficient.
+    z: [T; S_LEN],
+    hu: u8,
+    hs: u8,
 }
 
 impl<T: Real> Controller<T> {
     /// A controller with all histories at zero (call [`start`](Self::start) before use).
     pub fn new(rst: Rst<T>, limits: Limits<T>) -> Self {
+        let mut ru = [T::ZERO; R_LEN];
+        let n = rst.r().len().max(rst.ao().len());
+        for (k, x) in ru.iter_mut().enumerate().take(n.saturating_sub(1)) {
+            let at = |p: &[T]| p.get(k + 1).copied().unwrap_or(T::ZERO);
+            *x = at(rst.r()) - at(rst.ao());
+        }
         Controller {
             rst,
             limits,
+            ru,
+            // ≤ max(R_LEN, S_LEN) − 1 = 12.
+            nru: n.saturating_sub(1) as u8,
             u: [T::ZERO; R_LEN],
             y: [T::ZERO; S_LEN],
-            r: [T::ZERO; S_LEN],
-            v: [T::ZERO; S_LEN],
+            z: [T::ZERO; S_LEN],
+            hu: 0,
+            hs: 0,
         }
     }
 
@@ -168,39 +193,34 @@ impl<T: Real> Controller<T> {
     /// history `y0`.
     pub fn start(&mut self, u0: T, y0: T) {
         self.u = [u0; R_LEN];
-        self.v = [u0; S_LEN];
         self.y = [y0; S_LEN];
-        self.r = [y0; S_LEN];
+        self.z = [self.rst.t0 * y0 - u0; S_LEN];
+        self.hu = 0;
+        self.hs = 0;
     }
 
     /// The input applied last (`u_t`).
     pub fn last(&self) -> T {
-        self.u[0]
+        self.u.get(usize::from(self.hu)).copied().unwrap_or(T::ZERO)
     }
 
     /// One tick: takes the reading `y_t` and the setpoint `r_{t+1}` for the coming interval,
     /// returns `u_{t+1}` within the limits and the rate limit (a NaN result holds `u_t`).
     pub fn step(&mut self, r_next: T, y: T) -> T {
-        shift_in(&mut self.y, y);
-        shift_in(&mut self.r, r_next);
-        // Index loops bounded by the capacities: on the ATmega2560 iterator chains cost
-        // tens of instructions each, and this runs every tick.
         let c = &self.rst;
-        let mut v = T::ZERO;
-        for k in 0..usize::from(c.nt).min(S_LEN) {
-            v += c.t[k] * self.r[k];
+        // The previous step's newest entries: u_t at `hu`, y_t and z_t at `hs`.
+        let (hu, hs_old) = (usize::from(self.hu), usize::from(self.hs));
+        let hs = ring_back(hs_old, S_LEN);
+        if let Some(yy) = self.y.get_mut(hs) {
+            *yy = y;
         }
-        for k in 0..usize::from(c.ns).min(S_LEN) {
-            v -= c.s[k] * self.y[k];
-        }
-        // (A_o − R) û − (A_o − 1) v: coefficients 1.. multiply u_t, u_{t−1}, …
-        for k in 1..usize::from(c.nr).min(R_LEN) {
-            v -= c.r[k] * self.u[k - 1];
-        }
-        for k in 1..usize::from(c.nao).min(S_LEN) {
-            v += c.ao[k] * (self.u[k - 1] - self.v[k - 1]);
-        }
-        let last = self.u[0];
+        // T r − S y + (A_o − R) û − (A_o − 1) v with T = t₀ A_o, as
+        // t₀ r_{t+1} − S y − (R − A_o)·(u_t, u_{t−1}, …) + (A_o − 1)·(z_t, z_{t−1}, …).
+        let ru = self.ru.get(..usize::from(self.nru)).unwrap_or(&[]);
+        let ao = c.ao().get(1..).unwrap_or(&[]);
+        let v = c.t0 * r_next - ring_dot(c.s(), &self.y, hs) - ring_dot(ru, &self.u, hu)
+            + ring_dot(ao, &self.z, hs_old);
+        let last = self.last();
         let lo = max(self.limits.min, last - self.limits.max_step);
         let hi = min(self.limits.max, last + self.limits.max_step);
         let (v, applied) = if v.is_finite() {
@@ -208,15 +228,16 @@ impl<T: Real> Controller<T> {
         } else {
             (last, last)
         };
-        shift_in(&mut self.v, v);
-        shift_in(&mut self.u, applied);
+        let hu = ring_back(hu, R_LEN);
+        if let (Some(zz), Some(uu)) = (self.z.get_mut(hs), self.u.get_mut(hu)) {
+            *zz = c.t0 * r_next - v;
+            *uu = applied;
+        }
+        // Both below their capacities (13 and 7).
+        self.hu = hu as u8;
+        self.hs = hs as u8;
         applied
     }
-}
-
-fn shift_in<T: Copy, const N: usize>(h: &mut [T; N], x: T) {
-    h.copy_within(0..N - 1, 1);
-    h[0] = x;
 }
 
 fn max<T: Real>(a: T, b: T) -> T {
