@@ -215,8 +215,8 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             self.pump.stop().ok();
             uwriteln!(self.out, "PUMP error").ok();
         }
-        if let Some(event) = tick.event {
-            self.report(board, &event);
+        if let Some(event) = &tick.event {
+            self.report(board, event);
         }
         if let Some(ok) = board.poll_store() {
             let line = if ok {

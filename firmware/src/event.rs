@@ -15,8 +15,8 @@
 //! | [`Event::Validate`] | `VALIDATE B-Multistep n=3000` |
 //! | [`Event::Accepted`] | `ACCEPT fit=87.3 rmse=3.230 one=2.094 n=2994 persist` |
 //! | [`Event::Rejected`] | `REJECT fit=42.1<70.0 attempt=1/3` |
-//! | [`Event::Control`] | `CTRL method=pole-placement tau=0.040 poles=0.779,0.900 kept=4 mm=0.571 tries=1` |
-//! | [`Event::Track`] | `TRACK sp=40.000 flow=39.875 rms=0.512 max=1.250 duty=35.20` |
+//! | [`Event::Control`] | `CTRL method=pole-placement tau=0.040 poles=0.779,0.900 kept=4 mm=0.571 tries=1 preview=8` |
+//! | [`Event::Track`] | `TRACK sp=40.000 flow=39.875 rms=0.512 max=1.250 duty=35.20 tick=1050` |
 //! | [`Event::Alarm`] | `ALARM track err=5.125 s=0.50` / `ALARM track clear` |
 //! | [`Event::Residual`] | `RES rms=0.812 mean=-0.013 flow=50.125 n=100` |
 //! | [`Event::Drift`] | `DRIFT rms=3.200 mean=-2.997 flow=35.400 s=3 reid=0` |
@@ -270,19 +270,29 @@ pub enum Event {
         margin: f32,
         /// Designs made (1 unless slowed down).
         tries: u8,
+        /// Ticks the controller is given the setpoint program ahead (the designed setpoint
+        /// response's mean delay).
+        preview: u8,
     },
-    /// Run mode, once per tracking window (1 s by default): means over the window.
+    /// Run mode, once per tracking window (1 s by default): sums over the window's scored
+    /// ticks; the line prints their means (taken when printing, after the tick's PWM write:
+    /// on the ATmega2560 a division costs ~500 cycles of the tick).
     Track {
-        /// Mean setpoint, slm.
-        setpoint: f32,
-        /// Mean measured flow, slm.
-        flow: f32,
-        /// RMS tracking error (setpoint − flow), slm.
-        rms: f32,
+        /// Σ setpoint, slm.
+        sum_setpoint: f32,
+        /// Σ measured flow, slm.
+        sum_flow: f32,
+        /// Σ (setpoint − flow)², slm² (the line prints the root of its mean).
+        sum_sq: f32,
         /// Largest |error|, slm.
         max: f32,
-        /// Mean duty, 1/10 000 of full scale.
-        duty: u16,
+        /// Σ duty, 1/10 000 of full scale.
+        sum_duty: u32,
+        /// Ticks scored (with a reading), ≥ 1.
+        samples: u16,
+        /// Run-mode ticks at the end of the window, counted from the first (the setpoint
+        /// program's time: `tick / 100` s).
+        tick: u32,
     },
     /// Run mode: the tracking error left its band for the alarm time (`on`, with the error
     /// and the time out of band), or came back (`!on`).
@@ -296,26 +306,13 @@ pub enum Event {
     },
     /// Run mode, once per monitor window (100 ticks = 1 s by default): one-step prediction
     /// residuals of the model against the measured flow.
-    Residual {
-        /// RMS of the residuals, slm.
-        rms: f32,
-        /// Mean residual (measured − predicted), slm.
-        mean: f32,
-        /// Mean measured flow, slm.
-        flow: f32,
-        /// Samples scored in the window.
-        samples: u16,
-    },
+    Residual(Residuals),
     /// Run mode: the residual RMS or bias exceeded its limit for `seconds` consecutive
     /// windows (see [`crate::monitor`]). The drift flag is set; with `reidentify` a new
     /// identification starts.
     Drift {
-        /// Residual RMS of the last window, slm.
-        rms: f32,
-        /// Mean residual (measured − predicted) of the last window, slm.
-        mean: f32,
-        /// Mean measured flow of the last window, slm.
-        flow: f32,
+        /// The residuals of the last window.
+        residuals: Residuals,
         /// Consecutive windows above the limit.
         seconds: u8,
         /// Whether re-identification was started.
@@ -323,6 +320,43 @@ pub enum Event {
     },
     /// The pump was stopped (duty 0) and the state machine latched its fault state.
     Fault(FaultReason),
+}
+
+/// One monitor window's one-step prediction residuals (measured − predicted), as sums: the
+/// means are taken when printing, after the tick's PWM write (on the ATmega2560 a division
+/// costs ~500 cycles of the tick).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Residuals {
+    /// Σ residual, slm.
+    pub sum: f32,
+    /// Σ residual², slm².
+    pub sum_sq: f32,
+    /// Σ measured flow, slm.
+    pub sum_flow: f32,
+    /// Samples scored, ≥ 1.
+    pub samples: u16,
+}
+
+impl Residuals {
+    /// `(mean, rms, mean flow)`, slm (one division; an empty window counts as 1 sample).
+    pub fn means(&self) -> (f32, f32, f32) {
+        let inv = 1.0 / f32::from(self.samples.max(1));
+        (self.sum * inv, root(self.sum_sq * inv), self.sum_flow * inv)
+    }
+}
+
+impl uDisplay for Residuals {
+    /// `rms=… mean=… flow=…` (slm, 3 decimals).
+    fn fmt<W: uWrite + ?Sized>(&self, f: &mut Formatter<'_, W>) -> Result<(), W::Error> {
+        let (mean, rms, flow) = self.means();
+        ufmt::uwrite!(
+            f,
+            "rms={} mean={} flow={}",
+            Fixed::new(rms, 3),
+            Fixed::new(mean, 3),
+            Fixed::new(flow, 3)
+        )
+    }
 }
 
 /// A report line that always fits in [`LINE_MAX`] bytes (an `ID` line with 12 coefficients of
@@ -466,6 +500,11 @@ where
     f.write_str(" phi=")?;
     write_list(f, m.phi(), COEF_DIGITS)?;
     ufmt::uwrite!(f, " c={}", Fixed::new(m.intercept(), COEF_DIGITS))
+}
+
+/// `√x` for printing a mean square as an RMS.
+fn root(x: f32) -> f32 {
+    ridge_core::Real::sqrt(x)
 }
 
 /// Flow counts (1/120 slm) as milli-slm for printing.
@@ -644,31 +683,41 @@ impl uDisplay for Event {
                 kept,
                 margin,
                 tries,
+                preview,
             } => ufmt::uwrite!(
                 f,
-                "CTRL method=pole-placement tau={} poles={},{} kept={} mm={} tries={}",
+                "CTRL method=pole-placement tau={} poles={},{} kept={} mm={} tries={} preview={}",
                 Fixed::new(*tau, 3),
                 Fixed::new(*alpha, 3),
                 Fixed::new(*beta, 3),
                 u32::from(*kept),
                 Fixed::new(*margin, 3),
-                u32::from(*tries)
+                u32::from(*tries),
+                u32::from(*preview)
             ),
             Event::Track {
-                setpoint,
-                flow,
-                rms,
+                sum_setpoint,
+                sum_flow,
+                sum_sq,
                 max,
-                duty,
-            } => ufmt::uwrite!(
-                f,
-                "TRACK sp={} flow={} rms={} max={} duty={}",
-                Fixed::new(*setpoint, 3),
-                Fixed::new(*flow, 3),
-                Fixed::new(*rms, 3),
-                Fixed::new(*max, 3),
-                percent(*duty)
-            ),
+                sum_duty,
+                samples,
+                tick,
+            } => {
+                let inv = 1.0 / f32::from((*samples).max(1));
+                // < 2¹⁶ (a mean duty ≤ 10 000): `as` cannot saturate.
+                let duty = (*sum_duty as f32 * inv + 0.5) as u16;
+                ufmt::uwrite!(
+                    f,
+                    "TRACK sp={} flow={} rms={} max={} duty={} tick={}",
+                    Fixed::new(sum_setpoint * inv, 3),
+                    Fixed::new(sum_flow * inv, 3),
+                    Fixed::new(root(sum_sq * inv), 3),
+                    Fixed::new(*max, 3),
+                    percent(duty),
+                    *tick
+                )
+            }
             Event::Alarm { on: false, .. } => f.write_str("ALARM track clear"),
             Event::Alarm {
                 on: true,
@@ -680,31 +729,17 @@ impl uDisplay for Event {
                 Fixed::new(*error, 3),
                 Decimal::new(i32::from(*ticks), 2)
             ),
-            Event::Residual {
-                rms,
-                mean,
-                flow,
-                samples,
-            } => ufmt::uwrite!(
-                f,
-                "RES rms={} mean={} flow={} n={}",
-                Fixed::new(*rms, 3),
-                Fixed::new(*mean, 3),
-                Fixed::new(*flow, 3),
-                u32::from(*samples)
-            ),
+            Event::Residual(r) => {
+                ufmt::uwrite!(f, "RES {} n={}", r, u32::from(r.samples))
+            }
             Event::Drift {
-                rms,
-                mean,
-                flow,
+                residuals,
                 seconds,
                 reidentify,
             } => ufmt::uwrite!(
                 f,
-                "DRIFT rms={} mean={} flow={} s={} reid={}",
-                Fixed::new(*rms, 3),
-                Fixed::new(*mean, 3),
-                Fixed::new(*flow, 3),
+                "DRIFT {} s={} reid={}",
+                residuals,
                 u32::from(*seconds),
                 u32::from(*reidentify)
             ),

@@ -1,15 +1,15 @@
 //! Run-mode tracking figures and the tracking alarm.
 //!
-//! Every tick takes the setpoint the controller was given for the interval that just ended, the
+//! Every tick takes the program's setpoint for the interval that just ended (not the one the
+//! controller was given ahead of time, see `selfid::run`), the
 //! reading at its end and the duty applied. Once per window ([`TrackingConfig::window`] ticks,
 //! 1 s) it reports [`Event::Track`]: mean setpoint, mean flow, RMS and largest |error|, mean
-//! duty. The **alarm** ([`Event::Alarm`]) is raised when the error `setpoint − flow` stays
+//! duty, and the ticks since run mode started. The **alarm** ([`Event::Alarm`]) is raised when the error `setpoint − flow` stays
 //! outside the band `band_abs + band_rel · |setpoint|` for [`TrackingConfig::alarm_ticks`]
 //! consecutive ticks (an occlusion, a leak, a pump that cannot deliver the setpoint), and
 //! cleared when it has been back inside for as long. Ticks without a reading are not scored.
 
 use crate::event::Event;
-use crate::units::DUTY_FULL_SCALE;
 
 /// Settings of the tracking figures and the alarm.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,6 +57,8 @@ pub struct Tracking {
     alarm: bool,
     /// A window closed in a tick that reported an alarm change: report it next tick.
     pending: bool,
+    /// Ticks stepped since the start.
+    count: u32,
 }
 
 impl Tracking {
@@ -78,6 +80,7 @@ impl Tracking {
             run: 0,
             alarm: false,
             pending: false,
+            count: 0,
         }
     }
 
@@ -122,6 +125,7 @@ impl Tracking {
                 self.run = 0;
             }
         }
+        self.count = self.count.saturating_add(1);
         self.ticks = self.ticks.saturating_sub(1);
         if self.ticks == 0 {
             self.ticks = self.cfg.window.max(1);
@@ -136,17 +140,14 @@ impl Tracking {
 
     /// The window's figures (none without a scored sample), and a fresh window.
     fn close_window(&mut self) -> Option<Event> {
-        let n = self.n;
-        let out = (n > 0).then(|| {
-            let k = f32::from(n);
-            let mean_duty = self.sum_duty / u32::from(n);
-            Event::Track {
-                setpoint: self.sum_r / k,
-                flow: self.sum_y / k,
-                rms: ridge_core::Real::sqrt(self.sum_e2 / k),
-                max: self.max_e,
-                duty: mean_duty.min(u32::from(DUTY_FULL_SCALE)) as u16,
-            }
+        let out = (self.n > 0).then_some(Event::Track {
+            sum_setpoint: self.sum_r,
+            sum_flow: self.sum_y,
+            sum_sq: self.sum_e2,
+            max: self.max_e,
+            sum_duty: self.sum_duty,
+            samples: self.n,
+            tick: self.count,
         });
         self.n = 0;
         self.sum_r = 0.0;

@@ -5,12 +5,12 @@ mod common;
 
 use ridge_core::{ArxModel, IntGram, Method, Offset, RidgeM, Search, Structure};
 use ridge_pump_firmware::event::{
-    Event, FaultReason, RejectReason, SearchStats, SensorFault, StoredReason,
+    Event, FaultReason, RejectReason, Residuals, SearchStats, SensorFault, StoredReason,
 };
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
 use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, Tick, DEFAULT_CONFIG};
-use ridge_pump_firmware::setpoint::Program;
+use ridge_pump_firmware::setpoint::{Program, DEMO_HOLD_TICKS};
 use ridge_pump_firmware::units::SCALE;
 
 use common::Plant;
@@ -196,7 +196,9 @@ fn identifies_the_linear_plant_and_runs() {
     // at the operating point's within the dither), residuals each second at the quantisation
     // level, tracking figures each second half a second later.
     let before = rig.events.len();
-    for _ in 0..195 {
+    // Until the controller is given the first step ahead of time (the preview).
+    let hold = DEMO_HOLD_TICKS - u32::from(rig.sm.preview().unwrap()) - 1;
+    for _ in 0..hold {
         let t = rig.tick();
         assert!((2_900..=3_100).contains(&t.duty), "{}", t.duty);
     }
@@ -785,8 +787,9 @@ fn a_stored_model_skips_identification() {
     assert!(rig.events[1].starts_with("CTRL method=pole-placement"));
     assert_eq!(rig.sm.model(), Some(&model));
     assert_eq!(rig.sm.fit(), first.sm.fit());
-    // The demo program holds the settled flow for 2 s.
-    for _ in 0..195 {
+    // The demo program holds the settled flow for 2 s (less the preview of its first step).
+    let hold = DEMO_HOLD_TICKS - u32::from(rig.sm.preview().unwrap()) - 1;
+    for _ in 0..hold {
         let duty = rig.tick().duty;
         assert!((2_900..=3_100).contains(&duty), "{duty}");
     }
@@ -1014,19 +1017,23 @@ fn event_lines_are_as_documented() {
             "REJECT gaps=11 attempt=1/3",
         ),
         (
-            Event::Residual {
-                rms: 0.8125,
-                mean: -0.0125,
-                flow: 50.125,
-                samples: 100,
-            },
-            "RES rms=0.813 mean=-0.013 flow=50.125 n=100",
+            Event::Residual(Residuals {
+                // 64 samples (an exact reciprocal): RMS exactly 0.8125, mean −1/64.
+                sum_sq: 0.8125 * 0.8125 * 64.0,
+                sum: -1.0,
+                sum_flow: 50.125 * 64.0,
+                samples: 64,
+            }),
+            "RES rms=0.813 mean=-0.016 flow=50.125 n=64",
         ),
         (
             Event::Drift {
-                rms: 3.25,
-                mean: -3.0,
-                flow: 35.375,
+                residuals: Residuals {
+                    sum_sq: 3.25 * 3.25 * 64.0,
+                    sum: -3.0 * 64.0,
+                    sum_flow: 35.375 * 64.0,
+                    samples: 64,
+                },
                 seconds: 3,
                 reidentify: false,
             },

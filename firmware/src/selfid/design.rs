@@ -44,13 +44,9 @@ impl SelfIdentification {
         pet();
         match result {
             Ok(d) => {
-                self.phase = Phase::Run(RunMode::new(
-                    self.cfg,
-                    model,
-                    &d,
-                    self.duty,
-                    self.last_counts,
-                ));
+                let run = RunMode::new(self.cfg, model, &d, self.duty, self.last_counts);
+                let preview = run.preview();
+                self.phase = Phase::Run(run);
                 Some(Event::Control {
                     tau: d.tau,
                     alpha: d.alpha,
@@ -58,6 +54,7 @@ impl SelfIdentification {
                     kept: d.kept,
                     margin: d.modulus_margin,
                     tries,
+                    preview,
                 })
             }
             Err(error) => Some(

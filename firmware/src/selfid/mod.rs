@@ -279,14 +279,14 @@ impl SelfIdentification {
         if matches!(self.phase, Phase::Fault) {
             self.duty = 0;
         }
-        let event = match event {
-            Some(e) => Some(e),
-            None => self.stored_error.take().map(Event::StoredRejected),
-        };
-        Tick {
+        let mut tick = Tick {
             duty: self.duty,
             event,
+        };
+        if tick.event.is_none() {
+            tick.event = self.stored_error.take().map(Event::StoredRejected);
         }
+        tick
     }
     /// A copy of the tick's fault checks with their current counters, for a board that cannot
     /// tick the state machine for a while (the ATmega2560's blocking search): it reads the

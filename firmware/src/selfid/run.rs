@@ -73,12 +73,16 @@ impl RunMode {
         let u = self.ctrl.step(ahead, y);
         let duty = (u * f32::from(DUTY_FULL_SCALE) + 0.5) as u16;
         let measured = reading.map(|c| f32::from(c) * SLM_PER_COUNT);
-        let monitor = self.monitor.step(applied, reading);
+        let mut event = self.monitor.step(applied, reading);
         let track = self
             .tracking
-            .step(self.current, measured, applied, monitor.is_some());
+            .step(self.current, measured, applied, event.is_some());
+        // Moved only when there is one (a 74-byte copy costs ~550 cycles on the ATmega2560).
+        if event.is_none() && track.is_some() {
+            event = track;
+        }
         self.current = r;
-        (duty.min(DUTY_FULL_SCALE), monitor.or(track))
+        (duty.min(DUTY_FULL_SCALE), event)
     }
 
     /// Whether the tracking alarm is raised.
