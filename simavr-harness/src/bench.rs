@@ -8,7 +8,9 @@
 //! registers ([`pwm`]), steps the blower model by 0.5 ms with it and hands the new
 //! flow to the sensor. The blower is `pump_sim::Pump` with its 100 Hz parameters sub-stepped
 //! 20× (time constants are exact under zero-order hold; the transport delay is kept in time,
-//! 20 sub-steps per 10 ms sample).
+//! 20 sub-steps per 10 ms sample). With a test lung (`pump_sim::Lung`) the blower's open-outlet
+//! flow and shut-off pressure feed the lung at every sub-step, and the sensor measures the flow
+//! against the lung's back pressure.
 //!
 //! Timing is measured from the core's cycle counter, with no help from the firmware:
 //! - **tick start**: entry into the tick interrupt (TIMER3_COMPA, vector 32, by default);
@@ -34,7 +36,7 @@ use crate::machine::{Halt, IrqEvent, Machine, UartByte};
 use crate::pwm::{self, Channel};
 use crate::report::{Line, LineSplitter};
 use crate::sensor::{Fault, SensorState, Sfm3300Slave};
-use pump_sim::{Pump, PumpParams, Sfm3300, Sfm3300Params};
+use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
 
 /// Plant sub-steps per 10 ms sample (0.5 ms each: the SFM3300 update period).
 pub const SUBSTEPS: usize = 20;
@@ -52,6 +54,8 @@ pub struct BenchConfig {
     pub frequency: u32,
     /// Blower (100 Hz parameters; the bench sub-steps it).
     pub pump: PumpParams,
+    /// Test lung behind the blower, `None` for an open outlet.
+    pub lung: Option<LungParams>,
     /// Sensor error model.
     pub sensor: Sfm3300Params,
     /// Sensor noise seed.
@@ -72,6 +76,7 @@ impl BenchConfig {
             elf: elf.into(),
             frequency: 16_000_000,
             pump: PumpParams::default(),
+            lung: None,
             sensor: Sfm3300Params::default(),
             seed: 1,
             pwm: Some(Channel {
@@ -329,6 +334,8 @@ pub struct Bench {
     pub sensor: Rc<RefCell<SensorState>>,
     /// The blower (sub-stepped at 0.5 ms).
     pub pump: Pump,
+    /// The test lung, if any (stepped with the blower).
+    pub lung: Option<Lung>,
     cfg: BenchConfig,
     channel: Option<Channel>,
     uart: Rc<RefCell<Vec<UartByte>>>,
@@ -407,6 +414,7 @@ impl Bench {
             machine,
             sensor,
             pump,
+            lung: cfg.lung.clone().map(Lung::new),
             channel: cfg.pwm,
             cfg,
             uart_seen: 0,
@@ -433,6 +441,11 @@ impl Bench {
     /// Seconds → cycles.
     pub fn cycles(&self, seconds: f64) -> u64 {
         (seconds * f64::from(self.cfg.frequency)).round() as u64
+    }
+
+    /// Core clock, Hz.
+    pub fn frequency(&self) -> u32 {
+        self.cfg.frequency
     }
 
     /// Simulated time so far, seconds.
@@ -514,7 +527,14 @@ impl Bench {
         if changed {
             self.duty_log.push(d);
         }
-        let flow = self.pump.step(d.fraction);
+        let open = self.pump.step(d.fraction);
+        let flow = match &mut self.lung {
+            Some(lung) => {
+                let p = self.pump.params();
+                lung.step(open, p.shutoff_of_speed(self.pump.speed()), p.ts_s)
+            }
+            None => open,
+        };
         self.sensor.borrow_mut().flow_slm = flow;
         self.substep += 1;
         if self.substep % SUBSTEPS == 0 {

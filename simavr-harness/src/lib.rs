@@ -15,6 +15,8 @@
 //! - [`firmware`]: locating/building the ELF and its section sizes.
 //! - [`session`]: a whole power-up identification run and its figures (what `simavr-run`
 //!   prints and the tests check).
+//! - [`tracking`]: run mode rebuilt tick by tick from the bench (setpoint, duty, flow),
+//!   checked against the firmware's `TRACK` lines and scored ([`tracking::RunTrace`]).
 //! - [`stack`]: worst-case stack from the image's call graph ([`stack::StackAnalysis`], what
 //!   `avr-stack` prints).
 
@@ -26,3 +28,4 @@ pub mod report;
 pub mod sensor;
 pub mod session;
 pub mod stack;
+pub mod tracking;

@@ -47,7 +47,7 @@ pub enum Fault {
 }
 
 /// What the slave did, for the harness's records.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Event {
     /// A measurement frame was handed to the master (its raw word, whether the CRC was valid,
     /// the 0.5 ms slot it belongs to).
@@ -60,6 +60,8 @@ pub enum Event {
         crc_ok: bool,
         /// Whether this was the (invalid) first frame after a start command.
         first: bool,
+        /// True flow at the sensor when the frame was measured, slm.
+        flow: f64,
     },
     /// Read address NACKed (no new value, or fault).
     Nack {
@@ -148,6 +150,24 @@ impl SensorState {
                     first: false,
                     ..
                 } => Some((cycle, raw)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// The frames served (as [`served`](Self::served)) with the true flow each measured:
+    /// `(cycle, raw, flow_slm)`.
+    pub fn served_with_flow(&self) -> Vec<(u64, u16, f64)> {
+        self.events
+            .iter()
+            .filter_map(|e| match *e {
+                Event::Frame {
+                    cycle,
+                    raw,
+                    first: false,
+                    flow,
+                    ..
+                } => Some((cycle, raw, flow)),
                 _ => None,
             })
             .collect()
@@ -242,6 +262,7 @@ impl SensorState {
             raw,
             crc_ok,
             first,
+            flow: self.flow_slm,
         });
         self.tx = f.to_vec();
         self.tx_pos = 0;

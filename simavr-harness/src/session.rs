@@ -19,7 +19,7 @@ use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Real, Search};
 use crate::bench::{Bench, BenchConfig, RunEnd, TickTiming, SUBSTEPS};
 use crate::firmware::{self, Sizes};
 use crate::report::{Line, ParsedLine};
-use pump_sim::{Pump, PumpParams, Sfm3300, Sfm3300Params};
+use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
 use ridge_id::eval::Trace;
 use ridge_id::plot::{write_png, Panel};
 use ridge_pump_firmware::excitation::Record;
@@ -188,15 +188,19 @@ pub struct SessionConfig {
     pub max_s: f64,
     /// Keep running this long after the final line (`ACCEPT`, `FAULT`, `LOADED`).
     pub linger_s: f64,
+    /// After `ACCEPT` or `LOADED`: run on until the controller is designed (`CTRL`, or a
+    /// `FAULT`), then this many seconds of run mode; 0 stops after the linger.
+    pub track_s: f64,
 }
 
 impl SessionConfig {
-    /// Default plant, seed 1, 200 s limit, 0.5 s linger.
+    /// Default plant, seed 1, 200 s limit, 0.5 s linger, no run mode.
     pub fn new(elf: impl Into<std::path::PathBuf>) -> Self {
         Self {
             bench: BenchConfig::new(elf),
             max_s: 200.0,
             linger_s: 0.5,
+            track_s: 0.0,
         }
     }
 }
@@ -222,6 +226,15 @@ pub fn run(cfg: &SessionConfig) -> Result<Outcome, String> {
         }
         let t = (bench.time_s() + cfg.linger_s).min(cfg.max_s);
         bench.run_until(t, |_| false);
+        let k = bench.lines[i].text.split_whitespace().next().unwrap_or("");
+        if cfg.track_s > 0.0 && matches!(k, "ACCEPT" | "LOADED") {
+            let designed = |l: &Line| l.text.starts_with("CTRL") || l.text.starts_with("FAULT");
+            if !bench.lines.iter().any(designed) {
+                bench.run_until(cfg.max_s, designed);
+            }
+            let t = (bench.time_s() + cfg.track_s).min(cfg.max_s);
+            bench.run_until(t, |_| false);
+        }
     }
     let wall_s = t0.elapsed().as_secs_f64();
     Ok(analyse(bench, sizes, wall_s))
@@ -540,11 +553,13 @@ pub fn score(model: &ArxModel<f64>, samples: &Samples) -> (Option<f64>, Option<f
     )
 }
 
-/// A fresh validation signal on the host, with the loop's timing: the plant sub-stepped as in
-/// the bench, the reading taken at the tick, the new duty applied `latency` sub-steps later, the
-/// sensor noise from `seed`. Starts from `base` duty held for 2 s, as the firmware settles.
+/// A fresh validation signal on the host, with the loop's timing: the plant (blower `pump`,
+/// test lung `lung` if any) sub-stepped as in the bench, the reading taken at the tick, the new
+/// duty applied `latency` sub-steps later, the sensor noise from `seed`. Starts from `base`
+/// duty held for 2 s, as the firmware settles.
 pub fn fresh_record(
     pump: &PumpParams,
+    lung: Option<&LungParams>,
     sensor: &Sfm3300Params,
     seed: u64,
     record: Record,
@@ -555,12 +570,25 @@ pub fn fresh_record(
     p.ts_s /= SUBSTEPS as f64;
     p.delay_samples *= SUBSTEPS;
     let mut pump = Pump::new(p);
+    let mut lung = lung.cloned().map(Lung::new);
     let mut sfm = Sfm3300::new(sensor.clone(), seed);
     let frac = |d: u16| duty_counts(d) as f64 / f64::from(PWM_MAX);
+    // One 0.5 ms plant step at duty `d`: the flow at its end.
+    let mut step = |d: u16| {
+        let open = pump.step(frac(d));
+        match &mut lung {
+            Some(l) => {
+                let p = pump.params();
+                l.step(open, p.shutoff_of_speed(pump.speed()), p.ts_s)
+            }
+            None => open,
+        }
+    };
     let latency = latency.min(SUBSTEPS);
     let mut prev = base;
+    let mut flow = 0.0;
     for _ in 0..200 * SUBSTEPS {
-        pump.step(frac(base));
+        flow = step(base);
     }
     let mut s = Samples {
         record: Some(record),
@@ -568,13 +596,13 @@ pub fn fresh_record(
     };
     for g in record.generator() {
         for _ in 0..latency {
-            pump.step(frac(prev));
+            flow = step(prev);
         }
         for _ in latency..SUBSTEPS {
-            pump.step(frac(g));
+            flow = step(g);
         }
         prev = g;
-        let raw = sfm.measure_raw(pump.flow_slm());
+        let raw = sfm.measure_raw(flow);
         s.u.push(g);
         s.raw.push(raw);
         s.cycle.push(0);

@@ -216,6 +216,7 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
             let cfg = o.bench.config();
             let fresh = session::fresh_record(
                 &cfg.pump,
+                cfg.lung.as_ref(),
                 &cfg.sensor,
                 cfg.seed + 1000,
                 FRESH_RECORD,

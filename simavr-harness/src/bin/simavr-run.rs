@@ -1,22 +1,19 @@
-//! Runs the ATmega2560 firmware in simavr against the simulated pump and SFM3300 (the main
-//! command, `scripts/simulate`, calls this) and prints what the firmware identified, how good
-//! the model is, the cycle figures, flash and RAM, and writes a PNG of measured vs model flow.
+//! Runs the ATmega2560 firmware in simavr against the simulated pump (optionally into a test
+//! lung) and SFM3300 (the main command, `scripts/simulate`, calls this) and prints what the
+//! firmware identified, how good the model is, the controller it designed and how it tracked
+//! its setpoint program, the cycle figures, flash and RAM; writes a PNG of measured vs model
+//! flow, a PNG of setpoint vs flow, and with `--trace` a per-tick CSV.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Parser, ValueEnum};
-use pump_sim::PumpParams;
+use clap::Parser;
+use pump_sim::baseline::experiment::run_ticks;
+use pump_sim::PlantArgs;
 use ridge_pump_firmware::excitation::Record;
 use simavr_harness::firmware;
 use simavr_harness::session::{self, IdLine, Outcome, SessionConfig, TICK_CYCLES};
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum Plant {
-    Default,
-    Small,
-    Sluggish,
-}
+use simavr_harness::tracking::RunTrace;
 
 /// Power-up self-identification of the ATmega2560 firmware in simavr (16 MHz), closed loop
 /// with a simulated SFM3300 (TWI 0x40) and blower.
@@ -26,9 +23,9 @@ struct Args {
     /// Firmware ELF (default: target/avr-none/release/atmega2560.elf, built if missing).
     #[arg(long)]
     elf: Option<PathBuf>,
-    /// Blower model.
-    #[arg(long, value_enum, default_value = "default")]
-    plant: Plant,
+    /// Blower and test lung.
+    #[command(flatten)]
+    plant: PlantArgs,
     /// Sensor noise seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -38,6 +35,17 @@ struct Args {
     /// PNG of measured vs model flow.
     #[arg(long, default_value = "target/simavr/flow.png")]
     png: PathBuf,
+    /// PNG of the setpoint vs the flow in run mode.
+    #[arg(long, default_value = "target/simavr/tracking.png")]
+    track_png: PathBuf,
+    /// Seconds of run mode after the controller design (default: the demo program's hold,
+    /// steps and six breaths, plus 0.5 s); 0 stops after ACCEPT.
+    #[arg(long, value_name = "SECONDS")]
+    track_s: Option<f64>,
+    /// Write every tick as CSV `t,setpoint,duty,flow` (s, slm or empty before run mode,
+    /// duty 0..1, true flow in slm).
+    #[arg(long, value_name = "PATH")]
+    trace: Option<PathBuf>,
     /// Print every UART line as it arrives.
     #[arg(long)]
     lines: bool,
@@ -81,15 +89,19 @@ fn main() -> ExitCode {
     let mut cfg = SessionConfig::new(&elf);
     cfg.max_s = args.max_s;
     cfg.bench.seed = args.seed;
-    cfg.bench.pump = match args.plant {
-        Plant::Default => PumpParams::default(),
-        Plant::Small => PumpParams::small(),
-        Plant::Sluggish => PumpParams::sluggish(),
+    cfg.bench.pump = args.plant.pump();
+    cfg.bench.lung = match args.plant.lung() {
+        Ok(l) => l,
+        Err(e) => {
+            eprintln!("simavr-run: {e}");
+            return ExitCode::FAILURE;
+        }
     };
+    cfg.track_s = args.track_s.unwrap_or(f64::from(run_ticks()) * 0.01 + 0.5);
     println!(
-        "simavr: ATmega2560 @ 16 MHz, {}, plant {:?}, sensor seed {}",
+        "simavr: ATmega2560 @ 16 MHz, {}, {}, sensor seed {}",
         elf.display(),
-        args.plant,
+        args.plant.describe(),
         args.seed
     );
     let out = match session::run(&cfg) {
@@ -232,6 +244,7 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
             .map_or(2, |e| session::write_latency(bench, e));
         let fresh = session::fresh_record(
             &cfg.bench.pump,
+            cfg.bench.lung.as_ref(),
             &cfg.bench.sensor,
             cfg.bench.seed.wrapping_add(1000),
             FRESH_RECORD,
@@ -262,6 +275,10 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
             Ok(()) => println!("  plot: {}", args.png.display()),
             Err(e) => println!("  plot failed: {e}"),
         }
+    }
+
+    if cfg.track_s > 0.0 && !print_tracking(args, out) {
+        ok = false;
     }
 
     println!("\n== cycles (16 MHz; tick = 10 ms = {TICK_CYCLES} cycles)");
@@ -353,4 +370,121 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
         println!("\nsimavr-run: the firmware did not identify an accepted model");
         ExitCode::FAILURE
     }
+}
+
+/// The flow-control section: the design, run mode rebuilt from the bench and checked against
+/// the firmware's TRACK lines, the step and breath figures, the plot and the CSV. `false` when
+/// there was no run mode to show.
+fn print_tracking(args: &Args, out: &Outcome) -> bool {
+    let bench = &out.bench;
+    println!("\n== flow control (run mode: the firmware's demo program)");
+    if let Some(l) = bench.lines.iter().find(|l| l.text.starts_with("CTRL")) {
+        println!("  firmware: {}", l.text);
+    }
+    let run = match RunTrace::from_bench(bench) {
+        Ok(r) => r,
+        Err(e) => {
+            println!("  no run mode: {e}");
+            return false;
+        }
+    };
+    if let Some(c) = run.design_cycles {
+        println!(
+            "  design (model checks, pole placement, closed-loop checks) at most {} cycles = {:.1} ms; budget 100 ms",
+            c,
+            ms(c as f64)
+        );
+    }
+    println!(
+        "  run mode from {:.3} s, start flow {:.3} slm, setpoint preview {} ticks; {} TRACK lines recomputed from the bench: largest sp/flow difference {:.4} slm, {} misaligned",
+        run.first_cycle as f64 / 16e6,
+        run.start,
+        run.preview,
+        run.track_lines,
+        run.track_mismatch,
+        run.misaligned
+    );
+    let control: Vec<u64> = bench
+        .ticks()
+        .iter()
+        .filter(|t| t.start >= run.first_cycle)
+        .filter_map(|t| t.control)
+        .collect();
+    if let Some(&worst) = control.iter().max() {
+        println!(
+            "  control tick in run mode (ISR -> PWM written, incl. the controller) over {} ticks: worst {} cycles ({:.3} ms), mean {:.3} ms; budget 1.6 ms",
+            control.len(),
+            worst,
+            ms(worst as f64),
+            ms(control.iter().sum::<u64>() as f64 / control.len() as f64)
+        );
+    }
+    match run.scores() {
+        Some(sc) => {
+            println!("  steps (true flow; rise 10-90 %, overshoot of the step, settling to +-max(2 %, 1 slm), steady-state error over the last 0.5 s, IAE over the level):");
+            let mut from = run.start;
+            for (m, to) in sc.steps.iter().zip(&sc.levels) {
+                match m {
+                    Some(m) => println!(
+                        "    {:6.2} -> {:6.2} slm: rise {}, overshoot {:5.1} %, settling {}, steady-state error {:+.3} slm, IAE {:.3} slm s",
+                        from,
+                        to,
+                        m.rise_s.map_or("  n/a  ".into(), |v| format!("{v:.3} s")),
+                        m.overshoot_pct,
+                        m.settling_s.map_or("  n/a  ".into(), |v| format!("{v:.3} s")),
+                        m.ss_error,
+                        m.iae
+                    ),
+                    None => println!("    {from:6.2} -> {to:6.2} slm: n/a"),
+                }
+                from = *to;
+            }
+            let peak = ridge_pump_firmware::setpoint::DEMO_BREATH.peak;
+            println!(
+                "  breaths 2-6 (square, 20/min, peak {} slm): RMS error {:.3} slm = {:.1} % of peak",
+                peak,
+                sc.breath_rms,
+                100.0 * sc.breath_rms / f64::from(peak)
+            );
+            println!("  duty total variation {:.0} %/s", 100.0 * sc.duty_tv);
+        }
+        None => println!(
+            "  run mode too short to score ({} intervals; the demo needs {})",
+            run.trace.setpoint.len(),
+            run_ticks()
+        ),
+    }
+    let step = ridge_id::control::StepResponse {
+        ts: 0.01,
+        r: run.trace.setpoint.clone(),
+        y: run.trace.flow.clone(),
+        u: run
+            .trace
+            .duty
+            .iter()
+            .map(|&d| f64::from(d) / 10_000.0)
+            .collect(),
+        limits: run.limits,
+    };
+    if let Some(dir) = args.track_png.parent() {
+        let _ = std::fs::create_dir_all(dir);
+    }
+    let title = format!(
+        "ATmega2560 in simavr, {}: setpoint vs true flow (slm), duty below",
+        args.plant.describe()
+    );
+    match ridge_id::plot::write_step_png(&args.track_png, &title, &step) {
+        Ok(()) => println!("  plot: {}", args.track_png.display()),
+        Err(e) => println!("  plot failed: {e}"),
+    }
+    if let Some(path) = &args.trace {
+        match run.write_csv(path) {
+            Ok(()) => println!("  trace: {} ({} ticks)", path.display(), run.rows.len()),
+            Err(e) => {
+                println!("  trace failed: {e}");
+                return false;
+            }
+        }
+    }
+    true
 }
