@@ -32,6 +32,8 @@ use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, SCALE};
 pub const PWM_MAX: u32 = 800;
 /// One tick, cycles (10 ms at 16 MHz).
 pub const TICK_CYCLES: u64 = 160_000;
+/// The controller design's budget: 100 ms at 16 MHz, cycles.
+pub const DESIGN_BUDGET_CYCLES: u64 = 1_600_000;
 
 /// Timer count (`OCR4A + 1`, 0 = off) the board writes for a duty in 1/10 000: the pump
 /// driver's [`duty_to_counts`] with `max_duty_cycle() = PWM_MAX`.
@@ -140,10 +142,14 @@ pub struct Timing {
     pub control_worst_at: u64,
     /// Mean control latency, cycles.
     pub control_mean: f64,
-    /// Ticks that found the main loop busy outside the search (overruns: missed deadlines).
+    /// Ticks that found the main loop busy outside the blocking jobs (overruns: missed
+    /// deadlines).
     pub missed: usize,
     /// Ticks that fired during the (blocking) search.
     pub during_search: usize,
+    /// Ticks that fired during the (blocking) controller design: within its 100 ms budget
+    /// before the `CTRL` (or `FAULT control`) line.
+    pub during_design: usize,
     /// CPU load outside the search: 1 − idle / elapsed, from the end of learning.
     pub load: f64,
     /// Search time, cycles (last excitation read → first byte of the `ID` line).
@@ -315,6 +321,17 @@ pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
             search_windows.push((from, u64::MAX));
         }
     }
+    // Every controller design: it runs blocking in the main loop and ends with its line; its
+    // budget is 100 ms (the firmware's watch reads the sensor at each tick boundary meanwhile).
+    let design_windows: Vec<(u64, u64)> = bench
+        .lines
+        .iter()
+        .filter(|l| l.text.starts_with("CTRL") || l.text.starts_with("FAULT control"))
+        .map(|l| {
+            let from = l.cycle.saturating_sub(DESIGN_BUDGET_CYCLES + TICK_CYCLES);
+            (from, l.cycle + TICK_CYCLES)
+        })
+        .collect();
     let firmware_missed = parsed
         .iter()
         .rev()
@@ -323,6 +340,7 @@ pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
     let timing = timing(
         bench.ticks(),
         &search_windows,
+        &design_windows,
         &bench,
         search_cycles,
         firmware_missed,
@@ -345,6 +363,7 @@ pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
 fn timing(
     ticks: &[TickTiming],
     searches: &[(u64, u64)],
+    designs: &[(u64, u64)],
     bench: &Bench,
     search_cycles: Option<u64>,
     firmware_missed: Option<(i64, i64)>,
@@ -360,9 +379,14 @@ fn timing(
         .filter(|t| !t.interrupted_busy)
         .max_by_key(|t| t.busy)
         .map_or(0, |t| t.start);
+    let in_design = |c: u64| designs.iter().any(|&(a, b)| (a..=b).contains(&c));
     let missed = ticks
         .iter()
-        .filter(|t| t.interrupted_busy && !in_search(t.start))
+        .filter(|t| t.interrupted_busy && !in_search(t.start) && !in_design(t.start))
+        .count();
+    let during_design = ticks
+        .iter()
+        .filter(|t| t.interrupted_busy && !in_search(t.start) && in_design(t.start))
         .count();
     let during_search = ticks
         .iter()
@@ -410,6 +434,7 @@ fn timing(
         control_mean,
         missed,
         during_search,
+        during_design,
         load,
         search_cycles,
         firmware_missed,

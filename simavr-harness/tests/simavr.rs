@@ -8,6 +8,14 @@
 //! identified model's free-run fit on a fresh validation signal ≥ [`MIN_FRESH_FIT`] %; the
 //! firmware's result equal to ridge-core's on the host from the same samples (same structure,
 //! coefficients within [`COEF_TOL`]).
+//!
+//! Flow control (`tracks_*`): after `ACCEPT` the image designs its controller (≤ 100 ms) and
+//! runs the demo program (steps, then breaths) on the default, small and sluggish blowers with
+//! the adult and the stiff test lung; its `TRACK` lines must equal the figures recomputed from
+//! the served frames, the run-mode control tick stay < 1.6 ms, and the true flow (scored by
+//! `pump_sim`'s metrics) reach each level within the sensor noise, with the overshoot and the
+//! breath RMS within the targets (10 %, 5 % of peak) or, where the design is known to
+//! miss them (stiff lung), within a regression bound said at the test.
 
 use pump_sim::sfm3300::flow_to_raw;
 use pump_sim::PumpParams;
@@ -17,6 +25,7 @@ use simavr_harness::bench::{Action, Bench, BenchConfig};
 use simavr_harness::firmware;
 use simavr_harness::sensor::Fault;
 use simavr_harness::session::{self, Outcome, SessionConfig, TICK_CYCLES};
+use simavr_harness::tracking::RunTrace;
 
 /// Tick budget, cycles (1.6 ms at 16 MHz).
 const TICK_BUDGET: u64 = 25_600;
@@ -601,4 +610,172 @@ fn persisted_record_is_loaded_and_a_corrupted_one_rejected() {
             "byte {byte} flipped: no new identification: {lines:?}"
         );
     }
+}
+
+/// Identification, design and the demo program in run mode (steps, then breaths) on `blower`
+/// with `outlet`, then the checks every run must pass; returns the scores.
+///
+/// Truth for the figures: the simulated plant's true flow (not the firmware's readings), scored
+/// by `pump_sim`'s own metrics; the firmware's `TRACK` lines are recomputed from the frames the
+/// bench served. Budgets: design ≤ 100 ms, control tick in run mode < 1.6 ms, no overruns.
+fn tracking_run(
+    blower: pump_sim::Blower,
+    outlet: pump_sim::Outlet,
+    seed: u64,
+) -> pump_sim::baseline::experiment::Scores {
+    let plant = pump_sim::PlantArgs::preset(blower, outlet);
+    let what = plant.describe();
+    let mut cfg = SessionConfig::new(elf());
+    cfg.bench.pump = plant.pump();
+    cfg.bench.lung = plant.lung().expect("lung preset");
+    cfg.bench.seed = seed;
+    cfg.max_s = 200.0;
+    cfg.track_s = f64::from(pump_sim::baseline::experiment::run_ticks()) * 0.01 + 0.5;
+    let o = session::run(&cfg).expect("simavr session");
+    let mut bad = Vec::new();
+    if o.accept.is_none() {
+        bad.push("no ACCEPT line".to_string());
+    }
+    if !o.faults.is_empty() {
+        bad.push(format!("FAULT lines: {:?}", o.faults));
+    }
+    if o.bench.find_lines("ALARM").next().is_some() {
+        bad.push("a tracking ALARM on the demo program".into());
+    }
+    if o.timing.missed > 0 {
+        bad.push(format!("{} tick overrun(s)", o.timing.missed));
+    }
+    let run = match RunTrace::from_bench(&o.bench) {
+        Ok(r) => r,
+        Err(e) => {
+            bad.push(format!("no run mode: {e}"));
+            assert_clean(&what, &o, bad);
+            unreachable!()
+        }
+    };
+    // The firmware's TRACK figures are those of the flow it was served.
+    if run.track_lines < 10 || run.track_mismatch > 0.002 || run.misaligned > 0 {
+        bad.push(format!(
+            "TRACK lines {} (≥ 10), recomputed difference {:.4} slm (≤ 0.002), misaligned {}",
+            run.track_lines, run.track_mismatch, run.misaligned
+        ));
+    }
+    match run.design_cycles {
+        Some(c) if c < session::DESIGN_BUDGET_CYCLES => {}
+        c => bad.push(format!("design {c:?} cycles ≥ 100 ms")),
+    }
+    let control: Vec<u64> = o
+        .bench
+        .ticks()
+        .iter()
+        .filter(|t| t.start >= run.first_cycle)
+        .filter_map(|t| t.control)
+        .collect();
+    match control.iter().max() {
+        Some(&w) if w < TICK_BUDGET && control.len() > 1000 => {}
+        w => bad.push(format!(
+            "run-mode control tick worst {w:?} cycles over {} ticks (budget {TICK_BUDGET})",
+            control.len()
+        )),
+    }
+    let scores = run.scores();
+    if scores.is_none() {
+        bad.push("run mode too short to score".into());
+    }
+    assert_clean(&what, &o, bad);
+    scores.unwrap()
+}
+
+/// Steady-state error within the sensor noise on every level (σ: the SFM3300 model's noise,
+/// 3 % of the flow), and the largest overshoot and the breath RMS (% of the 60 slm peak) within
+/// `overshoot_max` and `breath_max`.
+fn assert_tracks(
+    what: &str,
+    sc: &pump_sim::baseline::experiment::Scores,
+    overshoot_max: f64,
+    breath_max: f64,
+) {
+    let over = sc
+        .steps
+        .iter()
+        .flatten()
+        .map(|m| m.overshoot_pct)
+        .fold(0.0, f64::max);
+    let ss = sc
+        .steps
+        .iter()
+        .flatten()
+        .map(|m| m.ss_error.abs())
+        .fold(0.0, f64::max);
+    println!(
+        "{what}: largest overshoot {over:.1} %, largest |e_ss| {ss:.3} slm, breath RMS {:.2} slm ({:.2} % of peak), duty TV {:.0} %/s",
+        sc.breath_rms,
+        100.0 * sc.breath_rms / 60.0,
+        100.0 * sc.duty_tv
+    );
+    let sensor = pump_sim::sfm3300::Sfm3300Params::default();
+    let sigma = |level: f64| (sensor.noise_rel * level).hypot(sensor.noise_floor_slm);
+    for (m, level) in sc.steps.iter().zip(&sc.levels) {
+        let m = m
+            .as_ref()
+            .unwrap_or_else(|| panic!("{what}: step to {level} not scored"));
+        assert!(
+            m.ss_error.abs() <= sigma(*level),
+            "{what}: steady-state error {:.3} slm at {level} slm > σ {:.3}",
+            m.ss_error,
+            sigma(*level)
+        );
+        assert!(
+            m.overshoot_pct <= overshoot_max,
+            "{what}: overshoot {:.1} % at {level} slm > {overshoot_max} %",
+            m.overshoot_pct
+        );
+    }
+    let breath = 100.0 * sc.breath_rms / 60.0;
+    assert!(
+        breath <= breath_max,
+        "{what}: breath RMS {breath:.2} % of peak > {breath_max} %"
+    );
+}
+
+#[test]
+fn tracks_default_blower_adult_lung() {
+    let sc = tracking_run(pump_sim::Blower::Default, pump_sim::Outlet::Adult, 1);
+    assert_tracks("default blower, adult lung", &sc, 10.0, 5.0);
+}
+
+#[test]
+fn tracks_default_blower_stiff_lung() {
+    let sc = tracking_run(pump_sim::Blower::Default, pump_sim::Outlet::Stiff, 2);
+    // The 10 % overshoot target is missed with the stiff lung (17 % measured here, 15–20 % in
+    // docs/control.md): a regression bound, not the target.
+    assert_tracks("default blower, stiff lung", &sc, 25.0, 5.0);
+}
+
+#[test]
+fn tracks_small_blower_adult_lung() {
+    let sc = tracking_run(pump_sim::Blower::Small, pump_sim::Outlet::Adult, 3);
+    assert_tracks("small blower, adult lung", &sc, 10.0, 5.0);
+}
+
+#[test]
+fn tracks_small_blower_stiff_lung() {
+    let sc = tracking_run(pump_sim::Blower::Small, pump_sim::Outlet::Stiff, 4);
+    // The 10 % overshoot target is missed with the stiff lung (26 % measured here, up to 32 %
+    // in docs/control.md): a regression bound, not the target.
+    assert_tracks("small blower, stiff lung", &sc, 40.0, 5.0);
+}
+
+#[test]
+fn tracks_sluggish_blower_adult_lung() {
+    let sc = tracking_run(pump_sim::Blower::Sluggish, pump_sim::Outlet::Adult, 5);
+    assert_tracks("sluggish blower, adult lung", &sc, 10.0, 5.0);
+}
+
+#[test]
+fn tracks_sluggish_blower_stiff_lung() {
+    let sc = tracking_run(pump_sim::Blower::Sluggish, pump_sim::Outlet::Stiff, 6);
+    // The 5 % breath target is missed by a hair with the stiff lung (5.1 % measured here,
+    // 5.3 % in docs/control.md): a regression bound, not the target.
+    assert_tracks("sluggish blower, stiff lung", &sc, 10.0, 6.0);
 }

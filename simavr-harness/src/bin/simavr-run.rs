@@ -302,10 +302,11 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
         ms(t.mean)
     );
     println!(
-        "  CPU load outside the search {:.1} %; missed ticks (overruns) {}; ticks during the blocking search {}",
+        "  CPU load outside the search {:.1} %; missed ticks (overruns) {}; ticks during the blocking search {}, during the blocking design {}",
         100.0 * t.load,
         t.missed,
-        t.during_search
+        t.during_search,
+        t.during_design
     );
     if let Some((late, lost)) = t.firmware_missed {
         println!("  firmware's own count: MISSED late={late} lost={lost}");
