@@ -20,11 +20,11 @@ use std::rc::Rc;
 
 use avr_tester::{TwiPacket, TwiSlave};
 
-use pump_sim::sfm3300::{crc8, frame};
+use pump_sim::sfm3300::{crc8, frame, CMD_SOFT_RESET, CMD_START_MEASUREMENT, I2C_ADDRESS};
 use pump_sim::Sfm3300;
 
-/// 7-bit address.
-pub const ADDRESS: u8 = 0x40;
+/// 7-bit address (the simulator's, not the firmware driver's: the slave checks the driver).
+pub const ADDRESS: u8 = I2C_ADDRESS;
 /// Serial number served by the simulated part.
 pub const SERIAL: u32 = 0x1234_ABCD;
 /// Measurement update period in CPU cycles at 16 MHz (0.5 ms).
@@ -186,13 +186,13 @@ impl SensorState {
             cmd,
         });
         match cmd {
-            0x1000 => {
+            CMD_START_MEASUREMENT => {
                 self.measuring_since = Some(self.now);
                 self.last_slot_read = None;
                 self.first_pending = true;
                 self.tx.clear();
             }
-            0x2000 => {
+            CMD_SOFT_RESET => {
                 self.measuring_since = None;
                 self.last_slot_read = None;
                 self.tx.clear();
