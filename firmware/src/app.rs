@@ -30,10 +30,24 @@
 //! | `STACK used=<bytes> free=<bytes>` | after each search (boards that measure the stack) |
 //! | `PERSIST saved` / `PERSIST failed` | a record write finished |
 //! | `PUMP error` | the PWM channel refused a duty: the pump is stopped |
+//! | `LOG dropped=<n>` | at most once a second, when the count changed: log rows that did not fit in the transmit queue |
+//! | `OK <command>` / `ERR <why>` | the answer to a console command ([`crate::command`]) |
+//!
+//! # Console
+//! Received bytes are assembled into lines after each tick's PWM write (at most one command
+//! per pass) and executed at once ([`crate::command`], answers in [`crate::console`]): `STOP`
+//! writes duty 0 to the PWM in the same pass. While a blocking search or design runs, the
+//! watch keeps reading the receiver at every tick boundary: a `STOP` stops the pump there and
+//! then (the state machine follows after the search); any other command waits for the end of
+//! the search. With the log on, each tick appends its [`LogRow`] after the PWM write.
 
+use crate::command::{Command, CommandError, Line, ProfileArgs};
+use crate::console::{LogRow, ModelLine, RstLine, Status, LOG_HEADER, LOG_ROW_MAX};
 use crate::event::{Event, FaultReason, SensorFault};
+use crate::persist::RECORD_LEN;
 use crate::pump::Pump;
-use crate::selfid::{Guard, SelfIdentification};
+use crate::selfid::{Guard, SelfIdentification, State};
+use crate::setpoint::{Breath, DEMO_BREATH};
 use crate::sfm3300::Sfm3300;
 use embedded_hal::i2c::I2c;
 use embedded_hal::pwm::SetDutyCycle;
@@ -89,6 +103,64 @@ pub trait Board {
     fn poll_store(&mut self) -> Option<bool>;
     /// Stack high-water mark `(used, free)` in bytes, if the board measures it.
     fn stack(&self) -> Option<(u16, u16)>;
+    /// Non-blocking: the next received console byte, if any.
+    fn receive(&mut self) -> Option<u8> {
+        None
+    }
+    /// Whether received bytes were lost since the last call (the receive queue was full).
+    fn receive_overrun(&mut self) -> bool {
+        false
+    }
+    /// Free bytes in the transmit queue: a log row is sent only if it fits whole.
+    fn tx_room(&self) -> usize {
+        usize::MAX
+    }
+    /// The console's state, if the board has a console (receives commands). `None` leaves
+    /// the console code out of the image.
+    fn console(&mut self) -> Option<&mut Console> {
+        None
+    }
+}
+
+/// The console's state (kept by the board, see [`Board::console`]): the line being received,
+/// a command waiting for the end of a blocking search, and the log.
+#[derive(Debug, Clone, Default)]
+pub struct Console {
+    /// The line being received.
+    line: Line,
+    /// A command received during a blocking search, executed after it.
+    pending: Option<Result<Command, CommandError>>,
+    /// Tick boundaries since the start (the log's time base).
+    clock: u32,
+    /// Whether the CSV log is on.
+    log: bool,
+    /// Log rows dropped (transmit queue full), and the count last reported.
+    dropped: u16,
+    dropped_reported: u16,
+}
+
+impl Console {
+    /// No line, log off, clock at 0.
+    pub const fn new() -> Self {
+        Console {
+            line: Line::new(),
+            pending: None,
+            clock: 0,
+            log: false,
+            dropped: 0,
+            dropped_reported: 0,
+        }
+    }
+
+    /// Whether the CSV log is on.
+    pub fn log(&self) -> bool {
+        self.log
+    }
+
+    /// Log rows dropped so far.
+    pub fn dropped(&self) -> u16 {
+        self.dropped
+    }
 }
 
 /// Loop state: peripherals, the state machine and counters.
@@ -164,16 +236,20 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
 
     /// One pass: wait for the tick, then do that tick's work (and the search if due).
     #[inline(never)]
-    pub fn step(&mut self, board: &mut impl Board) {
+    pub fn step<B: Board>(&mut self, board: &mut B) {
         let (elapsed, late) = wait_tick(board);
         board.pet();
         if late {
             self.late = self.late.saturating_add(1);
         }
         self.lost = self.lost.saturating_add(elapsed - 1);
+        if let Some(c) = board.console() {
+            c.clock = c.clock.wrapping_add(u32::from(elapsed) - 1);
+        }
         self.tick(board);
-        self.summary();
+        self.summary(board);
         self.print_search_lines(board);
+        self.serve(board);
         if self.sid.needs_judgement() {
             self.judge(board);
         }
@@ -208,7 +284,11 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
     /// One tick's work: sensor, state machine, pump, event, persistence. Never inlined: it is
     /// called from the loop and from inside the search's pet closure, and one copy is enough.
     #[inline(never)]
-    fn tick(&mut self, board: &mut impl Board) {
+    fn tick<B: Board>(&mut self, board: &mut B) {
+        if let Some(c) = board.console() {
+            c.clock = c.clock.wrapping_add(1);
+        }
+        let before = (self.sid.state(), self.sid.duty(), self.sid.setpoint());
         let flow = self.sensor.read_counts().map_err(SensorFault::from);
         let tick = self.sid.tick(flow);
         if self.pump.set(tick.duty).is_err() {
@@ -225,6 +305,132 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
                 "PERSIST failed"
             };
             uwriteln!(self.out, "{}", line).ok();
+        }
+        let room = board.tx_room();
+        if let Some(c) = board.console().filter(|c| c.log) {
+            let (state, duty, setpoint) = before;
+            let row = LogRow {
+                tick: c.clock,
+                duty,
+                counts: self.sid.reading(),
+                setpoint,
+                state,
+            };
+            if room >= LOG_ROW_MAX {
+                uwriteln!(self.out, "{}", row).ok();
+            } else {
+                c.dropped = c.dropped.wrapping_add(1);
+            }
+        }
+    }
+
+    /// Reads the console: a command left over from a blocking search, else received bytes
+    /// up to the end of one line, which is executed at once.
+    #[inline(never)]
+    fn serve(&mut self, board: &mut impl Board) {
+        let pending = match board.console() {
+            Some(c) => c.pending.take(),
+            None => return,
+        };
+        if let Some(command) = pending {
+            self.execute(board, command);
+            return;
+        }
+        if board.receive_overrun() {
+            if let Some(c) = board.console() {
+                c.line.overrun();
+            }
+        }
+        while let Some(byte) = board.receive() {
+            let Some(c) = board.console() else { return };
+            if let Some(command) = c.line.push(byte) {
+                self.execute(board, command);
+                return;
+            }
+        }
+    }
+
+    /// Executes a console command and answers it (one line, `MODEL` two in run mode).
+    fn execute(&mut self, board: &mut impl Board, command: Result<Command, CommandError>) {
+        let answer = match command {
+            Err(e) => Err(e),
+            Ok(Command::Status) => {
+                let status = Status {
+                    state: self.sid.state(),
+                    duty: self.pump.applied(),
+                    counts: self.sid.reading(),
+                    setpoint: self.sid.setpoint(),
+                    log: board.console().is_some_and(|c| c.log),
+                    fault: self.sid.fault(),
+                };
+                uwriteln!(self.out, "{}", status).ok();
+                return;
+            }
+            Ok(Command::Stop) => {
+                self.sid.stop();
+                self.pump.stop().ok();
+                if self.sid.state() == State::Fault {
+                    Err(CommandError::State)
+                } else {
+                    Ok("stop")
+                }
+            }
+            Ok(Command::Start) => match self.sid.start() {
+                true => Ok("start"),
+                false => Err(CommandError::State),
+            },
+            Ok(Command::Set(milli)) => self
+                .sid
+                .set_flow(milli as f32 / 1000.0)
+                .map(|()| "set")
+                .map_err(CommandError::Range),
+            Ok(Command::Profile(args)) => self
+                .sid
+                .set_breath(&breath(&args))
+                .map(|()| "profile")
+                .map_err(CommandError::Range),
+            Ok(Command::Reid) => match self.sid.state() {
+                State::Fault | State::Stopped => Err(CommandError::State),
+                _ => {
+                    self.sid.request_reidentification();
+                    Ok("reid")
+                }
+            },
+            Ok(Command::Model) => {
+                let model = ModelLine {
+                    model: self.sid.model().zip(self.sid.fit()),
+                };
+                uwriteln!(self.out, "{}", model).ok();
+                if let Some(ctrl) = self.sid.controller() {
+                    uwriteln!(self.out, "{}", RstLine(ctrl.rst())).ok();
+                }
+                return;
+            }
+            Ok(Command::Forget) => {
+                // An erased record (all 0xFF) reads back as no record.
+                board.save(&[0xFF; RECORD_LEN]);
+                Ok("forget")
+            }
+            Ok(Command::Log(on)) => {
+                if let Some(c) = board.console() {
+                    c.log = on;
+                }
+                Ok("log")
+            }
+        };
+        match answer {
+            Ok(name) => {
+                uwriteln!(self.out, "OK {}", name).ok();
+                if name == "log" && board.console().is_some_and(|c| c.log) {
+                    uwriteln!(self.out, "{}", LOG_HEADER).ok();
+                }
+            }
+            Err(CommandError::Range(what)) => {
+                uwriteln!(self.out, "ERR range {}", what).ok();
+            }
+            Err(e) => {
+                uwriteln!(self.out, "ERR {}", e.name()).ok();
+            }
         }
     }
 
@@ -306,7 +512,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
     /// After a search (its frame is gone): its event (and a fault the guard found), then the
     /// catch-up tick. The `SEARCH` / `STACK` lines wait for the next pass, right after its
     /// tick, so that printing them cannot run into the next tick boundary.
-    fn after_search(&mut self, board: &mut impl Board, end: SearchEnd) {
+    fn after_search<B: Board>(&mut self, board: &mut B, end: SearchEnd) {
         let SearchEnd {
             job,
             event,
@@ -322,11 +528,29 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             let event = self.sid.fault_detected(reason);
             self.report(board, &event);
         }
+        if let Some(c) = board.console() {
+            // The log's clock: boundaries skipped, and those the watch handled (a ticking
+            // search clocked its ticks already).
+            let watched = if job == Job::Search && B::TICK_DURING_SEARCH {
+                0
+            } else {
+                ticks
+            };
+            c.clock = c.clock.wrapping_add(u32::from(watched) + u32::from(lost));
+            if c.pending == Some(Ok(Command::Stop)) {
+                // The watch stopped the pump; the state machine follows now (the answer in
+                // the next pass).
+                self.sid.stop();
+            }
+        }
         // Catch up with the boundary that passed last (the ones before it are lost), so that
         // the next pass of the loop does not count as late.
         if let Some(elapsed) = board.poll_tick() {
             ticks = ticks.saturating_add(1);
             lost = lost.saturating_add(elapsed - 1);
+            if let Some(c) = board.console() {
+                c.clock = c.clock.wrapping_add(u32::from(elapsed) - 1);
+            }
             self.tick(board);
         }
         self.search_lines = Some((job, ticks, lost));
@@ -359,11 +583,15 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
         }
     }
 
-    /// Prints `MISSED` once a second when the totals changed.
-    fn summary(&mut self) {
+    /// Prints `MISSED` and `LOG dropped` once a second when the totals changed.
+    fn summary(&mut self, board: &mut impl Board) {
         self.summary_in -= 1;
         if self.summary_in == 0 {
             self.summary_in = SUMMARY_TICKS;
+            if let Some(c) = board.console().filter(|c| c.dropped != c.dropped_reported) {
+                c.dropped_reported = c.dropped;
+                uwriteln!(self.out, "LOG dropped={}", u32::from(c.dropped)).ok();
+            }
             if (self.late, self.lost) != self.reported {
                 self.reported = (self.late, self.lost);
                 uwriteln!(
@@ -427,6 +655,35 @@ impl<'a, I: I2c, P: SetDutyCycle, B: Board> Watch<'a, I, P, B> {
                     self.fault = Some(reason);
                 }
             }
+            self.console();
+        }
+    }
+}
+
+impl<I: I2c, P: SetDutyCycle, B: Board> Watch<'_, I, P, B> {
+    /// The console during a blocking search: one command is kept for after it; a `STOP`
+    /// stops the pump now.
+    fn console(&mut self) {
+        if self.board.console().is_none_or(|c| c.pending.is_some()) {
+            return;
+        }
+        if self.board.receive_overrun() {
+            if let Some(c) = self.board.console() {
+                c.line.overrun();
+            }
+        }
+        while let Some(byte) = self.board.receive() {
+            let Some(c) = self.board.console() else {
+                return;
+            };
+            if let Some(command) = c.line.push(byte) {
+                if command == Ok(Command::Stop) {
+                    self.pump.stop().ok();
+                    self.applied = 0;
+                }
+                c.pending = Some(command);
+                return;
+            }
         }
     }
 }
@@ -463,5 +720,19 @@ fn wait_tick(board: &mut impl Board) -> (u16, bool) {
         if let Some(elapsed) = board.poll_tick() {
             return (elapsed, false);
         }
+    }
+}
+
+/// The breath of a `PROFILE` command: the values given, the demo breath's for the others.
+fn breath(args: &ProfileArgs) -> Breath {
+    let value = |v: Option<i32>, default: f32| v.map_or(default, |m| m as f32 / 1000.0);
+    let d = DEMO_BREATH;
+    Breath {
+        shape: args.shape,
+        rate: value(args.rate, d.rate),
+        ie: value(args.ie, d.ie),
+        peak: value(args.peak, d.peak),
+        bias: value(args.bias, d.bias),
+        rise: value(args.rise, d.rise),
     }
 }

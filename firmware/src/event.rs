@@ -462,10 +462,14 @@ pub const fn core_error_name(e: CoreError) -> &'static str {
 }
 
 /// Digits of coefficients in report lines.
-const COEF_DIGITS: u8 = 6;
+pub(crate) const COEF_DIGITS: u8 = 6;
 
 /// Writes `values` comma-separated with `digits` decimals.
-fn write_list<W>(f: &mut Formatter<'_, W>, values: &[f32], digits: u8) -> Result<(), W::Error>
+pub(crate) fn write_list<W>(
+    f: &mut Formatter<'_, W>,
+    values: &[f32],
+    digits: u8,
+) -> Result<(), W::Error>
 where
     W: uWrite + ?Sized,
 {
@@ -479,7 +483,7 @@ where
 }
 
 /// Writes `p=.. q=.. d=.. off=.. theta=.. phi=.. c=..`.
-fn write_model<W>(f: &mut Formatter<'_, W>, m: &ArxModel<f32>) -> Result<(), W::Error>
+pub(crate) fn write_model<W>(f: &mut Formatter<'_, W>, m: &ArxModel<f32>) -> Result<(), W::Error>
 where
     W: uWrite + ?Sized,
 {

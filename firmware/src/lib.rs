@@ -13,13 +13,16 @@
 //! | [`pump`] | blower PWM output with limits and a ramp limit (embedded-hal PWM) |
 //! | [`persist`] | the stored model record (magic, version, CRC-32) |
 //! | [`event`], [`report`] | report lines and their fixed-point formatting (ufmt) |
+//! | [`command`], [`console`] | the operator's console: command lines, their answers, the CSV log |
 //! | [`units`] | the rig's units: duty scale, SFM3300 encoding, loop rate, [`units::SCALE`] |
 //! | [`excitation`] | the pump's excitation presets ([`excitation::Record`]) |
-//! | [`ring`] | the lock-free UART transmit queue (the crate's only `unsafe`) |
+//! | [`ring`] | the lock-free UART queues (the crate's only `unsafe`) |
 //! | [`arith`] | a fixed computation for `scripts/avr-arith-check` |
 
 pub mod app;
 pub mod arith;
+pub mod command;
+pub mod console;
 pub mod event;
 pub mod excitation;
 pub mod monitor;

@@ -1,5 +1,6 @@
-//! Single-producer single-consumer byte queue between the main loop (producer) and a UART
-//! transmit interrupt (consumer), so that report lines never stall the 100 Hz loop.
+//! Single-producer single-consumer byte queue between the main loop and a UART interrupt (the
+//! main loop produces for the transmit interrupt and consumes what the receive interrupt
+//! produces), so that report lines never stall the 100 Hz loop.
 //!
 //! Only atomic loads and stores of `u8` indices are used (AVR has no compare-and-swap): the
 //! producer alone writes `head`, the consumer alone writes `tail`. One slot stays free to tell a
@@ -61,6 +62,13 @@ impl<const N: usize> Ring<N> {
         unsafe { (*self.buf.get())[usize::from(head)] = byte };
         self.head.store(next, Ordering::Release);
         true
+    }
+
+    /// Free slots: bytes that [`push`](Self::push) would take now. Producer side only.
+    pub fn room(&self) -> usize {
+        let head = self.head.load(Ordering::Relaxed);
+        let tail = self.tail.load(Ordering::Acquire);
+        usize::from(tail.wrapping_sub(head).wrapping_sub(1) & Self::MASK)
     }
 
     /// Removes the oldest byte. Consumer side only (one context, e.g. the TX interrupt).

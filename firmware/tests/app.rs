@@ -17,7 +17,7 @@ use std::rc::Rc;
 
 use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, NoAcknowledgeSource, Operation};
 use embedded_hal::pwm::{self, SetDutyCycle};
-use ridge_pump_firmware::app::{App, Board, START_TICKS};
+use ridge_pump_firmware::app::{App, Board, Console, START_TICKS};
 use ridge_pump_firmware::persist;
 use ridge_pump_firmware::pump::Pump;
 use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, DEFAULT_CONFIG};
@@ -185,6 +185,11 @@ struct FakeBoard<const TICKING: bool> {
     saves: Vec<Vec<u8>>,
     store_in: Option<u32>,
     store_ok: bool,
+    /// Console bytes and the simulated time (µs) they arrive at.
+    rx: std::collections::VecDeque<(u64, u8)>,
+    rx_lost: bool,
+    room: usize,
+    console: Option<Console>,
 }
 
 const STORE_TICKS: u32 = 30;
@@ -196,7 +201,25 @@ impl<const TICKING: bool> FakeBoard<TICKING> {
             saves: Vec::new(),
             store_in: None,
             store_ok: true,
+            rx: Default::default(),
+            rx_lost: false,
+            room: usize::MAX,
+            console: None,
         }
+    }
+
+    /// A board with a console.
+    fn with_console(w: &Shared) -> Self {
+        FakeBoard {
+            console: Some(Console::new()),
+            ..Self::new(w)
+        }
+    }
+
+    /// Queues `line` to arrive `after_us` from now.
+    fn send(&mut self, line: &str, after_us: u64) {
+        let t = self.w.borrow().clock + after_us;
+        self.rx.extend(line.bytes().map(|b| (t, b)));
     }
 }
 
@@ -245,6 +268,29 @@ impl<const TICKING: bool> Board for FakeBoard<TICKING> {
 
     fn stack(&self) -> Option<(u16, u16)> {
         TICKING.then_some((1234, 4321))
+    }
+
+    fn receive(&mut self) -> Option<u8> {
+        let now = self.w.borrow().clock;
+        match self.rx.front() {
+            Some(&(t, b)) if t <= now => {
+                self.rx.pop_front();
+                Some(b)
+            }
+            _ => None,
+        }
+    }
+
+    fn receive_overrun(&mut self) -> bool {
+        std::mem::take(&mut self.rx_lost)
+    }
+
+    fn tx_room(&self) -> usize {
+        self.room
+    }
+
+    fn console(&mut self) -> Option<&mut Console> {
+        self.console.as_mut()
     }
 }
 
@@ -587,4 +633,287 @@ fn failed_store_is_reported() {
     run_until(&mut app, &mut board, 8_000, |_| board_saved(&uart));
     assert_eq!(count(&uart.lines(), "PERSIST failed"), 1);
     assert_eq!(count(&uart.lines(), "PERSIST saved"), 0);
+}
+
+// ------------------------------------------------------------------------------- console
+
+/// A board with a console, its app, and the app run to run mode (blocking search).
+fn running() -> (Shared, Uart, FakeBoard<false>, TestApp) {
+    let w = world(Plant::reference());
+    let uart = Uart::default();
+    let mut board = FakeBoard::<false>::with_console(&w);
+    let mut app = app(&w, &uart);
+    app.start(&mut board);
+    run_until(&mut app, &mut board, 8_000, |a| {
+        a.selfid().state() == State::Run
+    });
+    (w, uart, board, app)
+}
+
+/// Sends `line`, runs passes until its answer (a line starting with `OK`, `ERR`, `STATUS`,
+/// `MODEL`) appeared, and returns that answer.
+fn ask(board: &mut FakeBoard<false>, app: &mut TestApp, uart: &Uart, line: &str) -> String {
+    let before = uart.lines().len();
+    board.send(line, 0);
+    for _ in 0..5 {
+        app.step(board);
+        let lines = uart.lines();
+        if let Some(answer) = lines[before..].iter().find(|l| {
+            ["OK ", "ERR ", "STATUS ", "MODEL "]
+                .iter()
+                .any(|p| l.starts_with(p))
+        }) {
+            return answer.clone();
+        }
+    }
+    panic!("no answer to {line:?}: {:#?}", &uart.lines()[before..]);
+}
+
+/// Mean plant flow (slm) over the next `ticks` passes.
+fn mean_flow(board: &mut FakeBoard<false>, app: &mut TestApp, w: &Shared, ticks: usize) -> f64 {
+    let mut sum = 0.0;
+    for _ in 0..ticks {
+        app.step(board);
+        sum += f64::from(w.borrow().reading) / 120.0;
+    }
+    sum / ticks as f64
+}
+
+#[test]
+fn stop_turns_the_pump_off_in_the_same_pass_until_start() {
+    let (w, uart, mut board, mut app) = running();
+    mean_flow(&mut board, &mut app, &w, 200);
+    assert!(w.borrow().pwm > 0);
+    board.send("STOP\n", 0);
+    app.step(&mut board);
+    // The pass that received the line wrote 0 to the PWM.
+    assert_eq!(w.borrow().pwm, 0);
+    assert_eq!(app.selfid().state(), State::Stopped);
+    assert!(uart.lines().iter().any(|l| l == "OK stop"));
+    for _ in 0..300 {
+        app.step(&mut board);
+        assert_eq!(w.borrow().pwm, 0, "latched until START");
+    }
+    assert_eq!(ask(&mut board, &mut app, &uart, "START\n"), "OK start");
+    // As after a reset with the model in RAM: settle, LOADED, design, run.
+    run_until(&mut app, &mut board, 1_000, |a| {
+        a.selfid().state() == State::Run
+    });
+    assert!(uart.lines().iter().any(|l| l.starts_with("LOADED ")));
+    mean_flow(&mut board, &mut app, &w, 200);
+    assert!(w.borrow().pwm > 0);
+    // START while running changes nothing.
+    assert_eq!(ask(&mut board, &mut app, &uart, "START\n"), "ERR state");
+}
+
+#[test]
+fn stop_during_the_blocking_search_stops_the_pump_at_the_next_tick_boundary() {
+    let w = world(Plant::reference());
+    let uart = Uart::default();
+    let mut board = FakeBoard::<false>::with_console(&w);
+    let mut app = app(&w, &uart);
+    app.start(&mut board);
+    run_until(&mut app, &mut board, 8_000, search_is_next);
+    // Arrives 25 ms into the search (the search blocks the loop far longer in simulated time).
+    board.send("STOP\n", 25_000);
+    w.borrow_mut().pwm_log.clear();
+    app.step(&mut board);
+    let t_stop = w
+        .borrow()
+        .pwm_log
+        .iter()
+        .find(|&&(_, d)| d == 0)
+        .map(|&(t, _)| t);
+    let t_sent = w.borrow().pwm_log.first().map(|&(t, _)| t).unwrap();
+    let t_stop = t_stop.expect("the watch stopped the pump");
+    assert!(
+        t_stop <= t_sent + 25_000 + TICK_US + POLL_US,
+        "stopped {} µs after the search began",
+        t_stop - t_sent
+    );
+    app.step(&mut board);
+    assert_eq!(app.selfid().state(), State::Stopped);
+    assert!(uart.lines().iter().any(|l| l == "OK stop"));
+    for _ in 0..100 {
+        app.step(&mut board);
+        assert_eq!(w.borrow().pwm, 0);
+    }
+}
+
+#[test]
+fn set_flow_is_tracked_by_the_designed_controller() {
+    let (w, uart, mut board, mut app) = running();
+    for target in [45.0, 30.0] {
+        let line = format!("SET flow={target}\n");
+        assert_eq!(ask(&mut board, &mut app, &uart, &line), "OK set");
+        app.step(&mut board);
+        assert_eq!(app.selfid().setpoint(), Some(target as f32));
+        mean_flow(&mut board, &mut app, &w, 400);
+        let flow = mean_flow(&mut board, &mut app, &w, 100);
+        assert!(
+            (flow - target).abs() < 0.01 * target,
+            "flow {flow:.3} slm for a setpoint of {target} slm"
+        );
+    }
+}
+
+#[test]
+fn profile_runs_the_breath_it_names() {
+    use ridge_pump_firmware::setpoint::{Breath, Shape};
+    let (_w, uart, mut board, mut app) = running();
+    let line = "profile RAMP peak=50 bias=12.5 rate=15 ie=1.5 rise=0.25\r\n";
+    assert_eq!(ask(&mut board, &mut app, &uart, line), "OK profile");
+    let b = Breath {
+        shape: Shape::Ramp,
+        rate: 15.0,
+        ie: 1.5,
+        peak: 50.0,
+        bias: 12.5,
+        rise: 0.25,
+    };
+    // Two breaths (400 ticks each) of setpoints, against the definition sampled every 10 ms
+    // from some phase.
+    let mut got = Vec::new();
+    for _ in 0..800 {
+        app.step(&mut board);
+        got.push(app.selfid().setpoint().unwrap());
+    }
+    let best = (0..400)
+        .map(|k0| {
+            got.iter()
+                .enumerate()
+                .map(|(k, &r)| (r - b.at(((k + k0) % 400) as f32 * 0.01)).abs())
+                .fold(0.0f32, f32::max)
+        })
+        .fold(f32::INFINITY, f32::min);
+    assert!(best < 1e-3, "largest difference from the breath {best}");
+}
+
+#[test]
+fn bad_commands_answer_err_and_change_nothing() {
+    let (_w, uart, mut board, mut app) = running();
+    let program = app.selfid().program();
+    for (line, answer) in [
+        ("SET flow=999\n", "ERR range flow"),
+        ("SET flow=-1\n", "ERR range flow"),
+        ("SET flow=4x\n", "ERR number"),
+        ("SET flow=1.2345\n", "ERR number"),
+        ("SET pressure=4\n", "ERR field"),
+        ("SET\n", "ERR missing"),
+        ("SET flow=40 now\n", "ERR field"),
+        ("FLY\n", "ERR unknown"),
+        ("PROFILE square rise=5\n", "ERR range rise"),
+        ("PROFILE square rate=0\n", "ERR range rate"),
+        ("PROFILE sine\n", "ERR field"),
+        ("PROFILE square peak\n", "ERR field"),
+        ("LOG maybe\n", "ERR field"),
+    ] {
+        assert_eq!(ask(&mut board, &mut app, &uart, line), answer, "{line:?}");
+        assert_eq!(
+            app.selfid().program(),
+            program,
+            "{line:?} changed the program"
+        );
+        assert_eq!(app.selfid().state(), State::Run);
+    }
+    let long = format!("SET flow=40{}\n", " ".repeat(100));
+    assert_eq!(ask(&mut board, &mut app, &uart, &long), "ERR too-long");
+    board.rx_lost = true;
+    assert_eq!(
+        ask(&mut board, &mut app, &uart, "SET flow=40\n"),
+        "ERR overrun"
+    );
+    assert_eq!(app.selfid().program(), program);
+    // The next line is fine again.
+    assert_eq!(ask(&mut board, &mut app, &uart, "SET flow=40\n"), "OK set");
+}
+
+#[test]
+fn status_model_and_forget_answer() {
+    let (_w, uart, mut board, mut app) = running();
+    let status = ask(&mut board, &mut app, &uart, "STATUS\n");
+    assert!(status.starts_with("STATUS state=run "), "{status}");
+    assert_eq!(field(&status, "fault"), "none");
+    let model = ask(&mut board, &mut app, &uart, "MODEL\n");
+    let id = uart
+        .lines()
+        .into_iter()
+        .find(|l| l.starts_with("ID "))
+        .unwrap();
+    for key in ["p", "q", "d", "theta", "phi", "c"] {
+        assert_eq!(field(&model, key), field(&id, key), "{key}");
+    }
+    app.step(&mut board);
+    assert!(uart
+        .lines()
+        .iter()
+        .any(|l| l.starts_with("RST r=1.000000,")));
+    let saves = board.saves.len();
+    assert_eq!(ask(&mut board, &mut app, &uart, "FORGET\n"), "OK forget");
+    let erased = board.saves.get(saves).expect("a write");
+    assert!(erased.iter().all(|&b| b == 0xFF));
+    assert!(persist::decode(erased).is_err());
+}
+
+#[test]
+fn log_rows_are_the_samples_of_the_record() {
+    let w = world(Plant::reference());
+    let uart = Uart::default();
+    let mut board = FakeBoard::<false>::with_console(&w);
+    let mut app = app(&w, &uart);
+    app.start(&mut board);
+    assert_eq!(ask(&mut board, &mut app, &uart, "LOG on\n"), "OK log");
+    run_until(&mut app, &mut board, 8_000, |a| {
+        a.selfid().state() == State::Run
+    });
+    mean_flow(&mut board, &mut app, &w, 300);
+    let lines = uart.lines();
+    let header = lines.iter().position(|l| l == "t,u,y,r,phase").unwrap();
+    let rows: Vec<Vec<&str>> = lines[header + 1..]
+        .iter()
+        .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert!(rows.iter().all(|r| r.len() == 5), "five columns");
+    // Time: 10 ms a row, gaps only over the blocking search and design.
+    let t: Vec<i64> = rows
+        .iter()
+        .map(|r| (r[0].parse::<f64>().unwrap() * 100.0).round() as i64)
+        .collect();
+    let gaps = t.windows(2).filter(|p| p[1] - p[0] != 1).count();
+    assert!(t.windows(2).all(|p| p[1] > p[0]));
+    assert!(gaps <= 2, "{gaps} gaps");
+    // The excitation rows: as many as the record has samples, each duty the one the pump
+    // held during the interval before the reading, each flow the plant's reading.
+    let excite: Vec<&Vec<&str>> = rows.iter().filter(|r| r[4] == "excite").collect();
+    assert_eq!(
+        excite.len() as u32,
+        Config::default().excitation.len_samples()
+    );
+    let excitation = ridge_pump_firmware::excitation::Record::AMultistep;
+    let mut gen = excitation.generator();
+    let first: u16 = (excite[0][1].parse::<f64>().unwrap() * 1e4).round() as u16;
+    assert_eq!(Some(first), gen.next_duty(), "the record's first duty");
+    for r in &excite {
+        let y: f64 = r[2].parse().unwrap();
+        let counts = (y * 120.0).round();
+        assert!(
+            (y * 120.0 - counts).abs() < 1e-3,
+            "y = counts / 120 to 5 decimals: {y}"
+        );
+    }
+    // Run mode rows carry the setpoint.
+    let run: Vec<&Vec<&str>> = rows.iter().filter(|r| r[4] == "run").collect();
+    assert!(run.len() >= 300);
+    assert!(run.iter().all(|r| r[3].parse::<f32>().is_ok()));
+    assert!(excite.iter().all(|r| r[3].is_empty()));
+    // A full transmit queue drops rows and says so.
+    board.room = 10;
+    let n = uart.lines().len();
+    mean_flow(&mut board, &mut app, &w, 150);
+    let later = &uart.lines()[n..];
+    assert!(later
+        .iter()
+        .all(|l| !l.starts_with(|c: char| c.is_ascii_digit())));
+    assert!(later.iter().any(|l| l.starts_with("LOG dropped=")));
 }

@@ -95,3 +95,16 @@ fn producer_and_consumer_threads_exchange_every_byte_in_order() {
     producer.join().unwrap();
     assert_eq!(q.pop(), None);
 }
+
+#[test]
+fn room_counts_the_free_slots() {
+    let ring = Ring::<8>::new();
+    assert_eq!(ring.room(), 7);
+    for n in 1..=7 {
+        assert!(ring.push(n));
+        assert_eq!(ring.room(), 7 - usize::from(n));
+    }
+    assert!(!ring.push(0));
+    assert_eq!(ring.pop(), Some(1));
+    assert_eq!(ring.room(), 1);
+}

@@ -44,7 +44,14 @@ impl SelfIdentification {
         pet();
         match result {
             Ok(d) => {
-                let run = RunMode::new(self.cfg, model, &d, self.duty, self.last_counts);
+                let run = RunMode::new(
+                    self.cfg,
+                    model,
+                    &d,
+                    self.program,
+                    self.duty,
+                    self.last_counts,
+                );
                 let preview = run.preview();
                 self.phase = Phase::Run(run);
                 Some(Event::Control {

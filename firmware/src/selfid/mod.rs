@@ -70,12 +70,14 @@
 //! | `mod.rs` | the machine: phases, [`SelfIdentification::tick`], validation, run mode, faults |
 //! | `config.rs` | [`Config`] and its defaults |
 //! | `guard.rs` | [`Guard`]: the fault checks of every tick |
+//! | `operator.rs` | the operator's commands: stop, start, the setpoint program |
 //! | `recording.rs` | the estimation record's statistics around the operating point, and [`absolute_model`] |
 //! | `search.rs` | the structure search: blocking, or as a [`SearchJob`] while ticks go on |
 
 mod config;
 mod design;
 mod guard;
+mod operator;
 mod recording;
 mod run;
 mod search;
@@ -90,6 +92,7 @@ use ridge_core::{ArxModel, Evaluation, IntGram};
 
 use crate::event::{Event, FaultReason, RejectReason, SensorFault, StoredReason};
 use crate::persist::{self, RECORD_LEN};
+use crate::setpoint::Program;
 use crate::units::{FRACTION_PER_DUTY, SLM_PER_COUNT};
 
 use recording::Recording;
@@ -112,8 +115,28 @@ pub enum State {
     Design,
     /// Controlling the flow, monitoring the model and the tracking.
     Run,
+    /// Stopped by the operator (duty 0) until [`SelfIdentification::start`].
+    Stopped,
     /// Stopped (duty 0), latched.
     Fault,
+}
+
+impl State {
+    /// Lower-case name used in `STATUS` lines and the log's `phase` column: `wait`, `settle`,
+    /// `excite`, `search`, `validate`, `design`, `run`, `stopped`, `fault`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            State::WaitSensor => "wait",
+            State::Settle => "settle",
+            State::Excite => "excite",
+            State::Search => "search",
+            State::Validate => "validate",
+            State::Design => "design",
+            State::Run => "run",
+            State::Stopped => "stopped",
+            State::Fault => "fault",
+        }
+    }
 }
 
 /// What one [`SelfIdentification::tick`] returns.
@@ -168,6 +191,8 @@ enum Phase {
         model: ArxModel<f32>,
     },
     Run(RunMode),
+    /// Stopped by the operator.
+    Stopped,
     Fault,
 }
 
@@ -207,6 +232,8 @@ pub struct SelfIdentification {
     drift: bool,
     /// A (re-)identification was requested: never settle into the stored model.
     identify: bool,
+    /// What run mode tracks (the settings' program until the operator sets another).
+    program: Program,
 }
 
 // RAM guard: 744 bytes on x86-64 (run mode is the largest phase: 624). The search itself runs on the
@@ -255,6 +282,7 @@ impl SelfIdentification {
             fault_announced: false,
             drift: false,
             identify: false,
+            program: config.control.program,
         }
     }
 
@@ -339,6 +367,7 @@ impl SelfIdentification {
             Phase::Validate { .. } => State::Validate,
             Phase::Design { .. } => State::Design,
             Phase::Run(_) => State::Run,
+            Phase::Stopped => State::Stopped,
             Phase::Fault => State::Fault,
         }
     }
@@ -361,10 +390,10 @@ impl SelfIdentification {
     }
 
     /// Starts a new identification (settle, excite, search, validate) from the next tick.
-    /// Ignored in the fault state. The current model (and the drift flag) stay until a new
+    /// Ignored in the fault and the stopped state. The current model (and the drift flag) stay until a new
     /// model is accepted.
     pub fn request_reidentification(&mut self) {
-        if matches!(self.phase, Phase::Fault) {
+        if matches!(self.phase, Phase::Fault | Phase::Stopped) {
             return;
         }
         self.attempt = 0;
@@ -397,6 +426,12 @@ impl SelfIdentification {
             Phase::Run(run) => Some(run.preview()),
             _ => None,
         }
+    }
+
+    /// The last good reading (held over sensor errors), counts (1/120 slm): the flow the
+    /// statistics and the controller use.
+    pub fn reading(&self) -> i16 {
+        self.last_counts
     }
 
     /// The settings.
@@ -593,7 +628,10 @@ impl SelfIdentification {
                 }
                 event
             }
-            Phase::Fault => None,
+            Phase::Stopped | Phase::Fault => {
+                self.duty = 0;
+                None
+            }
         }
     }
 

@@ -6,7 +6,7 @@ use ridge_core::ArxModel;
 
 use crate::event::Event;
 use crate::monitor::Monitor;
-use crate::setpoint::Setpoint;
+use crate::setpoint::{Program, Setpoint};
 use crate::tracking::Tracking;
 use crate::units::{DUTY_FULL_SCALE, FRACTION_PER_DUTY, SLM_PER_COUNT};
 
@@ -27,13 +27,14 @@ pub(super) struct RunMode {
 }
 
 impl RunMode {
-    /// Run mode with `design` for `model`, starting bumplessly from the duty `applied` and the
-    /// reading `counts`.
+    /// Run mode with `design` for `model`, tracking `program`, starting bumplessly from the
+    /// duty `applied` and the reading `counts`.
     #[inline(never)]
     pub(super) fn new(
         cfg: &Config,
         model: ArxModel<f32>,
         design: &Design<f32>,
+        program: Program,
         applied: u16,
         counts: i16,
     ) -> Self {
@@ -49,7 +50,7 @@ impl RunMode {
         RunMode {
             monitor: Monitor::new(model, cfg.monitor),
             ctrl,
-            setpoint: Setpoint::new(c.program, y0),
+            setpoint: Setpoint::new(program, y0),
             // Half a window out of step with the monitor's lines.
             tracking: Tracking::new(c.tracking, c.tracking.window / 2),
             current: y0,
@@ -83,6 +84,16 @@ impl RunMode {
         }
         self.current = r;
         (duty.min(DUTY_FULL_SCALE), event)
+    }
+
+    /// Tracks `program` from now on, starting from the setpoint in progress.
+    pub(super) fn set_program(&mut self, program: Program) {
+        self.setpoint = Setpoint::new(program, self.current);
+    }
+
+    /// The controller.
+    pub(super) fn controller(&self) -> &Controller<f32> {
+        &self.ctrl
     }
 
     /// Whether the tracking alarm is raised.

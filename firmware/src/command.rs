@@ -1,0 +1,320 @@
+//! The operator's console commands: one ASCII line each, parsed without allocation, floats or
+//! `core::fmt` (a float parser would cost the ATmega2560 several KB of flash).
+//!
+//! | line | effect (answer) |
+//! |---|---|
+//! | `STATUS` | one `STATUS ...` line (state, duty, flow, setpoint, fault, log) |
+//! | `STOP` | pump off in the same tick, latched until `START` (`OK stop`) |
+//! | `START` | leaves the stop (or a latched fault) and starts as after a reset (`OK start`) |
+//! | `SET flow=<slm>` | run mode tracks a constant flow (`OK set`) |
+//! | `PROFILE <square\|ramp> [peak=<slm>] [bias=<slm>] [rate=<1/min>] [ie=<x>] [rise=<s>]` | run mode tracks breaths; a key left out keeps the demo breath's value (`OK profile`) |
+//! | `REID` | identifies again now (`OK reid`) |
+//! | `MODEL` | the model and the controller in use (`MODEL ...`, `RST ...`) |
+//! | `FORGET` | erases the stored model; the one in use stays until the next reset (`OK forget`) |
+//! | `LOG on` / `LOG off` | starts / stops the CSV log (`OK log`, then the header) |
+//!
+//! Keywords and keys are case-insensitive; fields are separated by spaces. Numbers are decimals
+//! with an optional sign and at most [`MAX_DECIMALS`] fractional digits (`25`, `-0.5`,
+//! `12.125`). A line that does not parse answers `ERR <why>` (see [`CommandError::name`]) and
+//! changes nothing; so does a command the state machine refuses (a value out of range, `REID`
+//! in the fault state).
+
+use crate::setpoint::Shape;
+
+/// Longest accepted line, bytes without the terminator (the longest valid command with every
+/// key and 3 decimals is 72 bytes).
+pub const MAX_LINE: usize = 80;
+
+/// Most fractional digits a number may have.
+pub const MAX_DECIMALS: u8 = 3;
+
+/// A parsed number: thousandths of the unit (`12.125` → `12_125`), |value| ≤ 10⁶ units.
+pub type Milli = i32;
+
+/// Largest magnitude of a number, thousandths (10⁶ units).
+const MAX_MILLI: i64 = 1_000_000_000;
+
+/// A breath profile as typed: every value in thousandths of its unit, `None` where the key was
+/// left out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ProfileArgs {
+    /// Inspiratory shape.
+    pub shape: Shape,
+    /// Peak inspiratory flow, milli-slm.
+    pub peak: Option<Milli>,
+    /// Bias (expiratory) flow, milli-slm.
+    pub bias: Option<Milli>,
+    /// Breaths per minute, thousandths.
+    pub rate: Option<Milli>,
+    /// Expiratory part of the I:E ratio `1 : ie`, thousandths.
+    pub ie: Option<Milli>,
+    /// Rise time, ms.
+    pub rise: Option<Milli>,
+}
+
+/// A console command (see the [module docs](self)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Command {
+    /// `STATUS`.
+    Status,
+    /// `STOP`.
+    Stop,
+    /// `START`.
+    Start,
+    /// `SET flow=<slm>`: the flow in milli-slm.
+    Set(Milli),
+    /// `PROFILE ...`.
+    Profile(ProfileArgs),
+    /// `REID`.
+    Reid,
+    /// `MODEL`.
+    Model,
+    /// `FORGET`.
+    Forget,
+    /// `LOG on` (`true`) / `LOG off` (`false`).
+    Log(bool),
+}
+
+/// Why a line is not a command. Flat, like the answer it produces: `ERR <name>`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CommandError {
+    /// Longer than [`MAX_LINE`] bytes (the rest of the line is skipped).
+    TooLong,
+    /// Bytes were lost by the receiver (its queue was full): the line is not trusted.
+    Overrun,
+    /// Not one of the keywords.
+    Unknown,
+    /// A required field is missing.
+    Missing,
+    /// A field that the command does not take, or a key given without `=`.
+    BadField,
+    /// A value that is not a number of the accepted form.
+    BadNumber,
+    /// A value the state machine refuses; the name of the setting.
+    Range(&'static str),
+    /// The command does not apply in the current state.
+    State,
+}
+
+impl CommandError {
+    /// The answer's reason: `too-long`, `overrun`, `unknown`, `missing`, `field`, `number`,
+    /// `range <setting>` (printed by the caller), `state`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            CommandError::TooLong => "too-long",
+            CommandError::Overrun => "overrun",
+            CommandError::Unknown => "unknown",
+            CommandError::Missing => "missing",
+            CommandError::BadField => "field",
+            CommandError::BadNumber => "number",
+            CommandError::Range(_) => "range",
+            CommandError::State => "state",
+        }
+    }
+}
+
+/// Parses one line (without its terminator; a trailing `\r` and surrounding spaces are
+/// ignored). Never panics, for any bytes.
+pub fn parse(line: &[u8]) -> Result<Command, CommandError> {
+    if line.len() > MAX_LINE {
+        return Err(CommandError::TooLong);
+    }
+    let mut words = line
+        .split(|&b| b == b' ' || b == b'\t' || b == b'\r')
+        .filter(|w| !w.is_empty());
+    let keyword = words.next().ok_or(CommandError::Unknown)?;
+    let command = if eq(keyword, b"STATUS") {
+        Command::Status
+    } else if eq(keyword, b"STOP") {
+        Command::Stop
+    } else if eq(keyword, b"START") {
+        Command::Start
+    } else if eq(keyword, b"REID") {
+        Command::Reid
+    } else if eq(keyword, b"MODEL") {
+        Command::Model
+    } else if eq(keyword, b"FORGET") {
+        Command::Forget
+    } else if eq(keyword, b"LOG") {
+        let arg = words.next().ok_or(CommandError::Missing)?;
+        if eq(arg, b"ON") {
+            Command::Log(true)
+        } else if eq(arg, b"OFF") {
+            Command::Log(false)
+        } else {
+            return Err(CommandError::BadField);
+        }
+    } else if eq(keyword, b"SET") {
+        let field = words.next().ok_or(CommandError::Missing)?;
+        let (key, value) = key_value(field)?;
+        if !eq(key, b"FLOW") {
+            return Err(CommandError::BadField);
+        }
+        Command::Set(number(value)?)
+    } else if eq(keyword, b"PROFILE") {
+        let shape = words.next().ok_or(CommandError::Missing)?;
+        let shape = if eq(shape, b"SQUARE") {
+            Shape::Square
+        } else if eq(shape, b"RAMP") {
+            Shape::Ramp
+        } else {
+            return Err(CommandError::BadField);
+        };
+        let mut args = ProfileArgs {
+            shape,
+            peak: None,
+            bias: None,
+            rate: None,
+            ie: None,
+            rise: None,
+        };
+        for field in words.by_ref() {
+            let (key, value) = key_value(field)?;
+            let slot = if eq(key, b"PEAK") {
+                &mut args.peak
+            } else if eq(key, b"BIAS") {
+                &mut args.bias
+            } else if eq(key, b"RATE") {
+                &mut args.rate
+            } else if eq(key, b"IE") {
+                &mut args.ie
+            } else if eq(key, b"RISE") {
+                &mut args.rise
+            } else {
+                return Err(CommandError::BadField);
+            };
+            *slot = Some(number(value)?);
+        }
+        Command::Profile(args)
+    } else {
+        return Err(CommandError::Unknown);
+    };
+    if words.next().is_some() {
+        return Err(CommandError::BadField);
+    }
+    Ok(command)
+}
+
+/// `word` equals the upper-case `keyword`, ignoring ASCII case.
+fn eq(word: &[u8], keyword: &[u8]) -> bool {
+    word.eq_ignore_ascii_case(keyword)
+}
+
+/// Splits `key=value` (both non-empty).
+fn key_value(field: &[u8]) -> Result<(&[u8], &[u8]), CommandError> {
+    let at = field
+        .iter()
+        .position(|&b| b == b'=')
+        .ok_or(CommandError::BadField)?;
+    let (key, rest) = field.split_at(at);
+    let value = rest.get(1..).unwrap_or_default();
+    if key.is_empty() || value.is_empty() {
+        return Err(CommandError::BadField);
+    }
+    Ok((key, value))
+}
+
+/// `[-|+]digits[.digits]` with at least one digit, at most [`MAX_DECIMALS`] after the point,
+/// |value| ≤ 10⁶, as thousandths.
+fn number(text: &[u8]) -> Result<Milli, CommandError> {
+    let (negative, digits) = match text.split_first() {
+        Some((b'-', rest)) => (true, rest),
+        Some((b'+', rest)) => (false, rest),
+        _ => (false, text),
+    };
+    let mut value: i64 = 0;
+    let mut decimals: Option<u8> = None;
+    let mut any = false;
+    for &b in digits {
+        match b {
+            b'0'..=b'9' => {
+                if let Some(n) = decimals.as_mut() {
+                    if *n == MAX_DECIMALS {
+                        return Err(CommandError::BadNumber);
+                    }
+                    *n += 1;
+                }
+                value = value * 10 + i64::from(b - b'0');
+                if value > MAX_MILLI {
+                    return Err(CommandError::BadNumber);
+                }
+                any = true;
+            }
+            b'.' if decimals.is_none() => decimals = Some(0),
+            _ => return Err(CommandError::BadNumber),
+        }
+    }
+    if !any {
+        return Err(CommandError::BadNumber);
+    }
+    for _ in decimals.unwrap_or(0)..MAX_DECIMALS {
+        value *= 10;
+    }
+    if value > MAX_MILLI {
+        return Err(CommandError::BadNumber);
+    }
+    let value = if negative { -value } else { value };
+    Milli::try_from(value).map_err(|_| CommandError::BadNumber)
+}
+
+/// Assembles received bytes into lines: [`push`](Line::push) one byte at a time; a `\n` or
+/// `\r` completes a line. Bytes beyond [`MAX_LINE`] are dropped and the line answers
+/// [`CommandError::TooLong`]; [`overrun`](Line::overrun) marks the line in progress as
+/// damaged.
+#[derive(Debug, Clone)]
+pub struct Line {
+    buf: [u8; MAX_LINE],
+    len: u8,
+    /// What the line in progress will answer instead of being parsed.
+    damaged: Option<CommandError>,
+}
+
+impl Default for Line {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Line {
+    /// An empty line.
+    pub const fn new() -> Self {
+        Line {
+            buf: [0; MAX_LINE],
+            len: 0,
+            damaged: None,
+        }
+    }
+
+    /// Adds `byte`; at a line end returns the line's command (or why it is none) and starts a
+    /// new line. Empty lines return `None` (a `\r\n` ends one line, not two).
+    pub fn push(&mut self, byte: u8) -> Option<Result<Command, CommandError>> {
+        if byte == b'\n' || byte == b'\r' {
+            let len = usize::from(self.len);
+            let damaged = self.damaged.take();
+            self.len = 0;
+            if let Some(e) = damaged {
+                return Some(Err(e));
+            }
+            let line = self.buf.get(..len).unwrap_or_default();
+            if line.iter().all(|&b| b == b' ' || b == b'\t') {
+                return None;
+            }
+            return Some(parse(line));
+        }
+        match self.buf.get_mut(usize::from(self.len)) {
+            Some(slot) => {
+                *slot = byte;
+                self.len += 1;
+            }
+            None => {
+                self.damaged.get_or_insert(CommandError::TooLong);
+            }
+        }
+        None
+    }
+
+    /// The receiver lost bytes: the line in progress answers [`CommandError::Overrun`].
+    pub fn overrun(&mut self) {
+        self.damaged = Some(CommandError::Overrun);
+    }
+}
