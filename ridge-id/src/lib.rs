@@ -35,6 +35,13 @@
 //! `tests/control.rs` checks `--control` against a known plant (closed-loop polynomial and
 //! poles rebuilt from the JSON, the loop simulated on the true plant, refusals).
 //!
+//! - [`input::Input`]: a regular file (streamed for every pass) or input that can be read only
+//!   once (`--input -`, a pipe, a FIFO: read once into memory, at most
+//!   [`input::MEMORY_ROWS`] rows).
+//! - [`warnings`]: what should not be trusted about a model (unstable, negative fit, too
+//!   short or too little excited for the structure, Ridge-M stopped on a non-move), in every
+//!   [`Report`]; `--strict` exits 1 on any.
+//!
 //! Memory is independent of the record length: the estimation record is read once for
 //! the statistics, once more to score the model (and once more for RLS); the
 //! validation record once for its statistics and once to score the model. The plot
