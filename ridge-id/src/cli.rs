@@ -13,7 +13,7 @@ use ridge_core::{
 };
 
 use crate::control::{ControlOptions, DEFAULT_TS, EXIT_REFUSED};
-use crate::options::{parse_range, parse_structure, Options};
+use crate::options::{parse_range, parse_structure, Options, MAX_ITER_LIMIT};
 use crate::report::Hyper;
 use crate::run;
 use ridge_core::control::Spec;
@@ -40,9 +40,15 @@ pub enum Command {
 }
 
 /// The exit statuses, in `--help`.
-const EXIT_HELP: &str = "Exit status: 0 success; 1 an identification error (one line on stderr); \
-2 a command-line error; 3 the controller of --control was refused (the report, with the reason, \
-is still printed).";
+const EXIT_HELP: &str =
+    "Exit status: 0 success; 1 an identification error (one line on stderr), or \
+with --strict a report with warnings (the report is printed, then one line on stderr); 2 a \
+command-line error; 3 the controller of --control was refused (the report, with the reason, \
+is still printed).
+
+Input: a regular file is streamed (any length, constant memory); --input - (standard input), a \
+pipe or a FIFO is read once into memory, at most 4194304 rows. Lines longer than 1 MiB are an \
+error.";
 
 /// `--help` of `--control`: what is designed and the conventions.
 const CONTROL_HELP: &str = "\
@@ -114,6 +120,15 @@ fn offset_help(o: Offset) -> &'static str {
     }
 }
 
+/// `--max-iter`: a whole number in `1..=MAX_ITER_LIMIT`, with a message saying so.
+fn max_iter(s: &str) -> Result<u32, String> {
+    s.trim()
+        .parse::<u32>()
+        .ok()
+        .filter(|k| (1..=MAX_ITER_LIMIT).contains(k))
+        .ok_or_else(|| format!("must be a whole number in 1..={MAX_ITER_LIMIT}"))
+}
+
 fn p_range(s: &str) -> Result<OrderRange, String> {
     parse_range(s, 1, P_MAX as u8)
 }
@@ -127,7 +142,8 @@ fn d_range(s: &str) -> Result<OrderRange, String> {
 /// Options of `ridge-id identify`.
 #[derive(Debug, Args)]
 pub struct IdentifyArgs {
-    /// Estimation record: CSV with a header row and columns u and y.
+    /// Estimation record: CSV with a header row and columns u and y; - reads standard input
+    /// (once, into memory: at most 4194304 rows).
     #[arg(long, value_name = "LOG.csv")]
     pub input: PathBuf,
     /// Validation record (same format), scored like the estimation record.
@@ -147,26 +163,26 @@ pub struct IdentifyArgs {
         value_parser = names(&Criterion::ALL, Criterion::name, criterion_help)
     )]
     pub criterion: Criterion,
-    /// Ridge / Ridge-M regularisation gamma.
-    #[arg(long, value_name = "G", default_value_t = Hyper::default().gamma)]
+    /// Ridge / Ridge-M regularisation gamma, above 0.
+    #[arg(long, value_name = "G", default_value_t = Hyper::default().gamma, allow_negative_numbers = true)]
     pub gamma: f64,
     /// Ridge-M momentum beta, in [0, 1).
-    #[arg(long, value_name = "B", default_value_t = Hyper::default().beta)]
+    #[arg(long, value_name = "B", default_value_t = Hyper::default().beta, allow_negative_numbers = true)]
     pub beta: f64,
-    /// Penalty weight alpha of the paper and aic criteria.
-    #[arg(long, value_name = "A", default_value_t = Hyper::default().alpha)]
+    /// Penalty weight alpha of the paper and aic criteria, at least 0.
+    #[arg(long, value_name = "A", default_value_t = Hyper::default().alpha, allow_negative_numbers = true)]
     pub alpha: f64,
-    /// Ridge-M maximum iterations.
-    #[arg(long, value_name = "K", default_value_t = Hyper::default().max_iter)]
+    /// Ridge-M maximum iterations, 1..=100000.
+    #[arg(long, value_name = "K", default_value_t = Hyper::default().max_iter, allow_negative_numbers = true, value_parser = max_iter)]
     pub max_iter: u32,
-    /// Ridge-M stopping tolerance on ‖w_{k+1} − w_k‖.
-    #[arg(long, value_name = "E", default_value_t = Hyper::default().tol)]
+    /// Ridge-M stopping tolerance on ‖w_{k+1} − w_k‖, at least 0.
+    #[arg(long, value_name = "E", default_value_t = Hyper::default().tol, allow_negative_numbers = true)]
     pub tol: f64,
     /// RLS forgetting factor lambda, in (0, 1] (--method rls only).
-    #[arg(long, value_name = "L", default_value_t = Hyper::default().lambda)]
+    #[arg(long, value_name = "L", default_value_t = Hyper::default().lambda, allow_negative_numbers = true)]
     pub lambda: f64,
-    /// RLS initial covariance P0 = delta I (--method rls only).
-    #[arg(long, value_name = "D", default_value_t = Hyper::default().delta)]
+    /// RLS initial covariance P0 = delta I, above 0 (--method rls only).
+    #[arg(long, value_name = "D", default_value_t = Hyper::default().delta, allow_negative_numbers = true)]
     pub delta: f64,
     /// Autoregressive orders searched: a..=b or a single number.
     #[arg(long = "p", value_name = "RANGE", default_value = "1..=6", value_parser = p_range)]
@@ -190,6 +206,11 @@ pub struct IdentifyArgs {
     /// Print exactly one JSON object instead of the readable report.
     #[arg(long)]
     pub json: bool,
+    /// Exit with status 1 when the report has warnings (an unstable model, a negative fit,
+    /// a record too short or too little excited for the structure, a Ridge-M run that
+    /// stopped without converging); the report is printed all the same.
+    #[arg(long)]
+    pub strict: bool,
     /// Write a PNG of measured vs one-step vs free-run output (with --control, also
     /// OUT-control.png: the simulated closed-loop step).
     #[arg(long, value_name = "OUT.png")]
@@ -310,7 +331,8 @@ fn print(text: &str) -> bool {
 }
 
 /// `main` of the `ridge-id` binary: exit 0 on success, 1 on an identification error
-/// (one line `error: …` on stderr), 2 on a command-line error (clap's message),
+/// (one line `error: …` on stderr) or, with `--strict`, a report with warnings (printed,
+/// then one line `error: --strict: …` on stderr), 2 on a command-line error (clap's message),
 /// [`EXIT_REFUSED`] (3) when the controller of `--control` was refused (the report, with the
 /// reason, is printed as on success).
 pub fn main() -> ExitCode {
@@ -347,7 +369,14 @@ pub fn main() -> ExitCode {
                     .as_ref()
                     .is_some_and(|c| c.refusal().is_some());
                 if print(&text) {
-                    if refused {
+                    if args.strict && !report.warnings.is_empty() {
+                        eprintln!(
+                            "error: --strict: {} warning(s), the first: {}",
+                            report.warnings.len(),
+                            report.warnings[0].message
+                        );
+                        ExitCode::FAILURE
+                    } else if refused {
                         ExitCode::from(EXIT_REFUSED)
                     } else {
                         ExitCode::SUCCESS

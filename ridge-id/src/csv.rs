@@ -12,10 +12,15 @@
 //!   double-quoted as RFC 4180 says (a quoted comma does not separate cells).
 //! - line ends may be `\n` or `\r\n`; the text must be UTF-8.
 //!
+//! - a line may be at most [`MAX_LINE`] bytes (1 MiB) long: a longer one is an error naming
+//!   its line, so that a file without line ends (a binary file, a log written without
+//!   `\n`) cannot make the reader grow its buffer without bound.
+//!
 //! The parsing is the `csv` crate's; this module adds the column lookup, the checks and
 //! the messages. Rows are read one at a time into one reused buffer, so a record of
 //! any length streams in constant memory. Errors name the file, the 1-based line and the
-//! problem, e.g. `LOG.csv line 17: column y: "abc" is not a number`.
+//! problem, e.g. `LOG.csv line 17: column y: "abc" is not a number`; a cell or a header
+//! is quoted with at most [`QUOTE_CHARS`] characters.
 
 // Measured (`ridge-id identify --input big.csv --json`, release build, 10^6 rows, 48 MB;
 // medians of 7 runs on a shared 2-core machine): 0.36 s wall and 3.1 MB peak RSS with the
@@ -30,6 +35,39 @@ use std::path::{Path, PathBuf};
 use csv::{ByteRecord, ReaderBuilder, StringRecord, Terminator};
 
 use crate::error::IdError;
+
+/// Longest line accepted, in bytes (1 MiB): a row of `t,u,y` is a few dozen bytes.
+pub const MAX_LINE: u64 = 1 << 20;
+
+/// Most characters of a cell or a header quoted in an error message.
+pub const QUOTE_CHARS: usize = 80;
+
+/// `text` as a quoted string for a message: `"abc"` (Rust string syntax, so control
+/// characters are escaped), cut to its first [`QUOTE_CHARS`] characters and marked
+/// `"abc…" (1234 characters)` when longer.
+pub fn quote(text: &str) -> String {
+    let total = text.chars().count();
+    if total <= QUOTE_CHARS {
+        return format!("{text:?}");
+    }
+    let head: String = text.chars().take(QUOTE_CHARS).collect();
+    let mut q = format!("{head:?}");
+    q.insert(q.len() - 1, '…');
+    format!("{q} ({total} characters)")
+}
+
+/// The error [`Source`] returns for a line longer than [`MAX_LINE`] (an `io::Error` of kind
+/// `InvalidData` wrapping this, recognised in [`CsvRecord::read_error`]).
+#[derive(Debug)]
+struct LineTooLong;
+
+impl std::fmt::Display for LineTooLong {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "line longer than {MAX_LINE} bytes")
+    }
+}
+
+impl std::error::Error for LineTooLong {}
 
 /// One `(u_t, y_t)` sample and the line it came from.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,24 +109,54 @@ pub struct CsvRecord<R: Read = File> {
 
 /// The input as the `csv` reader pulls it, with what tells whether the last row of the
 /// input ended with a line end: how many bytes were read, whether the input has ended,
-/// and its last byte.
+/// and its last byte; and the bytes since the last line end, to stop at a line longer
+/// than [`MAX_LINE`].
 #[derive(Debug)]
 struct Source<R> {
     inner: R,
     bytes: u64,
     ended: bool,
     last: Option<u8>,
+    /// Bytes read since the last `\n`.
+    run: u64,
 }
 
 impl<R: Read> Read for Source<R> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let n = self.inner.read(buf)?;
-        match buf.get(..n).and_then(<[u8]>::last) {
+        let got = buf.get(..n).unwrap_or_default();
+        match got.last() {
             Some(&b) => {
                 self.bytes += n as u64;
                 self.last = Some(b);
             }
             None => self.ended |= !buf.is_empty(),
+        }
+        // The first and the last line end of the chunk: a chunk of ordinary rows has both
+        // within a few dozen bytes of its ends, so this costs next to nothing. Lines between
+        // them are shorter than the chunk, checked only when the chunk is longer than a line
+        // may be.
+        let too_long = match got.iter().position(|&b| b == b'\n') {
+            None => {
+                self.run += n as u64;
+                false
+            }
+            Some(first) => {
+                let over = self.run + first as u64 > MAX_LINE
+                    || (n as u64 > MAX_LINE
+                        && got
+                            .split(|&b| b == b'\n')
+                            .any(|l| l.len() as u64 > MAX_LINE));
+                let last = got.iter().rposition(|&b| b == b'\n').unwrap_or(first);
+                self.run = (n - 1 - last) as u64;
+                over
+            }
+        };
+        if too_long || self.run > MAX_LINE {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                LineTooLong,
+            ));
         }
         Ok(n)
     }
@@ -119,6 +187,7 @@ impl<R: Read> CsvRecord<R> {
             bytes: 0,
             ended: false,
             last: None,
+            run: 0,
         };
         let reader = ReaderBuilder::new()
             // The header is checked here, for its messages and line number.
@@ -220,6 +289,20 @@ impl<R: Read> CsvRecord<R> {
         // same.
         let text = e.to_string();
         match e.into_kind() {
+            csv::ErrorKind::Io(source)
+                if source
+                    .get_ref()
+                    .is_some_and(|inner| inner.is::<LineTooLong>()) =>
+            {
+                IdError::line(
+                    &self.path,
+                    line,
+                    format!(
+                        "line longer than {MAX_LINE} bytes (1 MiB) without a line end: \
+                         not a CSV log of u and y (a binary file, or rows without line ends?)"
+                    ),
+                )
+            }
             csv::ErrorKind::Io(source) => IdError::Io {
                 path: self.path.clone(),
                 line: Some(line),
@@ -260,7 +343,7 @@ impl<R: Read> CsvRecord<R> {
                         self.line,
                         format!(
                             "header has no column named {want} (found: {}){hint}",
-                            names.join(", ")
+                            found(&names)
                         ),
                     ))
                 }
@@ -312,12 +395,12 @@ impl<R: Read> CsvRecord<R> {
             Ok(_) => Err(IdError::line(
                 &self.path,
                 self.line,
-                format!("column {column}: {s:?} is not a finite number"),
+                format!("column {column}: {} is not a finite number", quote(s)),
             )),
             Err(_) => Err(IdError::line(
                 &self.path,
                 self.line,
-                format!("column {column}: {s:?} is not a number"),
+                format!("column {column}: {} is not a number", quote(s)),
             )),
         }
     }
@@ -351,6 +434,17 @@ impl<R: Read> Iterator for CsvRecord<R> {
             }
         }
     }
+}
+
+/// The column names of a header for a message: `t, u`, cut to about [`QUOTE_CHARS`]
+/// characters (`a, b, … (1234 columns)` when longer).
+fn found(names: &[&str]) -> String {
+    let all = names.join(", ");
+    if all.chars().count() <= QUOTE_CHARS {
+        return all;
+    }
+    let head: String = all.chars().take(QUOTE_CHARS).collect();
+    format!("{head}… ({} columns)", names.len())
 }
 
 /// A cell without surrounding blanks and double quotes. The `csv` reader has removed the
@@ -541,6 +635,59 @@ mod tests {
         assert_eq!(
             r.unwrap_err().to_string(),
             "LOG.csv line 3: cannot read: disk on fire"
+        );
+    }
+
+    #[test]
+    fn long_lines_stop_at_the_cap_with_their_line_number() {
+        /// `head`, then `fill` forever (no line end).
+        #[derive(Debug)]
+        struct Endless(&'static [u8], u8, usize);
+        impl Read for Endless {
+            fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+                for b in buf.iter_mut() {
+                    *b = self.0.get(self.2).copied().unwrap_or(self.1);
+                    self.2 += 1;
+                }
+                Ok(buf.len())
+            }
+        }
+        let cap = MAX_LINE as usize;
+        // An endless header line, and an endless data row after two good rows.
+        let e = CsvRecord::from_reader(Endless(b"", b'x', 0), "LOG.csv").unwrap_err();
+        assert_eq!(e.line_number(), Some(1), "{e}");
+        assert!(e.to_string().contains("longer than 1048576 bytes"), "{e}");
+        let r = CsvRecord::from_reader(Endless(b"u,y\n1,2\n# c\n3,4\n5,", b'7', 0), "LOG.csv");
+        let e = r.unwrap().collect::<Result<Vec<_>, _>>().unwrap_err();
+        assert_eq!(e.line_number(), Some(5), "{e}");
+        // The cap itself is fine, one byte more is not (the line end not counted).
+        let row = |len: usize| format!("u,y\n1,{}\n", "0".repeat(len - 2));
+        let s = read(&row(cap)).unwrap();
+        assert_eq!(s.len(), 1);
+        let e = read(&row(cap + 1)).unwrap_err();
+        assert_eq!(e.line_number(), Some(2), "{e}");
+    }
+
+    #[test]
+    fn messages_quote_at_most_80_characters() {
+        let long = "a".repeat(500_000);
+        let m = msg(&format!("u,y\n1,{long}\n"));
+        assert!(m.len() < 200, "{} bytes", m.len());
+        assert_eq!(
+            m,
+            format!(
+                "LOG.csv line 2: column y: \"{}…\" (500000 characters) is not a number",
+                "a".repeat(QUOTE_CHARS)
+            )
+        );
+        let m = msg(&format!("{long},v\n"));
+        assert!(m.len() < 250, "{} bytes: {m}", m.len());
+        assert!(m.ends_with("… (2 columns))"), "{m}");
+        // 80 characters are quoted whole.
+        let cell = "é".repeat(QUOTE_CHARS);
+        assert_eq!(
+            msg(&format!("u,y\n1,{cell}\n")),
+            format!("LOG.csv line 2: column y: \"{cell}\" is not a number")
         );
     }
 

@@ -92,6 +92,15 @@ impl RecordStats {
 /// Errors: everything [`CsvRecord`] reports, with file and line.
 pub fn read_record(path: impl AsRef<Path>) -> Result<RecordStats, IdError> {
     let path = path.as_ref();
+    read_samples(path, CsvRecord::open(path)?)
+}
+
+/// [`read_record`] of a stream of samples (e.g. an [`crate::input::Input`]'s) named
+/// `path` in messages.
+pub fn read_samples<I>(path: &Path, samples: I) -> Result<RecordStats, IdError>
+where
+    I: IntoIterator<Item = Result<Sample, IdError>>,
+{
     let mut stats = RecordStats {
         path: path.to_path_buf(),
         gram: FloatGram::new(),
@@ -99,7 +108,7 @@ pub fn read_record(path: impl AsRef<Path>) -> Result<RecordStats, IdError> {
         u_range: (f64::INFINITY, f64::NEG_INFINITY),
         y_range: (f64::INFINITY, f64::NEG_INFINITY),
     };
-    for s in CsvRecord::open(path)? {
+    for s in samples {
         let s = s?;
         stats.gram.push(s.u, s.y).map_err(|e| {
             IdError::line(
@@ -180,16 +189,19 @@ pub fn evaluate_file(
     trace: Option<&mut Trace>,
 ) -> Result<Figures, IdError> {
     let path = path.as_ref();
-    evaluate(CsvRecord::open(path)?, model, trace)?.ok_or_else(|| {
-        let m = model.structure().seed_len();
-        IdError::file(
-            path,
-            format!(
-                "too short to score the model: its first {m} samples only seed the predictors, at least {} data rows needed",
-                m + 1
-            ),
-        )
-    })
+    evaluate(CsvRecord::open(path)?, model, trace)?.ok_or_else(|| too_short_to_score(path, &model))
+}
+
+/// The error of a record with no sample past the model's seed.
+pub(crate) fn too_short_to_score(path: &Path, model: &ArxModel<f64>) -> IdError {
+    let m = model.structure().seed_len();
+    IdError::file(
+        path,
+        format!(
+            "too short to score the model: its first {m} samples only seed the predictors, at least {} data rows needed",
+            m + 1
+        ),
+    )
 }
 
 /// A bounded picture of one signal for plotting: every sample while the record has at

@@ -35,6 +35,13 @@
 //! `tests/control.rs` checks `--control` against a known plant (closed-loop polynomial and
 //! poles rebuilt from the JSON, the loop simulated on the true plant, refusals).
 //!
+//! - [`input::Input`]: a regular file (streamed for every pass) or input that can be read only
+//!   once (`--input -`, a pipe, a FIFO: read once into memory, at most
+//!   [`input::MEMORY_ROWS`] rows).
+//! - [`warnings`]: what should not be trusted about a model (unstable, negative fit, too
+//!   short or too little excited for the structure, Ridge-M stopped on a non-move), in every
+//!   [`Report`]; `--strict` exits 1 on any.
+//!
 //! Memory is independent of the record length: the estimation record is read once for
 //! the statistics, once more to score the model (and once more for RLS); the
 //! validation record once for its statistics and once to score the model. The plot
@@ -45,9 +52,11 @@ pub mod control;
 pub mod csv;
 pub mod error;
 pub mod eval;
+pub mod input;
 pub mod options;
 pub mod plot;
 pub mod report;
+pub mod warnings;
 
 pub use control::{ControlOptions, ControlReport};
 pub use error::IdError;
@@ -59,7 +68,8 @@ use ridge_core::{
     ArxModel, Criterion, Error as CoreError, Grid, MethodKind, Normal, Rls, Search, Structure,
 };
 
-use csv::CsvRecord;
+use input::{evaluate_input, read_input, Input};
+use warnings::number;
 
 /// Where `--plot OUT.png` puts the closed-loop step of `--control`: `OUT-control.png`, next
 /// to it.
@@ -115,54 +125,113 @@ fn check_rows(rec: &RecordStats, grid: &Grid, offset: ridge_core::Offset) -> Res
     Ok(())
 }
 
+/// Products of two samples below this are too small for `f64` statistics: near the
+/// subnormal range (2.2e-308) sums of squares lose their precision.
+pub const TINY_PRODUCT: f64 = 1e-280;
+
 /// Explains why no candidate of `grid` could be fitted on `normal`.
-fn no_candidate(
-    rec: &RecordStats,
-    normal: &Normal<f64>,
-    grid: &Grid,
-    offset: ridge_core::Offset,
-) -> IdError {
+fn no_candidate(rec: &RecordStats, normal: &Normal<f64>, grid: &Grid, opts: &Options) -> IdError {
+    let offset = opts.offset;
     let mut singular = 0usize;
     let mut short = 0usize;
+    let mut infinite = 0usize;
     for s in grid.iter() {
         match normal.system(s, offset).and_then(|sys| sys.factor(0.0)) {
             Err(CoreError::TooShort { .. }) => short += 1,
             Err(CoreError::NotPositiveDefinite) => singular += 1,
+            Ok(f) => {
+                let v = opts.criterion.value(
+                    opts.hyper.alpha,
+                    f.rss_min(),
+                    normal.samples(),
+                    s,
+                    offset,
+                );
+                infinite += usize::from(!v.is_finite());
+            }
             _ => {}
         }
     }
-    let detail = if singular > 0 && short == 0 {
+    let big = |r: (f64, f64)| r.0.abs().max(r.1.abs());
+    let (u, y) = (big(rec.u_range), big(rec.y_range));
+    let tiny = (u * u).min(u * y).min(y * y) < TINY_PRODUCT;
+    let smallest_k = grid
+        .iter()
+        .map(|s| s.params(offset) + usize::from(s.d))
+        .min()
+        .unwrap_or(1) as f64;
+    let detail = if tiny && singular > 0 {
+        format!(
+            "the values are too small for f64 statistics (largest |u| {u:e}, largest |y| {y:e}: \
+             products of two samples fall below {TINY_PRODUCT:e}, near the f64 underflow); \
+             multiply the columns by a power of ten"
+        )
+    } else if singular > 0 && short == 0 {
         "the normal equations are singular: the input does not excite these structures \
          (too few distinct input values or a too-regular input)"
             .to_string()
+    } else if infinite > 0 && singular == 0 && short == 0 {
+        if !(opts.hyper.alpha * smallest_k).is_finite() {
+            format!(
+                "the criterion is not finite for any candidate: --alpha {:e} times the number \
+                 of coefficients overflows f64; use a smaller --alpha",
+                opts.hyper.alpha
+            )
+        } else {
+            "the criterion N ln(RSS/N) + penalty is not finite for any candidate (RSS 0 or \
+             overflowing: rescale the data)"
+                .to_string()
+        }
     } else {
-        format!("{singular} candidates singular (insufficient excitation), {short} longer than the record")
+        format!(
+            "{singular} candidates singular (insufficient excitation), {short} longer than the \
+             record, {infinite} with a criterion that is not finite"
+        )
     };
     let which = if grid.len() == 1 {
-        "the structure".to_string()
+        "the structure could not be fitted".to_string()
     } else {
-        format!("none of the {} candidate structures", grid.len())
+        format!(
+            "none of the {} candidate structures could be fitted",
+            grid.len()
+        )
     };
     IdError::file(
         &rec.path,
-        format!(
-            "{which} could not be fitted on {}: {detail}",
-            rec.describe_rows()
-        ),
+        format!("{which} on {}: {detail}", rec.describe_rows()),
     )
 }
 
 /// Runs RLS on the estimation record, one update per sample.
-fn run_rls(opts: &Options, structure: Structure) -> Result<(ArxModel<f64>, u32), IdError> {
+fn run_rls(
+    opts: &Options,
+    input: &Input,
+    structure: Structure,
+) -> Result<(ArxModel<f64>, u32), IdError> {
     let mut rls = Rls::new(structure, opts.offset, opts.hyper.lambda, opts.hyper.delta)
         .map_err(|e| IdError::Usage(format!("rls: {e}")))?;
-    for s in CsvRecord::open(&opts.input)? {
+    for s in input.samples()? {
         let s = s?;
         rls.update(s.u, s.y).map_err(|e| {
+            let hint = if opts.hyper.lambda < 1.0 {
+                format!(
+                    "with --lambda {} the covariance grows by 1/lambda = {} a sample in \
+                     the directions the data do not excite: use a lambda closer to 1 (e.g. \
+                     0.98 to 1), or a smaller --delta (now {})",
+                    number(opts.hyper.lambda),
+                    number(1.0 / opts.hyper.lambda),
+                    number(opts.hyper.delta)
+                )
+            } else {
+                format!(
+                    "try a smaller --delta (now {}: P0 = delta I)",
+                    number(opts.hyper.delta)
+                )
+            };
             IdError::line(
-                &opts.input,
+                input.name(),
                 s.line,
-                format!("the RLS update diverged here ({e}); try a smaller --delta"),
+                format!("the RLS update diverged here ({e}); {hint}"),
             )
         })?;
     }
@@ -179,9 +248,13 @@ fn run_rls(opts: &Options, structure: Structure) -> Result<(ArxModel<f64>, u32),
 /// cannot be written.
 pub fn run(opts: &Options) -> Result<Report, IdError> {
     opts.check()?;
+    if let Some(p) = &opts.plot {
+        input::check_output(p)?;
+    }
     let grid = opts.effective_grid();
-    let est = read_record(&opts.input)?;
-    let val = opts.validate.as_ref().map(read_record).transpose()?;
+    let (est_in, val_in) = Input::open_pair(&opts.input, opts.validate.as_deref())?;
+    let est = read_input(&est_in)?;
+    let val = val_in.as_ref().map(read_input).transpose()?;
     let est_normal = est.normal()?;
     check_rows(&est, &grid, opts.offset)?;
     let val_normal = match (&val, opts.criterion) {
@@ -211,21 +284,21 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         .map_err(|e| match e {
             CoreError::NoCandidate => match (&val, &val_normal) {
                 (Some(v), Some(vn)) if no_fit_on(vn, &grid, opts) => {
-                    no_candidate(v, vn, &grid, opts.offset)
+                    no_candidate(v, vn, &grid, opts)
                 }
-                _ => no_candidate(&est, &est_normal, &grid, opts.offset),
+                _ => no_candidate(&est, &est_normal, &grid, opts),
             },
             other => IdError::Usage(format!("structure search: {other}")),
         })?;
     let structure = sel.structure();
     let (model, iterations, rss, score) = match opts.method {
         MethodKind::Rls => {
-            let (model, samples) = run_rls(opts, structure)?;
+            let (model, samples) = run_rls(opts, &est_in, structure)?;
             let rss_of = |n: &Normal<f64>, path: &std::path::Path| {
                 n.rss(&model)
                     .map_err(|e| IdError::file(path, format!("cannot score the RLS model: {e}")))
             };
-            let rss = rss_of(&est_normal, &opts.input)?;
+            let rss = rss_of(&est_normal, est_in.name())?;
             // Scored like the search scores its candidates: on the validation statistics
             // for `validation`, else on the estimation statistics.
             let (score_rss, score_samples) = match (&val_normal, &val) {
@@ -248,13 +321,13 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         .plot
         .as_ref()
         .map(|_| Trace::new(u64::from(est.rows()), PLOT_POINTS));
-    let estimation = evaluate_file(&opts.input, model, est_trace.as_mut())?;
+    let estimation = evaluate_input(&est_in, model, est_trace.as_mut())?;
     let mut val_trace = match (&opts.plot, &val) {
         (Some(_), Some(v)) => Some(Trace::new(u64::from(v.rows()), PLOT_POINTS)),
         _ => None,
     };
-    let validation = match &opts.validate {
-        Some(p) => Some(evaluate_file(p, model, val_trace.as_mut())?),
+    let validation = match &val_in {
+        Some(v) => Some(evaluate_input(v, model, val_trace.as_mut())?),
         None => None,
     };
 
@@ -284,7 +357,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
                 let title = format!(
                     "closed-loop setpoint steps (simulated on the model): {}   ({},{},{})   \
                      pole placement, tau {} s, margin {:.2}",
-                    path_name(&opts.input),
+                    path_name(est_in.name()),
                     s.p,
                     s.q,
                     s.d,
@@ -313,22 +386,31 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
             )
         };
         let mut panels = vec![plot::Panel {
-            title: title("estimation", &opts.input, &estimation),
+            title: title("estimation", est_in.name(), &estimation),
             trace: et,
         }];
-        if let (Some(vt), Some(vp), Some(vf)) = (&val_trace, &opts.validate, &validation) {
+        if let (Some(vt), Some(vi), Some(vf)) = (&val_trace, &val_in, &validation) {
             panels.push(plot::Panel {
-                title: title("validation", vp, vf),
+                title: title("validation", vi.name(), vf),
                 trace: vt,
             });
         }
         plot::write_png(path, &panels)?;
     }
 
+    let warnings = warnings::warnings(&warnings::Run {
+        opts,
+        normal: &est_normal,
+        model: &model,
+        iterations,
+        estimation: (est_in.name(), &estimation),
+        validation: val_in.as_ref().map(|v| v.name()).zip(validation.as_ref()),
+    });
+
     Ok(Report {
-        input: opts.input.clone(),
+        input: est_in.name().to_path_buf(),
         input_rows: est.rows(),
-        validate: opts.validate.clone(),
+        validate: val_in.as_ref().map(|v| v.name().to_path_buf()),
         validate_rows: val.as_ref().map(|v| v.rows()),
         method: opts.method,
         criterion: opts.criterion,
@@ -348,6 +430,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         plot: opts.plot.clone(),
         control,
         control_plot,
+        warnings,
     })
 }
 

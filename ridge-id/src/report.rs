@@ -9,6 +9,7 @@ use serde::Serialize;
 
 use crate::control::ControlReport;
 use crate::eval::Figures;
+use crate::warnings::Warning;
 
 /// Hyper-parameters of a run (all of them, whether the method uses them or not).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -96,6 +97,9 @@ pub struct Report {
     pub control: Option<ControlReport>,
     /// The PNG of the simulated closed-loop step written (`--control --plot`), if any.
     pub control_plot: Option<PathBuf>,
+    /// What should not be trusted about the model ([`crate::warnings`]); empty when all
+    /// is well.
+    pub warnings: Vec<Warning>,
 }
 
 #[derive(Serialize)]
@@ -149,6 +153,7 @@ struct Json<'a> {
     validation: Option<JsonFigures>,
     #[serde(skip_serializing_if = "Option::is_none")]
     control: Option<JsonControl<'a>>,
+    warnings: Vec<&'a str>,
 }
 
 #[derive(Serialize)]
@@ -236,7 +241,8 @@ impl Report {
     /// "score", "iterations", "hyper": {"gamma","beta","alpha","max_iter","tol"},
     /// "estimation": {"n","rmse_one_step","rmse_free_run","fit_free_run"},
     /// "validation": {…} (only with a validation record), "control": {…} (only with
-    /// --control)}`.
+    /// --control), "warnings": [str, …]}` (always present, empty when all is well; see
+    /// [`crate::warnings`]).
     /// `offset` is the intercept (0 without one); `n` counts the scored samples `m..N`.
     /// A non-finite number (a diverging free run) is written as `null`.
     ///
@@ -285,6 +291,7 @@ impl Report {
             estimation: JsonFigures::from(&self.estimation),
             validation: self.validation.as_ref().map(JsonFigures::from),
             control: self.control.as_ref().map(JsonControl::from),
+            warnings: self.warnings.iter().map(|w| w.message.as_str()).collect(),
         }
     }
 
@@ -391,7 +398,7 @@ impl Report {
         );
         let iter_note = match self.method {
             MethodKind::RidgeM if self.iterations >= h.max_iter => " (max-iter reached)",
-            MethodKind::RidgeM => " (converged: step below tol)",
+            MethodKind::RidgeM => " (stopped: step below tol)",
             MethodKind::Rls => " (one update per sample)",
             MethodKind::AdaptiveLasso
                 if self.iterations >= ridge_core::AdaptiveLasso::<f64>::default().max_sweeps =>
@@ -451,6 +458,13 @@ impl Report {
         }
         if let (Some(p), Some(r)) = (&self.validate, self.validate_rows) {
             let _ = writeln!(o, "  (validation record: {}, {r} samples)", p.display());
+        }
+        if !self.warnings.is_empty() {
+            let _ = writeln!(o);
+            let _ = writeln!(o, "  warnings ({}):", self.warnings.len());
+            for w in &self.warnings {
+                let _ = writeln!(o, "    - {}", w.message);
+            }
         }
         if let Some(c) = &self.control {
             let _ = writeln!(o);

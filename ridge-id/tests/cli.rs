@@ -130,6 +130,7 @@ fn json_has_exactly_the_documented_fields() {
         "iterations",
         "hyper",
         "estimation",
+        "warnings",
     ];
     for method in ["ridge-m", "ridge", "ols", "rls", "alasso"] {
         for with_val in [false, true] {
@@ -171,6 +172,8 @@ fn json_has_exactly_the_documented_fields() {
             assert_eq!(j["hyper"]["max_iter"].as_u64(), Some(200));
             assert_eq!(j["hyper"]["tol"].as_f64(), Some(1e-6));
             check_figures(&j["estimation"]);
+            // A stable plant, 2000 rows of random steps, well fitted: nothing to warn about.
+            assert_eq!(j["warnings"], Value::Array(vec![]), "{method}");
             if with_val {
                 check_figures(&j["validation"]);
             }

@@ -1,0 +1,329 @@
+//! Byte-level and value-level fuzzing with proptest, bounded in cases so that it runs in
+//! `cargo test` (and so in CI) in seconds: never a panic, never a hang, every error one
+//! short line.
+//!
+//! - the CSV reader on arbitrary bytes and on CSV-like token soup;
+//! - ridge-core's statistics, structure search (every estimator and criterion) and RLS on
+//!   arbitrary finite data (magnitudes from 1e-300 to 1e300, constant runs, few rows);
+//! - the whole `ridge_id::run` pipeline on arbitrary finite records with arbitrary valid
+//!   options: a report whose warnings agree with its own figures, or a one-line error.
+//!
+//! Case counts are the `cases` of each block (figures in the README); set
+//! `RIDGE_FUZZ_SCALE=N` to multiply them for a longer run. Each case of the last two is
+//! also timed: one taking over 10 s fails as a hang.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use proptest::prelude::*;
+use proptest::test_runner::Config;
+use ridge_core::{
+    AdaptiveLasso, Criterion, Evaluation, FloatGram, Grid, Method, MethodKind, Offset, OrderRange,
+    Ridge, RidgeM, Rls, Scale, Search, Structure,
+};
+use ridge_id::csv::CsvRecord;
+use ridge_id::warnings::WarningKind;
+use ridge_id::{run, IdError, Options};
+
+fn config(cases: u32) -> Config {
+    let scale = std::env::var("RIDGE_FUZZ_SCALE")
+        .ok()
+        .and_then(|s| s.parse::<u32>().ok())
+        .unwrap_or(1)
+        .max(1);
+    Config {
+        cases: cases.saturating_mul(scale),
+        failure_persistence: None,
+        max_shrink_iters: 2000,
+        ..Config::default()
+    }
+}
+
+/// Longest error message accepted: the file name, a line number and ~80 quoted characters.
+const MESSAGE_MAX: usize = 400;
+
+fn check_error(e: &IdError, text: &[u8]) {
+    let m = e.to_string();
+    assert!(!m.contains('\n'), "{m}");
+    assert!(m.len() <= MESSAGE_MAX, "{} bytes: {m}", m.len());
+    if let Some(line) = e.line_number() {
+        let lines = text.iter().filter(|&&b| b == b'\n').count() as u64 + 1;
+        assert!(
+            (1..=lines + 1).contains(&line),
+            "line {line} of {lines}: {m}"
+        );
+    }
+}
+
+fn read(text: &[u8]) {
+    match CsvRecord::from_reader(text, "F.csv") {
+        Err(e) => check_error(&e, text),
+        Ok(r) => {
+            let mut last = 0;
+            for s in r {
+                match s {
+                    Ok(s) => {
+                        assert!(s.u.is_finite() && s.y.is_finite());
+                        assert!(s.line > last, "lines {last} then {}", s.line);
+                        last = s.line;
+                    }
+                    Err(e) => check_error(&e, text),
+                }
+            }
+        }
+    }
+}
+
+/// CSV-like tokens, including the awkward ones.
+fn token() -> impl Strategy<Value = Vec<u8>> {
+    prop_oneof![
+        Just(b"u".to_vec()),
+        Just(b"y".to_vec()),
+        Just(b"t".to_vec()),
+        Just(b",".to_vec()),
+        Just(b",".to_vec()),
+        Just(b"\n".to_vec()),
+        Just(b"\n".to_vec()),
+        Just(b"\r\n".to_vec()),
+        Just(b"\"".to_vec()),
+        Just(b"#".to_vec()),
+        Just(b" ".to_vec()),
+        Just("\u{feff}".as_bytes().to_vec()),
+        Just(b"\xff".to_vec()),
+        Just(b"NaN".to_vec()),
+        Just(b"-inf".to_vec()),
+        Just(b"1e400".to_vec()),
+        Just(b"1e-320".to_vec()),
+        Just(b"u,y\n".to_vec()),
+        any::<f64>().prop_map(|v| v.to_string().into_bytes()),
+        (-1000i32..1000).prop_map(|v| v.to_string().into_bytes()),
+        prop::collection::vec(any::<u8>(), 0..4),
+    ]
+}
+
+proptest! {
+    #![proptest_config(config(10_000))]
+
+    #[test]
+    fn csv_reader_on_arbitrary_bytes(text in prop::collection::vec(any::<u8>(), 0..600)) {
+        read(&text);
+    }
+
+    #[test]
+    fn csv_reader_on_csv_like_tokens(tokens in prop::collection::vec(token(), 0..120)) {
+        read(&tokens.concat());
+    }
+}
+
+/// A finite value of any magnitude, or a level from a small set (constant runs, repeats).
+fn value() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        3 => -10.0f64..10.0,
+        1 => (-4i32..4).prop_map(f64::from),
+        1 => (-300i32..300, -1.0f64..1.0).prop_map(|(e, m)| m * 10f64.powi(e)),
+        1 => any::<f64>().prop_filter("finite", |v| v.is_finite()),
+    ]
+}
+
+/// A record: random values, or a random plant-like response to steps (so that some
+/// records fit well and the later stages run).
+fn record() -> impl Strategy<Value = Vec<(f64, f64)>> {
+    prop_oneof![
+        prop::collection::vec((value(), value()), 0..160),
+        (
+            prop::collection::vec(-1.0f64..1.0, 2..40),
+            -0.99f64..1.05,
+            -3.0f64..3.0,
+            1usize..12,
+            prop_oneof![Just(1.0), Just(1e-4), Just(1e-150), Just(1e120)],
+        )
+            .prop_map(|(levels, a, b, hold, scale)| {
+                let mut y = 0.0;
+                let mut out = Vec::new();
+                for l in levels {
+                    for _ in 0..hold {
+                        y = a * y + b * l;
+                        out.push((l * scale, y * scale));
+                    }
+                }
+                out
+            }),
+    ]
+}
+
+fn range(max: u8, lo: u8) -> impl Strategy<Value = OrderRange> {
+    (lo..=max, lo..=max).prop_map(|(a, b)| OrderRange::new(a.min(b), a.max(b)))
+}
+
+fn grid() -> impl Strategy<Value = Grid> {
+    (range(6, 1), range(6, 1), range(6, 0)).prop_map(|(p, q, d)| Grid { p, q, d })
+}
+
+fn method() -> impl Strategy<Value = Method<f64>> {
+    prop_oneof![
+        Just(Method::Ols),
+        (1e-6f64..1e6).prop_map(|gamma| Method::Ridge(Ridge { gamma })),
+        (1e-6f64..1e6, 0.0f64..0.999, 0.0f64..1e-2, 1u32..300).prop_map(
+            |(gamma, beta, tol, max_iter)| Method::RidgeM(RidgeM {
+                gamma,
+                beta,
+                tol,
+                max_iter
+            })
+        ),
+        Just(Method::AdaptiveLasso(AdaptiveLasso::default())),
+    ]
+}
+
+fn criterion() -> impl Strategy<Value = Criterion> {
+    prop::sample::select(Criterion::ALL.to_vec())
+}
+
+fn offset() -> impl Strategy<Value = Offset> {
+    prop::sample::select(Offset::ALL.to_vec())
+}
+
+const HANG: Duration = Duration::from_secs(10);
+
+proptest! {
+    #![proptest_config(config(1000))]
+
+    #[test]
+    fn core_search_and_rls_on_arbitrary_finite_data(
+        data in record(),
+        val in record(),
+        grid in grid(),
+        method in method(),
+        criterion in criterion(),
+        offset in offset(),
+        alpha in prop_oneof![0.0f64..50.0, Just(1e300)],
+        lambda in prop_oneof![Just(1.0), 0.5f64..1.0, 1e-12f64..1e-3],
+        delta in prop_oneof![Just(1e3), 1e-300f64..1e300],
+    ) {
+        let start = Instant::now();
+        let gram = |d: &[(f64, f64)]| {
+            let mut g = FloatGram::new();
+            for &(u, y) in d {
+                if g.push(u, y).is_err() {
+                    break;
+                }
+            }
+            g
+        };
+        let (g, gv) = (gram(&data), gram(&val));
+        if let (Ok(n), nv) = (g.normal::<f64>(Scale::UNIT), gv.normal::<f64>(Scale::UNIT)) {
+            let search = Search { grid, offset, criterion, alpha, method, prune: true };
+            let nv = nv.ok();
+            let v = if criterion == Criterion::Validation { nv.as_ref() } else { None };
+            if let Ok(sel) = search.run(&n, v) {
+                let s = sel.structure();
+                prop_assert!(grid.p.min <= s.p && s.p <= grid.p.max);
+                prop_assert!(grid.q.min <= s.q && s.q <= grid.q.max);
+                prop_assert!(grid.d.min <= s.d && s.d <= grid.d.max);
+                prop_assert!(sel.score.is_finite());
+                // The model scores on the data without panicking, whatever it predicts.
+                let mut ev = Evaluation::new(sel.fit.model());
+                for &(u, y) in &data {
+                    ev.push(u, y);
+                }
+                let _ = (ev.one_step(), ev.free_run());
+                if let Ok(mut rls) = Rls::new(s, offset, lambda, delta) {
+                    for &(u, y) in &data {
+                        if rls.update(u, y).is_err() {
+                            break;
+                        }
+                    }
+                    let _ = rls.model();
+                }
+            }
+        }
+        prop_assert!(start.elapsed() < HANG, "{:?}", start.elapsed());
+    }
+}
+
+fn write_record(name: &str, data: &[(f64, f64)]) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("ridge_id_fuzz");
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(name);
+    let mut f = std::io::BufWriter::new(std::fs::File::create(&p).unwrap());
+    writeln!(f, "t,u,y").unwrap();
+    for (i, (u, y)) in data.iter().enumerate() {
+        // `{:?}` prints the shortest text that reads back to the same f64.
+        writeln!(f, "{i},{u:?},{y:?}").unwrap();
+    }
+    f.flush().unwrap();
+    p
+}
+
+fn options() -> impl Strategy<Value = (MethodKind, Criterion, Offset, Option<Structure>, Grid)> {
+    (
+        prop::sample::select(MethodKind::ALL.to_vec()),
+        prop::sample::select(vec![
+            Criterion::Aic,
+            Criterion::Bic,
+            Criterion::Paper,
+            Criterion::Validation,
+        ]),
+        offset(),
+        prop::option::of(
+            (1u8..=6, 1u8..=6, 0u8..=6).prop_map(|(p, q, d)| Structure::new(p, q, d).unwrap()),
+        ),
+        grid(),
+    )
+}
+
+proptest! {
+    #![proptest_config(config(500))]
+
+    #[test]
+    fn the_pipeline_on_arbitrary_finite_records(
+        data in record(),
+        val in prop::option::of(record()),
+        (method, criterion, offset, structure, grid) in options(),
+        gamma in prop_oneof![Just(1000.0), 1e-300f64..1e300],
+        beta in prop_oneof![Just(0.01), 0.0f64..0.999_999],
+        tol in prop_oneof![Just(1e-6), 0.0f64..1.0],
+        max_iter in 1u32..400,
+        lambda in prop_oneof![Just(1.0), 1e-9f64..1.0],
+    ) {
+        let start = Instant::now();
+        let mut opts = Options::new(write_record("est.csv", &data));
+        opts.validate = val.as_ref().map(|v| write_record("val.csv", v));
+        opts.method = method;
+        opts.criterion = if opts.validate.is_none() && criterion == Criterion::Validation {
+            Criterion::Aic
+        } else {
+            criterion
+        };
+        opts.offset = offset;
+        opts.structure = structure;
+        opts.grid = grid;
+        opts.hyper.gamma = gamma;
+        opts.hyper.beta = beta;
+        opts.hyper.tol = tol;
+        opts.hyper.max_iter = max_iter;
+        opts.hyper.lambda = lambda;
+        match run(&opts) {
+            Ok(report) => {
+                let json: serde_json::Value =
+                    serde_json::from_str(&report.to_json_string()).unwrap();
+                prop_assert!(json["warnings"].is_array());
+                // The warnings agree with the report's own figures.
+                let negative =
+                    |f: &ridge_id::Figures| f.fit_free_run.is_nan() || f.fit_free_run < 0.0;
+                let want = negative(&report.estimation)
+                    || report.validation.as_ref().is_some_and(negative);
+                let got = report.warnings.iter().any(|w| w.kind == WarningKind::NegativeFit);
+                prop_assert_eq!(got, want, "{:?}", report.warnings);
+                let _ = report.to_text();
+            }
+            Err(e) => {
+                let m = e.to_string();
+                prop_assert!(!m.contains('\n'), "{}", m);
+                prop_assert!(m.len() <= MESSAGE_MAX + 200, "{} bytes: {}", m.len(), m);
+            }
+        }
+        prop_assert!(start.elapsed() < HANG, "{:?}", start.elapsed());
+    }
+}
