@@ -8,11 +8,12 @@ use std::str::FromStr;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
-use ridge_core::{
+use ridge_core_host::{
     Criterion, Grid, MethodKind, Offset, OrderRange, Structure, UnknownName, D_MAX, P_MAX, Q_MAX,
 };
 
 use crate::control::{ControlOptions, DEFAULT_TS, EXIT_REFUSED};
+use crate::initial::Initial;
 use crate::options::{parse_range, parse_structure, Options};
 use crate::report::Hyper;
 use crate::run;
@@ -187,6 +188,15 @@ pub struct IdentifyArgs {
         value_parser = names(&Offset::ALL, Offset::name, offset_help)
     )]
     pub offset: Offset,
+    /// Initial conditions of the regression: measured (the first M samples, M the grid's
+    /// longest lag, fill the lag history; as MATLAB and SysIdentPy) or zero (the paper's
+    /// eq. 6, the device's).
+    #[arg(
+        long,
+        default_value_t = Initial::default(),
+        value_parser = names(&Initial::ALL, Initial::name, Initial::help)
+    )]
+    pub initial: Initial,
     /// Print exactly one JSON object instead of the readable report.
     #[arg(long)]
     pub json: bool,
@@ -277,6 +287,7 @@ impl IdentifyArgs {
                 tol: self.tol,
                 lambda: self.lambda,
                 delta: self.delta,
+                initial: self.initial,
             },
             grid: Grid {
                 p: self.p,

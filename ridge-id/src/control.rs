@@ -438,6 +438,31 @@ pub struct LogSpan {
     pub y: f64,
 }
 
+/// The identified model (ridge-core-host, the host's maxima) as ridge-core's model, the one
+/// the firmware's controller design takes.
+///
+/// Errors: a structure beyond the device's maxima (`p`, `q`, `d` ≤ 6), as a usage error
+/// naming the structure.
+pub fn device_model(model: &ridge_core_host::ArxModel<f64>) -> Result<ArxModel<f64>, IdError> {
+    let s = model.structure();
+    let offset = match model.offset() {
+        ridge_core_host::Offset::None => ridge_core::Offset::None,
+        ridge_core_host::Offset::Intercept => ridge_core::Offset::Intercept,
+    };
+    ArxModel::new(model.theta(), model.phi(), s.d, offset, model.intercept()).map_err(|e| {
+        IdError::Usage(format!(
+            "--control: the identified structure (p = {}, q = {}, d = {}) is beyond the \
+             firmware's controller design (p, q, d ≤ {}, {}, {}): narrow --p, --q, --d ({e})",
+            s.p,
+            s.q,
+            s.d,
+            ridge_core::P_MAX,
+            ridge_core::Q_MAX,
+            ridge_core::D_MAX
+        ))
+    })
+}
+
 /// Checks `model` (identified on a log of spans `span`) and designs its controller as the
 /// firmware does (see the [module docs](self)). Never panics; a refusal is in
 /// [`ControlReport::outcome`].

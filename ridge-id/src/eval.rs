@@ -3,13 +3,13 @@
 //!
 //! Scores are from measured initial conditions: the one-step-ahead and free-run predictors
 //! are seeded with the first `m = max(p, d + q − 1)` measured samples and scored on
-//! samples `m..N` ([`ridge_core::Evaluation`]), as MATLAB `compare` and SysIdentPy do, so a
+//! samples `m..N` ([`ridge_core_host::Evaluation`]), as MATLAB `compare` and SysIdentPy do, so a
 //! model is not charged for a start-up transient it cannot know. (Estimation keeps the
 //! paper's zero history before the record, eq. 6 of the paper (Ridge-M ventilation pump).)
 
 use std::path::{Path, PathBuf};
 
-use ridge_core::{ArxModel, Error as CoreError, Evaluation, FloatGram, Normal, Scale};
+use ridge_core_host::{ArxModel, Error as CoreError, Evaluation, MeasuredGram, Normal, Scale};
 
 use crate::csv::{CsvRecord, Sample};
 use crate::error::IdError;
@@ -20,8 +20,9 @@ use crate::error::IdError;
 pub struct RecordStats {
     /// The file.
     pub path: PathBuf,
-    /// Exact streaming statistics of all samples (f64 sums).
-    pub gram: FloatGram,
+    /// Exact streaming statistics of all samples (f64 sums), the first
+    /// [`MeasuredGram::initial`] of them only filling the lag history.
+    pub gram: MeasuredGram<f64>,
     /// Line of the first and last sample (0 when there is none).
     pub lines: (u64, u64),
     /// Smallest and largest input.
@@ -34,6 +35,14 @@ impl RecordStats {
     /// Number of samples.
     pub fn rows(&self) -> u32 {
         self.gram.len()
+    }
+
+    /// `""`, or with measured initial conditions `" (the first M only fill the lag history)"`.
+    pub fn initial_note(&self) -> String {
+        match self.gram.initial() {
+            0 => String::new(),
+            m => format!(" (the first {m} only fill the lag history: --initial measured)"),
+        }
     }
 
     /// `"1024 data rows (lines 2–1025)"`.
@@ -80,21 +89,33 @@ impl RecordStats {
                 }
                 CoreError::TooShort { needed, .. } => IdError::file(
                     &self.path,
-                    format!("{}, at least {needed} needed", self.describe_rows()),
+                    format!(
+                        "{}, at least {} needed{}",
+                        self.describe_rows(),
+                        needed + self.gram.initial(),
+                        self.initial_note()
+                    ),
                 ),
                 other => IdError::file(&self.path, format!("{other}")),
             })
     }
 }
 
-/// Reads a whole CSV record into streaming statistics (one pass, constant memory).
+/// Reads a whole CSV record into streaming statistics with zero history (one pass, constant
+/// memory).
 ///
 /// Errors: everything [`CsvRecord`] reports, with file and line.
 pub fn read_record(path: impl AsRef<Path>) -> Result<RecordStats, IdError> {
+    read_record_with(path, 0)
+}
+
+/// [`read_record`] whose first `initial` samples only fill the lag history (measured
+/// initial conditions, [`MeasuredGram`]).
+pub fn read_record_with(path: impl AsRef<Path>, initial: u32) -> Result<RecordStats, IdError> {
     let path = path.as_ref();
     let mut stats = RecordStats {
         path: path.to_path_buf(),
-        gram: FloatGram::new(),
+        gram: MeasuredGram::new(initial),
         lines: (0, 0),
         u_range: (f64::INFINITY, f64::NEG_INFINITY),
         y_range: (f64::INFINITY, f64::NEG_INFINITY),

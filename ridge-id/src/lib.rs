@@ -12,14 +12,14 @@
 //! simulation's plots) can reuse the pieces:
 //! - [`csv::CsvRecord`]: streaming CSV reader (the `csv` crate) with line-numbered errors.
 //! - [`eval::read_record`]: one streaming pass into exact statistics
-//!   ([`ridge_core::FloatGram`], `f64`).
+//!   ([`ridge_core_host::FloatGram`], `f64`).
 //! - [`eval::evaluate_file`]: one streaming pass scoring a model one-step and free-run
 //!   from measured initial conditions (seeded with the first `m = max(p, d + q − 1)`
 //!   measured samples, scored on samples `m..N`), optionally collecting a bounded
 //!   [`eval::Trace`] for [`plot::write_png`].
 //! - [`Options`] (`src/options.rs`): what a run does; estimators, criteria and offsets are
-//!   ridge-core's [`ridge_core::MethodKind`], [`ridge_core::Criterion`] and
-//!   [`ridge_core::Offset`], named by their `name()` on the command line and in reports.
+//!   ridge-core's [`ridge_core_host::MethodKind`], [`ridge_core_host::Criterion`] and
+//!   [`ridge_core_host::Offset`], named by their `name()` on the command line and in reports.
 //! - [`run`]: the whole identification of [`Options`] → [`Report`] (`src/report.rs`: text
 //!   or JSON); every failure is an [`IdError`] (`src/error.rs`), one line naming the file,
 //!   the line and the problem.
@@ -45,17 +45,19 @@ pub mod control;
 pub mod csv;
 pub mod error;
 pub mod eval;
+pub mod initial;
 pub mod options;
 pub mod plot;
 pub mod report;
 
 pub use control::{ControlOptions, ControlReport};
 pub use error::IdError;
-pub use eval::{evaluate_file, read_record, Figures, RecordStats, Trace};
+pub use eval::{evaluate_file, read_record, read_record_with, Figures, RecordStats, Trace};
+pub use initial::Initial;
 pub use options::Options;
 pub use report::{Hyper, Report, SearchInfo};
 
-use ridge_core::{
+use ridge_core_host::{
     ArxModel, Criterion, Error as CoreError, Grid, MethodKind, Normal, Rls, Search, Structure,
 };
 
@@ -78,14 +80,19 @@ pub fn control_plot_path(plot: &std::path::Path) -> std::path::PathBuf {
 /// Points kept per signal for the plot.
 pub const PLOT_POINTS: usize = 2000;
 
-/// Rows a structure needs on a record: `m` seed samples, one per coefficient, plus one
-/// (the core's [`ridge_core::Normal::system`] rule).
-pub fn rows_needed(s: Structure, offset: ridge_core::Offset) -> u32 {
+/// Regression rows a structure needs on a record: `m` seed samples, one per coefficient, plus
+/// one (the core's [`ridge_core_host::Normal::system`] rule; with measured initial conditions
+/// the record needs the `M` initial samples more).
+pub fn rows_needed(s: Structure, offset: ridge_core_host::Offset) -> u32 {
     (s.seed_len() + s.params(offset) + 1) as u32
 }
 
 /// Checks that `rec` has enough rows for the smallest candidate of `grid`.
-fn check_rows(rec: &RecordStats, grid: &Grid, offset: ridge_core::Offset) -> Result<(), IdError> {
+fn check_rows(
+    rec: &RecordStats,
+    grid: &Grid,
+    offset: ridge_core_host::Offset,
+) -> Result<(), IdError> {
     let Some((s, needed)) = grid
         .iter()
         .map(|s| (s, rows_needed(s, offset)))
@@ -93,7 +100,8 @@ fn check_rows(rec: &RecordStats, grid: &Grid, offset: ridge_core::Offset) -> Res
     else {
         return Ok(());
     };
-    if rec.rows() < needed {
+    if rec.gram.rows() < needed {
+        let needed = needed + rec.gram.initial();
         let which = if grid.len() == 1 {
             "structure"
         } else {
@@ -103,12 +111,13 @@ fn check_rows(rec: &RecordStats, grid: &Grid, offset: ridge_core::Offset) -> Res
             &rec.path,
             format!(
                 "{}, but the {which} (p = {}, q = {}, d = {}) needs at least {needed} \
-                 (m = {} seed samples, one per coefficient, plus one)",
+                 (m = {} seed samples, one per coefficient, plus one){}",
                 rec.describe_rows(),
                 s.p,
                 s.q,
                 s.d,
-                s.seed_len()
+                s.seed_len(),
+                rec.initial_note()
             ),
         ));
     }
@@ -120,7 +129,7 @@ fn no_candidate(
     rec: &RecordStats,
     normal: &Normal<f64>,
     grid: &Grid,
-    offset: ridge_core::Offset,
+    offset: ridge_core_host::Offset,
 ) -> IdError {
     let mut singular = 0usize;
     let mut short = 0usize;
@@ -180,15 +189,19 @@ fn run_rls(opts: &Options, structure: Structure) -> Result<(ArxModel<f64>, u32),
 pub fn run(opts: &Options) -> Result<Report, IdError> {
     opts.check()?;
     let grid = opts.effective_grid();
-    let est = read_record(&opts.input)?;
-    let val = opts.validate.as_ref().map(read_record).transpose()?;
-    let est_normal = est.normal()?;
+    let initial = opts.hyper.initial.samples(&grid);
+    let est = read_record_with(&opts.input, initial)?;
+    let val = opts
+        .validate
+        .as_ref()
+        .map(|p| read_record_with(p, initial))
+        .transpose()?;
     check_rows(&est, &grid, opts.offset)?;
+    let est_normal = est.normal()?;
     let val_normal = match (&val, opts.criterion) {
         (Some(v), Criterion::Validation) => {
-            let n = v.normal()?;
             check_rows(v, &grid, opts.offset)?;
-            Some(n)
+            Some(v.normal()?)
         }
         (Some(v), _) => {
             // Not needed for the search, but a record without excitation cannot
@@ -262,10 +275,17 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         u: est.u_range.1 - est.u_range.0,
         y: est.y_range.1 - est.y_range.0,
     };
+    // The firmware's controller design, for the device's orders (p, q, d ≤ 6).
+    let device = opts
+        .control
+        .as_ref()
+        .map(|_| control::device_model(&model))
+        .transpose()?;
     let control = opts
         .control
         .as_ref()
-        .map(|c| control::control(&model, c, span));
+        .zip(device.as_ref())
+        .map(|(c, m)| control::control(m, c, span));
     // The simulated loop's limits are checked even without --plot: bad ones are a usage
     // error whatever is printed.
     let limits = opts
@@ -274,10 +294,12 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         .map(|c| c.limits(est.u_range))
         .transpose()?;
     let mut control_plot = None;
-    if let (Some(path), Some(report), Some(limits)) = (&opts.plot, &control, limits) {
+    if let (Some(path), Some(report), Some(limits), Some(device)) =
+        (&opts.plot, &control, limits, &device)
+    {
         if let Some(designed) = report.designed() {
             if let Some(step) =
-                control::simulate_step(&model, &designed.design, limits, report.options.ts)
+                control::simulate_step(device, &designed.design, limits, report.options.ts)
             {
                 let s = structure;
                 let d = &designed.design;
@@ -346,6 +368,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         estimation,
         validation,
         plot: opts.plot.clone(),
+        initial_samples: initial,
         control,
         control_plot,
     })

@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use ridge_core::{
+use ridge_core_host::{
     AdaptiveLasso, Criterion, Grid, Method as CoreMethod, MethodKind, Offset, OrderRange, Ridge,
     RidgeM, Structure, D_MAX, P_MAX, Q_MAX,
 };

@@ -4,11 +4,12 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use ridge_core::{ArxModel, Criterion, MethodKind, Offset};
+use ridge_core_host::{ArxModel, Criterion, MethodKind, Offset};
 use serde::Serialize;
 
 use crate::control::ControlReport;
 use crate::eval::Figures;
+use crate::initial::Initial;
 
 /// Hyper-parameters of a run (all of them, whether the method uses them or not).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -27,6 +28,8 @@ pub struct Hyper {
     pub lambda: f64,
     /// RLS initial covariance δ > 0, `P₀ = δI` (default 1e3).
     pub delta: f64,
+    /// Initial conditions of the regression (default [`Initial::Measured`]).
+    pub initial: Initial,
 }
 
 impl Default for Hyper {
@@ -40,6 +43,7 @@ impl Default for Hyper {
             tol: 1e-6,
             lambda: 1.0,
             delta: 1e3,
+            initial: Initial::Measured,
         }
     }
 }
@@ -80,7 +84,8 @@ pub struct Report {
     pub score: f64,
     /// Ridge-M iterates / adaptive-LASSO sweeps / 1 for closed forms / samples for RLS.
     pub iterations: u32,
-    /// `‖y − Xw‖²` on the estimation record with zero history (the regression of eq. 6).
+    /// `‖y − Xw‖²` on the estimation record's regression rows (rows `M+1..N` from measured
+    /// initial conditions, all rows with zero history: [`Hyper::initial`]).
     pub rss: f64,
     /// Hyper-parameters.
     pub hyper: Hyper,
@@ -92,6 +97,8 @@ pub struct Report {
     pub validation: Option<Figures>,
     /// The PNG written, if any.
     pub plot: Option<PathBuf>,
+    /// Samples `M` that only filled the lag history (0 with [`Initial::Zero`]).
+    pub initial_samples: u32,
     /// The controller design of `--control` (or why it was refused).
     pub control: Option<ControlReport>,
     /// The PNG of the simulated closed-loop step written (`--control --plot`), if any.
@@ -112,6 +119,7 @@ struct JsonHyper {
     alpha: f64,
     max_iter: u32,
     tol: f64,
+    initial: &'static str,
 }
 
 #[derive(Serialize)]
@@ -233,7 +241,7 @@ fn hp(v: f64) -> String {
 impl Report {
     /// The JSON object of `ridge-id --json`:
     /// `{"method", "criterion", "structure": {"p","q","d"}, "theta", "phi", "offset",
-    /// "score", "iterations", "hyper": {"gamma","beta","alpha","max_iter","tol"},
+    /// "score", "iterations", "hyper": {"gamma","beta","alpha","max_iter","tol","initial"},
     /// "estimation": {"n","rmse_one_step","rmse_free_run","fit_free_run"},
     /// "validation": {…} (only with a validation record), "control": {…} (only with
     /// --control)}`.
@@ -281,6 +289,7 @@ impl Report {
                 alpha: self.hyper.alpha,
                 max_iter: self.hyper.max_iter,
                 tol: self.hyper.tol,
+                initial: self.hyper.initial.name(),
             },
             estimation: JsonFigures::from(&self.estimation),
             validation: self.validation.as_ref().map(JsonFigures::from),
@@ -372,6 +381,14 @@ impl Report {
             }
         };
         let _ = writeln!(o, "  criterion   {crit}");
+        let initial = match self.hyper.initial {
+            Initial::Measured => format!(
+                "measured: the first M = {} samples fill the lag history, rows M+1..N",
+                self.initial_samples
+            ),
+            Initial::Zero => "zero: zero history before the record, rows 1..N (eq. 6)".into(),
+        };
+        let _ = writeln!(o, "  initial     {initial}");
         let search = if self.search.fixed {
             "fixed by --structure".to_string()
         } else {
@@ -394,7 +411,8 @@ impl Report {
             MethodKind::RidgeM => " (converged: step below tol)",
             MethodKind::Rls => " (one update per sample)",
             MethodKind::AdaptiveLasso
-                if self.iterations >= ridge_core::AdaptiveLasso::<f64>::default().max_sweeps =>
+                if self.iterations
+                    >= ridge_core_host::AdaptiveLasso::<f64>::default().max_sweeps =>
             {
                 " (coordinate-descent sweeps: budget reached, not converged)"
             }

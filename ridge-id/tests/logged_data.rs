@@ -32,7 +32,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{DMatrix, DVector};
-use ridge_core::{MethodKind, Offset, Structure};
+use ridge_core_host::{MethodKind, Offset, Structure};
 use ridge_id::{run, Figures, Options, Report};
 
 fn data(record: &str, half: &str) -> PathBuf {
@@ -292,7 +292,7 @@ fn scores_match_explicit_simulation() {
 /// (BIC), or nothing with the validation record's RSS and N (validation).
 #[test]
 fn rls_score_is_the_criterion_of_its_residuals() {
-    use ridge_core::Criterion;
+    use ridge_core_host::Criterion;
     for record in RECORDS {
         for (criterion, offset) in [
             (Criterion::Aic, Offset::Intercept),
@@ -385,7 +385,7 @@ fn buck_converter_validation_fits_are_sane() {
 /// 0.451 at convergence after 407 071 sweeps; buck converter: 136 119 sweeps needed).
 #[test]
 fn adaptive_lasso_default_converges_on_real_records() {
-    use ridge_core::{AdaptiveLasso, Estimator};
+    use ridge_core_host::{AdaptiveLasso, Estimator};
     for (record, s) in [
         ("cascaded-tanks", Structure::new(3, 4, 0).unwrap()),
         ("buck-converter", Structure::new(2, 3, 0).unwrap()),
