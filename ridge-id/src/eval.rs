@@ -13,6 +13,7 @@ use ridge_core_host::{ArxModel, Error as CoreError, Evaluation, MeasuredGram, No
 
 use crate::csv::{CsvRecord, Sample};
 use crate::error::IdError;
+use crate::residuals::{ResidualStats, Residuals};
 
 /// The statistics of one record after a streaming pass, plus what is needed to explain
 /// a problem with it.
@@ -156,6 +157,9 @@ pub struct Figures {
     pub fit_one_step: f64,
     /// Free-run fit % (what MATLAB `compare` shows).
     pub fit_free_run: f64,
+    /// Residual analysis of the one-step residuals on the scored samples (MATLAB `resid`);
+    /// `None` when they are all zero or the input is constant there.
+    pub residuals: Option<Residuals>,
 }
 
 /// Scores `model` on a stream of samples; `trace` (if any) receives every measured and
@@ -169,9 +173,13 @@ where
     I: IntoIterator<Item = Result<Sample, IdError>>,
 {
     let mut ev = Evaluation::new(model);
+    let mut resid = ResidualStats::new();
     for (i, s) in samples.into_iter().enumerate() {
         let s = s?;
         let pred = ev.push(s.u, s.y);
+        if let Some((one_step, _)) = pred {
+            resid.push(s.u, s.y - one_step);
+        }
         if let Some(t) = trace.as_deref_mut() {
             t.push(i as u64, s.y, pred);
         }
@@ -186,6 +194,7 @@ where
             rmse_free_run: b.rmse,
             fit_one_step: a.fit,
             fit_free_run: b.fit,
+            residuals: resid.finish(),
         }),
         _ => None,
     })

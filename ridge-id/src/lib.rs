@@ -49,6 +49,7 @@ pub mod initial;
 pub mod options;
 pub mod plot;
 pub mod report;
+pub mod residuals;
 
 pub use control::{ControlOptions, ControlReport};
 pub use error::IdError;
@@ -75,6 +76,19 @@ pub fn control_plot_path(plot: &std::path::Path) -> std::path::PathBuf {
         .map(|e| format!(".{}", e.to_string_lossy()))
         .unwrap_or_default();
     plot.with_file_name(format!("{stem}-control{ext}"))
+}
+
+/// Where `--plot OUT.png` puts the residual analysis: `OUT-residuals.png`, next to it.
+pub fn residuals_plot_path(plot: &std::path::Path) -> std::path::PathBuf {
+    let stem = plot
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = plot
+        .extension()
+        .map(|e| format!(".{}", e.to_string_lossy()))
+        .unwrap_or_default();
+    plot.with_file_name(format!("{stem}-residuals{ext}"))
 }
 
 /// Points kept per signal for the plot.
@@ -320,6 +334,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         }
     }
 
+    let mut residuals_plot = None;
     if let (Some(path), Some(et)) = (&opts.plot, &est_trace) {
         let s = structure;
         let title = |what: &str, p: &std::path::Path, f: &Figures| {
@@ -345,6 +360,20 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
             });
         }
         plot::write_png(path, &panels)?;
+        let mut rows = Vec::new();
+        for (what, f) in [
+            ("estimation", Some(&estimation)),
+            ("validation", validation.as_ref()),
+        ] {
+            if let Some(r) = f.and_then(|f| f.residuals.as_ref()) {
+                rows.push((what.to_string(), r));
+            }
+        }
+        if !rows.is_empty() {
+            let out = residuals_plot_path(path);
+            residuals::write_png(&out, &rows)?;
+            residuals_plot = Some(out);
+        }
     }
 
     Ok(Report {
@@ -369,6 +398,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         validation,
         plot: opts.plot.clone(),
         initial_samples: initial,
+        residuals_plot,
         control,
         control_plot,
     })

@@ -97,6 +97,8 @@ pub struct Report {
     pub validation: Option<Figures>,
     /// The PNG written, if any.
     pub plot: Option<PathBuf>,
+    /// The PNG of the residual analysis written (`--plot`), if any.
+    pub residuals_plot: Option<PathBuf>,
     /// Samples `M` that only filled the lag history (0 with [`Initial::Zero`]).
     pub initial_samples: u32,
     /// The controller design of `--control` (or why it was refused).
@@ -128,6 +130,17 @@ struct JsonFigures {
     rmse_one_step: f64,
     rmse_free_run: f64,
     fit_free_run: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    residuals: Option<JsonResiduals>,
+}
+
+#[derive(Serialize)]
+struct JsonResiduals {
+    autocorr: Vec<f64>,
+    crosscorr: Vec<f64>,
+    bound: f64,
+    white: bool,
+    independent: bool,
 }
 
 impl From<&Figures> for JsonFigures {
@@ -137,6 +150,13 @@ impl From<&Figures> for JsonFigures {
             rmse_one_step: f.rmse_one_step,
             rmse_free_run: f.rmse_free_run,
             fit_free_run: f.fit_free_run,
+            residuals: f.residuals.map(|r| JsonResiduals {
+                autocorr: r.autocorr.to_vec(),
+                crosscorr: r.crosscorr.to_vec(),
+                bound: r.bound,
+                white: r.white,
+                independent: r.independent,
+            }),
         }
     }
 }
@@ -242,10 +262,13 @@ impl Report {
     /// The JSON object of `ridge-id --json`:
     /// `{"method", "criterion", "structure": {"p","q","d"}, "theta", "phi", "offset",
     /// "score", "iterations", "hyper": {"gamma","beta","alpha","max_iter","tol","initial"},
-    /// "estimation": {"n","rmse_one_step","rmse_free_run","fit_free_run"},
+    /// "estimation": {"n","rmse_one_step","rmse_free_run","fit_free_run","residuals"},
     /// "validation": {…} (only with a validation record), "control": {…} (only with
     /// --control)}`.
     /// `offset` is the intercept (0 without one); `n` counts the scored samples `m..N`.
+    /// `"residuals"` (omitted when the residuals are all zero or the input is constant):
+    /// `{"autocorr": [r_1 … r_25], "crosscorr": [c_0 … c_25], "bound", "white",
+    /// "independent"}`, the residual analysis of [`crate::residuals`].
     /// A non-finite number (a diverging free run) is written as `null`.
     ///
     /// `"control"` is, for a designed controller,
@@ -467,6 +490,30 @@ impl Report {
         if let Some(v) = &self.validation {
             row("validation", v);
         }
+        let _ = writeln!(
+            o,
+            "  Residual analysis (one-step residuals, as MATLAB resid; 99 % bound 2.576/sqrt(N)):"
+        );
+        let mut resid = |name: &str, f: &Figures| {
+            let Some(r) = &f.residuals else {
+                let _ = writeln!(o, "  {name:<11} (none: zero residuals or constant input)");
+                return;
+            };
+            let max = |v: &[f64]| v.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+            let _ = writeln!(
+                o,
+                "  {name:<11} {} (max |r_k|, k 1..25: {:.3}), {} of the input (max |c_k|, k 0..25: {:.3}); bound {:.3}",
+                if r.white { "white" } else { "not white" },
+                max(&r.autocorr),
+                if r.independent { "independent" } else { "not independent" },
+                max(&r.crosscorr),
+                r.bound
+            );
+        };
+        resid("estimation", &self.estimation);
+        if let Some(v) = &self.validation {
+            resid("validation", v);
+        }
         if let (Some(p), Some(r)) = (&self.validate, self.validate_rows) {
             let _ = writeln!(o, "  (validation record: {}, {r} samples)", p.display());
         }
@@ -477,6 +524,9 @@ impl Report {
         if let Some(p) = &self.plot {
             let _ = writeln!(o);
             let _ = writeln!(o, "  plot written to {}", p.display());
+        }
+        if let Some(p) = &self.residuals_plot {
+            let _ = writeln!(o, "  residual analysis plot written to {}", p.display());
         }
         if let Some(p) = &self.control_plot {
             let _ = writeln!(o, "  closed-loop step plot written to {}", p.display());

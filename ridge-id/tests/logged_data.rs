@@ -297,7 +297,32 @@ fn explicit_scores(r: &Report, path: &Path) -> Figures {
         .sqrt();
     let norm = |e: &[f64]| e.iter().map(|v| v * v).sum::<f64>().sqrt();
     let rmse = |e: &[f64]| norm(e) / (e.len() as f64).sqrt();
+    // The residual analysis by its definition (MATLAB resid): one-step residuals e and the
+    // input with its mean removed over the scored samples, sums over pairs inside them.
+    let us = &u[seed..];
+    let ubar = us.iter().sum::<f64>() / us.len() as f64;
+    let up: Vec<f64> = us.iter().map(|v| v - ubar).collect();
+    let see: f64 = e1.iter().map(|v| v * v).sum();
+    let suu: f64 = up.iter().map(|v| v * v).sum();
+    let ns = e1.len();
+    let autocorr: [f64; 25] = std::array::from_fn(|i| {
+        let k = i + 1;
+        (k..ns).map(|t| e1[t] * e1[t - k]).sum::<f64>() / see
+    });
+    let crosscorr: [f64; 26] = std::array::from_fn(|k| {
+        (k..ns).map(|t| e1[t] * up[t - k]).sum::<f64>() / (see * suu).sqrt()
+    });
+    let bound = 2.576 / (ns as f64).sqrt();
+    let residuals = Some(ridge_id::residuals::Residuals {
+        n: ns as u32,
+        autocorr,
+        crosscorr,
+        bound,
+        white: autocorr.iter().all(|r| r.abs() <= bound),
+        independent: crosscorr.iter().all(|c| c.abs() <= bound),
+    });
     Figures {
+        residuals,
         n: e1.len() as u32,
         rmse_one_step: rmse(&e1),
         rmse_free_run: rmse(&ef),
@@ -324,6 +349,17 @@ fn scores_match_explicit_simulation() {
                 ];
                 for (got, want) in pairs {
                     assert_eq!(got.n, want.n);
+                    let (gr, wr) = (got.residuals.unwrap(), want.residuals.unwrap());
+                    for (a, b) in gr.autocorr.iter().zip(&wr.autocorr) {
+                        assert!((a - b).abs() < 1e-9, "{record} {method} r_k {a} vs {b}");
+                    }
+                    for (a, b) in gr.crosscorr.iter().zip(&wr.crosscorr) {
+                        assert!((a - b).abs() < 1e-9, "{record} {method} c_k {a} vs {b}");
+                    }
+                    assert_eq!(
+                        (gr.n, gr.bound, gr.white, gr.independent),
+                        (wr.n, wr.bound, wr.white, wr.independent)
+                    );
                     let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.abs().max(1.0);
                     assert!(
                         close(got.rmse_one_step, want.rmse_one_step)
