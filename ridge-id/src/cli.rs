@@ -15,6 +15,7 @@ use ridge_core_host::{
 use crate::control::{ControlOptions, DEFAULT_TS, EXIT_REFUSED};
 use crate::initial::Initial;
 use crate::options::{parse_range, parse_structure, Options};
+use crate::refine::{Refine, Select};
 use crate::report::Hyper;
 use crate::run;
 use ridge_core::control::Spec;
@@ -197,6 +198,23 @@ pub struct IdentifyArgs {
         value_parser = names(&Initial::ALL, Initial::name, Initial::help)
     )]
     pub initial: Initial,
+    /// How the structure is chosen: by --criterion, or by the lowest free-run RMSE on the
+    /// --validate record over all candidates.
+    #[arg(
+        long,
+        default_value_t = Select::default(),
+        value_parser = names(&Select::ALL, Select::name, Select::help)
+    )]
+    pub select: Select,
+    /// Output-error refinement of the chosen model (Gauss-Newton on the free-run error of the
+    /// estimation record, from the ARX estimate); with --validate kept only if it lowers the
+    /// validation free-run RMSE.
+    #[arg(
+        long,
+        default_value_t = Refine::default(),
+        value_parser = names(&Refine::ALL, Refine::name, Refine::help)
+    )]
+    pub refine: Refine,
     /// Print exactly one JSON object instead of the readable report.
     #[arg(long)]
     pub json: bool,
@@ -296,6 +314,8 @@ impl IdentifyArgs {
             },
             structure: self.structure,
             offset: self.offset,
+            select: self.select,
+            refine: self.refine,
             plot: self.plot.clone(),
             control: self.control.then_some(ControlOptions {
                 ts: self.ts,

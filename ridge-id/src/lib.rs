@@ -48,6 +48,7 @@ pub mod eval;
 pub mod initial;
 pub mod options;
 pub mod plot;
+pub mod refine;
 pub mod report;
 pub mod residuals;
 
@@ -63,6 +64,7 @@ use ridge_core_host::{
 };
 
 use csv::CsvRecord;
+use refine::{Refine, Select};
 
 /// Where `--plot OUT.png` puts the closed-loop step of `--control`: `OUT-control.png`, next
 /// to it.
@@ -271,6 +273,52 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         _ => (sel.fit.model(), sel.fit.iterations, sel.fit.rss, sel.score),
     };
 
+    // --select free-run and --refine oe (src/refine.rs): they change the model, whose RSS and
+    // score are then computed from the statistics like the RLS model's.
+    let val_data = match (&opts.validate, opts.select, opts.refine) {
+        (Some(p), Select::FreeRun, _) | (Some(p), _, Refine::Oe) => Some(refine::load(p)?),
+        _ => None,
+    };
+    let mut tuned = model;
+    if let (Select::FreeRun, Some(vd)) = (opts.select, &val_data) {
+        let mut models = Vec::new();
+        search
+            .for_each(&est_normal, val_normal.as_ref(), |_, fit, _| {
+                models.push(fit.model())
+            })
+            .map_err(|e| IdError::Usage(format!("--select free-run: {e}")))?;
+        if let Some((best, _)) = refine::best_free_run(&models, vd) {
+            tuned = best;
+        }
+    }
+    let refinement = match opts.refine {
+        Refine::Oe => {
+            let (m, r) = refine::refine(tuned, &opts.input, val_data.as_deref())?;
+            tuned = m;
+            Some(r)
+        }
+        Refine::None => None,
+    };
+    let (model, iterations, rss, score) = if tuned == model {
+        (model, iterations, rss, score)
+    } else {
+        let s = tuned.structure();
+        let rss_of = |n: &Normal<f64>, path: &std::path::Path| {
+            n.rss(&tuned)
+                .map_err(|e| IdError::file(path, format!("cannot score the model: {e}")))
+        };
+        let new_rss = rss_of(&est_normal, &opts.input)?;
+        let (score_rss, score_samples) = match (&val_normal, &val) {
+            (Some(vn), Some(v)) => (rss_of(vn, &v.path)?, vn.samples()),
+            _ => (new_rss, est_normal.samples()),
+        };
+        let score =
+            opts.criterion
+                .value(opts.hyper.alpha, score_rss, score_samples, s, opts.offset);
+        (tuned, iterations, new_rss, score)
+    };
+    let structure = model.structure();
+
     let mut est_trace = opts
         .plot
         .as_ref()
@@ -398,6 +446,8 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         validation,
         plot: opts.plot.clone(),
         initial_samples: initial,
+        select: opts.select,
+        refinement,
         residuals_plot,
         control,
         control_plot,

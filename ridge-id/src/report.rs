@@ -10,6 +10,7 @@ use serde::Serialize;
 use crate::control::ControlReport;
 use crate::eval::Figures;
 use crate::initial::Initial;
+use crate::refine::{Refinement, Select};
 
 /// Hyper-parameters of a run (all of them, whether the method uses them or not).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -99,6 +100,10 @@ pub struct Report {
     pub plot: Option<PathBuf>,
     /// The PNG of the residual analysis written (`--plot`), if any.
     pub residuals_plot: Option<PathBuf>,
+    /// How the structure was chosen.
+    pub select: Select,
+    /// What `--refine oe` did, if asked.
+    pub refinement: Option<Refinement>,
     /// Samples `M` that only filled the lag history (0 with [`Initial::Zero`]).
     pub initial_samples: u32,
     /// The controller design of `--control` (or why it was refused).
@@ -122,6 +127,17 @@ struct JsonHyper {
     max_iter: u32,
     tol: f64,
     initial: &'static str,
+    select: &'static str,
+}
+
+#[derive(Serialize)]
+struct JsonRefine {
+    method: &'static str,
+    steps: u32,
+    kept: bool,
+    estimation_rmse_free_run: [f64; 2],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    validation_rmse_free_run: Option<[f64; 2]>,
 }
 
 #[derive(Serialize)]
@@ -175,6 +191,8 @@ struct Json<'a> {
     estimation: JsonFigures,
     #[serde(skip_serializing_if = "Option::is_none")]
     validation: Option<JsonFigures>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    refine: Option<JsonRefine>,
     #[serde(skip_serializing_if = "Option::is_none")]
     control: Option<JsonControl<'a>>,
 }
@@ -261,10 +279,11 @@ fn hp(v: f64) -> String {
 impl Report {
     /// The JSON object of `ridge-id --json`:
     /// `{"method", "criterion", "structure": {"p","q","d"}, "theta", "phi", "offset",
-    /// "score", "iterations", "hyper": {"gamma","beta","alpha","max_iter","tol","initial"},
+    /// "score", "iterations", "hyper": {"gamma","beta","alpha","max_iter","tol","initial","select"},
     /// "estimation": {"n","rmse_one_step","rmse_free_run","fit_free_run","residuals"},
-    /// "validation": {…} (only with a validation record), "control": {…} (only with
-    /// --control)}`.
+    /// "validation": {…} (only with a validation record), "refine": {"method": "oe", "steps",
+    /// "kept", "estimation_rmse_free_run": [before, after], "validation_rmse_free_run":
+    /// [before, after]} (only with --refine oe), "control": {…} (only with --control)}`.
     /// `offset` is the intercept (0 without one); `n` counts the scored samples `m..N`.
     /// `"residuals"` (omitted when the residuals are all zero or the input is constant):
     /// `{"autocorr": [r_1 … r_25], "crosscorr": [c_0 … c_25], "bound", "white",
@@ -313,9 +332,17 @@ impl Report {
                 max_iter: self.hyper.max_iter,
                 tol: self.hyper.tol,
                 initial: self.hyper.initial.name(),
+                select: self.select.name(),
             },
             estimation: JsonFigures::from(&self.estimation),
             validation: self.validation.as_ref().map(JsonFigures::from),
+            refine: self.refinement.map(|r| JsonRefine {
+                method: "oe",
+                steps: r.steps,
+                kept: r.kept,
+                estimation_rmse_free_run: [r.estimation.0, r.estimation.1],
+                validation_rmse_free_run: r.validation.map(|v| [v.0, v.1]),
+            }),
             control: self.control.as_ref().map(JsonControl::from),
         }
     }
@@ -421,6 +448,27 @@ impl Report {
             )
         };
         let _ = writeln!(o, "  search      {search}");
+        if self.select == Select::FreeRun {
+            let _ = writeln!(
+                o,
+                "  select      free-run: the candidate with the lowest validation free-run RMSE \
+                 (the validation figures below are then not an independent test)"
+            );
+        }
+        if let Some(r) = &self.refinement {
+            let val = r
+                .validation
+                .map(|(a, b)| format!(", validation {} -> {}", num(a), num(b)))
+                .unwrap_or_default();
+            let _ = writeln!(
+                o,
+                "  refine      oe: {} Gauss-Newton steps, free-run RMSE estimation {} -> {}{val}: {}",
+                r.steps,
+                num(r.estimation.0),
+                num(r.estimation.1),
+                if r.kept { "kept" } else { "discarded (not better on validation)" }
+            );
+        }
         let _ = writeln!(
             o,
             "  structure   p = {}, q = {}, d = {}   offset: {}",

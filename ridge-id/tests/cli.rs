@@ -178,7 +178,7 @@ fn json_has_exactly_the_documented_fields() {
             assert!(j["iterations"].as_u64().unwrap() >= 1);
             assert_eq!(
                 keys(&j["hyper"]),
-                sorted(&["gamma", "beta", "alpha", "max_iter", "tol", "initial"])
+                sorted(&["gamma", "beta", "alpha", "max_iter", "tol", "initial", "select"])
             );
             assert_eq!(j["hyper"]["gamma"].as_f64(), Some(1000.0));
             assert_eq!(j["hyper"]["beta"].as_f64(), Some(0.01));

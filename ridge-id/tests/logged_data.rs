@@ -507,3 +507,63 @@ fn adaptive_lasso_default_converges_on_real_records() {
         );
     }
 }
+
+/// `--select free-run` picks, among the candidates of the grid, the one whose validation
+/// free-run RMSE is lowest: checked against every candidate run alone (`--structure`).
+#[test]
+fn select_free_run_is_the_best_candidate_on_validation() {
+    use ridge_core_host::{Grid, OrderRange};
+    use ridge_id::refine::Select;
+    for record in RECORDS {
+        // Zero history: a candidate fitted alone has the same rows as in the search.
+        let mut o = options(record, MethodKind::Ols, Offset::Intercept);
+        o.grid = Grid {
+            p: OrderRange::new(1, 3),
+            q: OrderRange::new(1, 3),
+            d: OrderRange::new(0, 2),
+        };
+        let mut best = (f64::INFINITY, None);
+        for s in o.grid.iter() {
+            let mut one = o.clone();
+            one.structure = Some(s);
+            let r = run(&one).unwrap();
+            let v = r.validation.unwrap().rmse_free_run;
+            if v < best.0 {
+                best = (v, Some(s));
+            }
+        }
+        o.select = Select::FreeRun;
+        let r = run(&o).unwrap();
+        let v = r.validation.unwrap().rmse_free_run;
+        eprintln!("{record}: {:?} {v}", r.model.structure());
+        assert_eq!(Some(r.model.structure()), best.1, "{record}");
+        assert!(
+            (v - best.0).abs() <= 1e-12 * best.0,
+            "{record}: {v} vs {}",
+            best.0
+        );
+    }
+}
+
+/// `--refine oe` is kept only when it lowers the validation free-run RMSE, and the report's
+/// validation figure is then the refined model's.
+#[test]
+fn output_error_refinement_is_kept_only_where_it_helps_on_validation() {
+    use ridge_id::refine::Refine;
+    for record in RECORDS {
+        let mut o = options(record, MethodKind::Ols, Offset::Intercept);
+        o.hyper.initial = Initial::Measured;
+        o.refine = Refine::Oe;
+        let r = run(&o).unwrap();
+        let f = r.refinement.unwrap();
+        let (before, after) = f.validation.unwrap();
+        assert_eq!(f.kept, after < before, "{record}: {f:?}");
+        // The Gauss–Newton fit never raises the estimation free-run error it minimises.
+        assert!(f.estimation.1 <= f.estimation.0, "{record}: {f:?}");
+        let v = r.validation.unwrap().rmse_free_run;
+        assert!(
+            (v - before.min(after)).abs() <= 1e-9 * v,
+            "{record}: {v} vs {f:?}"
+        );
+    }
+}
