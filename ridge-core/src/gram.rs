@@ -18,6 +18,9 @@
 //! - [`FloatGram`] (`Gram<f64>`) takes physical values (`f64` or `f32` widened).
 //!   NaN and ±∞ are rejected with [`Error::NonFinite`].
 //!
+//! [`MeasuredGram`] gives the statistics from measured initial conditions (the first `m`
+//! samples fill the lag history and contribute no row) from two such accumulators.
+//!
 //! Scale factors ([`Scale`]) turn counts into physical units once, at solve time
 //! ([`Gram::normal`]), so coefficients come out in physical units whichever path
 //! fed the statistics.
@@ -493,57 +496,218 @@ impl<A: Accumulator> Gram<A> {
     /// taken by reference: on AVR, arguments that spill to the stack are miscompiled by the
     /// current backend (found with `scripts/avr-arith-check`).
     pub fn normal_into<T: Real>(&self, scale: &Scale, normal: &mut Normal<T>) -> Result<()> {
-        normal.clear();
-        if !(scale.u.is_finite() && scale.y.is_finite()) || scale.u == 0.0 || scale.y == 0.0 {
-            return Err(Error::NonFinite);
-        }
-        if self.n < 2 {
-            return Err(Error::TooShort {
-                needed: 2,
-                have: self.n,
-            });
-        }
-        if A::is_constant(self.n, self.sum_u, self.uu[0])
+        fill_normal(self, scale, normal)
+    }
+}
+
+/// What [`fill_normal`] reads from a set of statistics: the number of regression rows, the
+/// excitation check and the exact entries of the lag Gram over those rows.
+trait Rows<A: Accumulator> {
+    /// Regression rows `N`.
+    fn rows(&self) -> u32;
+    /// `true` when the input or the output is constant over the rows.
+    fn constant(&self) -> bool;
+    /// `Σ y_t²` over the rows (for the rounding level).
+    fn y_energy(&self) -> A;
+    /// `Σ a_t b_t` over the rows.
+    fn sum(&self, a: Col, b: Col) -> A;
+}
+
+impl<A: Accumulator> Rows<A> for Gram<A> {
+    #[inline(always)]
+    fn rows(&self) -> u32 {
+        self.n
+    }
+    #[inline(always)]
+    fn constant(&self) -> bool {
+        A::is_constant(self.n, self.sum_u, self.uu[0])
             || A::is_constant(self.n, self.sum_y, self.yy[0])
-        {
-            return Err(Error::NotExcited);
+    }
+    #[inline(always)]
+    fn y_energy(&self) -> A {
+        self.yy[0]
+    }
+    #[inline(always)]
+    fn sum(&self, a: Col, b: Col) -> A {
+        self.entry(a, b)
+    }
+}
+
+/// The body of [`Gram::normal_into`] for any [`Rows`] (inlined into each caller: the
+/// device's path is the plain [`Gram`]'s, unchanged).
+#[inline(always)]
+fn fill_normal<A: Accumulator, T: Real, S: Rows<A>>(
+    src: &S,
+    scale: &Scale,
+    normal: &mut Normal<T>,
+) -> Result<()> {
+    normal.clear();
+    if !(scale.u.is_finite() && scale.y.is_finite()) || scale.u == 0.0 || scale.y == 0.0 {
+        return Err(Error::NonFinite);
+    }
+    if src.rows() < 2 {
+        return Err(Error::TooShort {
+            needed: 2,
+            have: src.rows(),
+        });
+    }
+    if src.constant() {
+        return Err(Error::NotExcited);
+    }
+    let s11 = src.sum(Col::Y(1), Col::Y(1));
+    if s11.is_zero() {
+        return Err(Error::NotExcited);
+    }
+    let col_scale = |c: Col| -> T {
+        match c {
+            Col::Y(_) => T::from_f64(scale.y),
+            Col::U(_) => T::from_f64(scale.u),
+            Col::One => T::ONE,
         }
-        let s11 = self.entry(Col::Y(1), Col::Y(1));
-        if s11.is_zero() {
-            return Err(Error::NotExcited);
+    };
+    let sy = T::from_f64(scale.y);
+    normal.n = src.rows();
+    normal.s11 = s11.to_real::<T>() * sy * sy;
+    // In T, not f64: no software doubles on the device (the integer path gives 0).
+    normal.y_rounding = T::from_f64(A::rounding(src.rows(), src.y_energy())) * sy * sy;
+    let mut s_a1 = [A::default(); N_OTHER];
+    for idx in 0..N_OTHER {
+        let c = other(idx);
+        s_a1[idx] = src.sum(c, Col::Y(1));
+        normal.r[idx] = s_a1[idx].to_real::<T>() * col_scale(c) * sy;
+    }
+    for a in 0..N_OTHER {
+        let ca = other(a);
+        for b in 0..=a {
+            let cb = other(b);
+            let sab = src.sum(ca, cb);
+            let schur: T = A::schur(&s11, &sab, &s_a1[a], &s_a1[b])?;
+            normal.set_schur(a, b, schur * col_scale(ca) * col_scale(cb));
         }
-        let col_scale = |c: Col| -> T {
-            match c {
-                Col::Y(_) => T::from_f64(scale.y),
-                Col::U(_) => T::from_f64(scale.u),
-                Col::One => T::ONE,
-            }
-        };
-        let sy = T::from_f64(scale.y);
-        normal.n = self.n;
-        normal.s11 = s11.to_real::<T>() * sy * sy;
-        // In T, not f64: no software doubles on the device (the integer path gives 0).
-        normal.y_rounding = T::from_f64(A::rounding(self.n, self.yy[0])) * sy * sy;
-        let mut s_a1 = [A::default(); N_OTHER];
-        for idx in 0..N_OTHER {
-            let c = other(idx);
-            s_a1[idx] = self.entry(c, Col::Y(1));
-            normal.r[idx] = s_a1[idx].to_real::<T>() * col_scale(c) * sy;
+    }
+    if let Err(e) = normal.check_finite() {
+        normal.clear();
+        return Err(e);
+    }
+    Ok(())
+}
+
+/// Statistics from measured initial conditions: the first `m` samples of a record only fill
+/// the lag history; the regression rows are `t = m+1..N`, every lag of every structure with
+/// `max(p, d + q − 1) ≤ m` taken from measured samples (no zero history of eq. 6). With the
+/// same `m` for every candidate of a search ([`crate::Grid::longest_lag`]) all candidates
+/// are fitted and scored on the same rows, as MATLAB `arx` and SysIdentPy do.
+///
+/// Exact and in constant memory: the first `m` rows of the zero-padded matrix of eq. (6) are
+/// exactly the rows of the zero-padded matrix of the first `m` samples alone, so every entry
+/// over rows `m+1..N` is the entry of the whole record's [`Gram`] minus the entry of the
+/// first `m` samples' [`Gram`] (both kept, two accumulators; exact in `i64`). `m = 0` gives
+/// the zero-history statistics of [`Gram`]. Not used by the firmware (its statistics are the
+/// plain [`Gram`]'s).
+///
+/// # Example
+/// ```
+/// use ridge_core::{MeasuredGram, Offset, Scale, Structure};
+/// let mut g = MeasuredGram::<f64>::new(3);
+/// let mut y1 = 5.0; // the record starts at an operating point
+/// for t in 0..200 {
+///     let u = if (t / 9) % 2 == 0 { 3.0 } else { 3.5 } + (t % 5) as f64 * 0.01;
+///     let y = 0.8 * y1 + 0.25 * u + 0.25; // y settles around 5.1 .. 5.5
+///     g.push(u, y)?;
+///     y1 = y;
+/// }
+/// let normal = g.normal::<f64>(Scale::UNIT)?;
+/// assert_eq!(normal.samples(), 197); // rows 4..=200
+/// let sys = normal.system(Structure::new(1, 1, 0)?, Offset::Intercept)?;
+/// let w = sys.factor(0.0)?.solution(); // internal order: y(t-1), 1, u(t)
+/// assert!((w[0] - 0.8).abs() < 1e-9 && (w[1] - 0.25).abs() < 1e-9 && (w[2] - 0.25).abs() < 1e-9);
+/// # Ok::<(), ridge_core::Error>(())
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeasuredGram<A: Accumulator> {
+    all: Gram<A>,
+    head: Gram<A>,
+    m: u32,
+}
+
+impl<A: Accumulator> MeasuredGram<A> {
+    /// Empty statistics whose first `m` samples will be initial conditions only.
+    pub fn new(m: u32) -> Self {
+        MeasuredGram {
+            all: Gram::new(),
+            head: Gram::new(),
+            m,
         }
-        for a in 0..N_OTHER {
-            let ca = other(a);
-            for b in 0..=a {
-                let cb = other(b);
-                let sab = self.entry(ca, cb);
-                let schur: T = A::schur(&s11, &sab, &s_a1[a], &s_a1[b])?;
-                normal.set_schur(a, b, schur * col_scale(ca) * col_scale(cb));
-            }
-        }
-        if let Err(e) = normal.check_finite() {
-            normal.clear();
-            return Err(e);
+    }
+
+    /// The number `m` of initial samples that contribute no row.
+    pub fn initial(&self) -> u32 {
+        self.m
+    }
+
+    /// Samples pushed (`N`, initial ones included).
+    pub fn len(&self) -> u32 {
+        self.all.len()
+    }
+
+    /// `true` before the first sample.
+    pub fn is_empty(&self) -> bool {
+        self.all.is_empty()
+    }
+
+    /// Regression rows: `N − m` (0 while `N ≤ m`).
+    pub fn rows(&self) -> u32 {
+        self.all.len() - self.head.len()
+    }
+
+    /// The zero-history statistics of the whole record (eq. 6).
+    pub fn all(&self) -> &Gram<A> {
+        &self.all
+    }
+
+    /// Adds the sample `(u_t, y_t)` (see [`Gram::push`]). Errors as [`Gram::push`]; on error
+    /// the statistics are unchanged.
+    pub fn push(&mut self, u: A::Sample, y: A::Sample) -> Result<()> {
+        self.all.push(u, y)?;
+        if self.head.len() < self.m {
+            // Cannot fail: the same samples, fewer of them, were just accepted by `all`.
+            self.head.push(u, y)?;
         }
         Ok(())
+    }
+
+    /// The solve-time statistics of rows `m+1..N` (see [`Gram::normal`]; `N` there is the
+    /// number of rows, [`MeasuredGram::rows`]). Errors as [`Gram::normal`]:
+    /// [`Error::TooShort`] below 2 rows, [`Error::NotExcited`] when the input or output is
+    /// constant over the rows.
+    pub fn normal<T: Real>(&self, scale: Scale) -> Result<Normal<T>> {
+        let mut out = Normal::empty();
+        self.normal_into(&scale, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`MeasuredGram::normal`] into existing storage; on error `out` is left empty.
+    pub fn normal_into<T: Real>(&self, scale: &Scale, normal: &mut Normal<T>) -> Result<()> {
+        fill_normal(self, scale, normal)
+    }
+}
+
+impl<A: Accumulator> Rows<A> for MeasuredGram<A> {
+    fn rows(&self) -> u32 {
+        MeasuredGram::rows(self)
+    }
+    fn constant(&self) -> bool {
+        let (a, h) = (&self.all, &self.head);
+        let n = self.rows();
+        A::is_constant(n, a.sum_u.minus(h.sum_u), a.uu[0].minus(h.uu[0]))
+            || A::is_constant(n, a.sum_y.minus(h.sum_y), a.yy[0].minus(h.yy[0]))
+    }
+    fn y_energy(&self) -> A {
+        // The rounding of the difference is that of the larger sum.
+        self.all.yy[0]
+    }
+    fn sum(&self, a: Col, b: Col) -> A {
+        self.all.entry(a, b).minus(self.head.entry(a, b))
     }
 }
 

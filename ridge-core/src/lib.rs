@@ -53,7 +53,7 @@ pub mod wide;
 
 pub use error::{Error, Result, UnknownName};
 pub use estimate::{Estimator, Fit, Ols, Ridge, RidgeM};
-pub use gram::{Accumulator, FloatGram, Gram, IntGram, Scale};
+pub use gram::{Accumulator, FloatGram, Gram, IntGram, MeasuredGram, Scale};
 #[cfg(feature = "alasso")]
 pub use lasso::{AdaptiveLasso, Lambda};
 pub use model::{ArxModel, Evaluation, Metrics, Mode, Predictor, Score};

@@ -136,9 +136,9 @@ impl Default for Grid {
 impl Grid {
     /// The paper's grid: p ∈ 1..=6, q ∈ 1..=6, d ∈ 0..=6 (252 candidates).
     pub const PAPER: Grid = Grid {
-        p: OrderRange::new(1, P_MAX as u8),
-        q: OrderRange::new(1, Q_MAX as u8),
-        d: OrderRange::new(0, D_MAX as u8),
+        p: OrderRange::new(1, 6),
+        q: OrderRange::new(1, 6),
+        d: OrderRange::new(0, 6),
     };
 }
 
@@ -160,6 +160,19 @@ impl Grid {
         Structure::new(self.p.min, self.q.min, self.d.min)?;
         Structure::new(self.p.max, self.q.max, self.d.max)?;
         Ok(())
+    }
+
+    /// The longest lag of any candidate, `max(p_max, d_max + q_max − 1)`: the number of
+    /// initial samples that give every candidate a measured history
+    /// ([`crate::MeasuredGram`]).
+    pub fn longest_lag(&self) -> usize {
+        let p = usize::from(self.p.max);
+        let lag = (usize::from(self.d.max) + usize::from(self.q.max)).saturating_sub(1);
+        if p > lag {
+            p
+        } else {
+            lag
+        }
     }
 
     /// Number of candidate structures.

@@ -8,12 +8,14 @@ use std::str::FromStr;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
-use ridge_core::{
+use ridge_core_host::{
     Criterion, Grid, MethodKind, Offset, OrderRange, Structure, UnknownName, D_MAX, P_MAX, Q_MAX,
 };
 
 use crate::control::{ControlOptions, DEFAULT_TS, EXIT_REFUSED};
+use crate::initial::Initial;
 use crate::options::{parse_range, parse_structure, Options, MAX_ITER_LIMIT};
+use crate::refine::{Refine, Select};
 use crate::report::Hyper;
 use crate::run;
 use ridge_core::control::Spec;
@@ -203,6 +205,32 @@ pub struct IdentifyArgs {
         value_parser = names(&Offset::ALL, Offset::name, offset_help)
     )]
     pub offset: Offset,
+    /// Initial conditions of the regression: measured (the first M samples, M the grid's
+    /// longest lag, fill the lag history; as MATLAB and SysIdentPy) or zero (the paper's
+    /// eq. 6, the device's).
+    #[arg(
+        long,
+        default_value_t = Initial::default(),
+        value_parser = names(&Initial::ALL, Initial::name, Initial::help)
+    )]
+    pub initial: Initial,
+    /// How the structure is chosen: by --criterion, or by the lowest free-run RMSE on the
+    /// --validate record over all candidates.
+    #[arg(
+        long,
+        default_value_t = Select::default(),
+        value_parser = names(&Select::ALL, Select::name, Select::help)
+    )]
+    pub select: Select,
+    /// Output-error refinement of the chosen model (Gauss-Newton on the free-run error of the
+    /// estimation record, from the ARX estimate); with --validate kept only if it lowers the
+    /// validation free-run RMSE.
+    #[arg(
+        long,
+        default_value_t = Refine::default(),
+        value_parser = names(&Refine::ALL, Refine::name, Refine::help)
+    )]
+    pub refine: Refine,
     /// Print exactly one JSON object instead of the readable report.
     #[arg(long)]
     pub json: bool,
@@ -298,6 +326,7 @@ impl IdentifyArgs {
                 tol: self.tol,
                 lambda: self.lambda,
                 delta: self.delta,
+                initial: self.initial,
             },
             grid: Grid {
                 p: self.p,
@@ -306,6 +335,8 @@ impl IdentifyArgs {
             },
             structure: self.structure,
             offset: self.offset,
+            select: self.select,
+            refine: self.refine,
             plot: self.plot.clone(),
             control: self.control.then_some(ControlOptions {
                 ts: self.ts,

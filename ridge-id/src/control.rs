@@ -267,10 +267,10 @@ pub fn roots(a: &[f64], zero_below: f64) -> Option<Vec<Pole>> {
     Some(out)
 }
 
-/// `A = [1, −θ₁, …, −θ_p]` of `model`.
-pub fn denominator(model: &ArxModel<f64>) -> Vec<f64> {
+/// `A = [1, −θ₁, …, −θ_p]` of a model with autoregressive coefficients `theta`.
+pub fn denominator(theta: &[f64]) -> Vec<f64> {
     std::iter::once(1.0)
-        .chain(model.theta().iter().map(|t| -t))
+        .chain(theta.iter().map(|t| -t))
         .collect()
 }
 
@@ -291,7 +291,7 @@ pub fn mul(a: &[f64], b: &[f64]) -> Vec<f64> {
 /// The closed-loop polynomial `P = A R + q^{−d−1} B S` of `model` with the controller `r`,
 /// `s`, and the size of its largest term (for the zero-pole tolerance).
 pub fn closed_loop(model: &ArxModel<f64>, r: &[f64], s: &[f64]) -> (Vec<f64>, f64) {
-    let ar = mul(&denominator(model), r);
+    let ar = mul(&denominator(model.theta()), r);
     let d = usize::from(model.structure().d);
     let mut b1 = vec![0.0; d + 1];
     b1.extend_from_slice(model.phi());
@@ -438,12 +438,37 @@ pub struct LogSpan {
     pub y: f64,
 }
 
+/// The identified model (ridge-core-host, the host's maxima) as ridge-core's model, the one
+/// the firmware's controller design takes.
+///
+/// Errors: a structure beyond the device's maxima (`p`, `q`, `d` ≤ 6), as a usage error
+/// naming the structure.
+pub fn device_model(model: &ridge_core_host::ArxModel<f64>) -> Result<ArxModel<f64>, IdError> {
+    let s = model.structure();
+    let offset = match model.offset() {
+        ridge_core_host::Offset::None => ridge_core::Offset::None,
+        ridge_core_host::Offset::Intercept => ridge_core::Offset::Intercept,
+    };
+    ArxModel::new(model.theta(), model.phi(), s.d, offset, model.intercept()).map_err(|e| {
+        IdError::Usage(format!(
+            "--control: the identified structure (p = {}, q = {}, d = {}) is beyond the \
+             firmware's controller design (p, q, d ≤ {}, {}, {}): narrow --p, --q, --d ({e})",
+            s.p,
+            s.q,
+            s.d,
+            ridge_core::P_MAX,
+            ridge_core::Q_MAX,
+            ridge_core::D_MAX
+        ))
+    })
+}
+
 /// Checks `model` (identified on a log of spans `span`) and designs its controller as the
 /// firmware does (see the [module docs](self)). Never panics; a refusal is in
 /// [`ControlReport::outcome`].
 pub fn control(model: &ArxModel<f64>, opts: &ControlOptions, span: LogSpan) -> ControlReport {
     let limits = opts.model_limits();
-    let model_poles = roots(&denominator(model), 0.0).unwrap_or_default();
+    let model_poles = roots(&denominator(model.theta()), 0.0).unwrap_or_default();
     let gain = model.static_gain();
     let outcome = check_and_design(model, opts, &limits, &model_poles, span);
     ControlReport {

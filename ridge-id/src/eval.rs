@@ -3,16 +3,17 @@
 //!
 //! Scores are from measured initial conditions: the one-step-ahead and free-run predictors
 //! are seeded with the first `m = max(p, d + q − 1)` measured samples and scored on
-//! samples `m..N` ([`ridge_core::Evaluation`]), as MATLAB `compare` and SysIdentPy do, so a
+//! samples `m..N` ([`ridge_core_host::Evaluation`]), as MATLAB `compare` and SysIdentPy do, so a
 //! model is not charged for a start-up transient it cannot know. (Estimation keeps the
 //! paper's zero history before the record, eq. 6 of the paper (Ridge-M ventilation pump).)
 
 use std::path::{Path, PathBuf};
 
-use ridge_core::{ArxModel, Error as CoreError, Evaluation, FloatGram, Normal, Scale};
+use ridge_core_host::{ArxModel, Error as CoreError, Evaluation, MeasuredGram, Normal, Scale};
 
 use crate::csv::{CsvRecord, Sample};
 use crate::error::IdError;
+use crate::residuals::{ResidualStats, Residuals};
 
 /// The statistics of one record after a streaming pass, plus what is needed to explain
 /// a problem with it.
@@ -20,8 +21,9 @@ use crate::error::IdError;
 pub struct RecordStats {
     /// The file.
     pub path: PathBuf,
-    /// Exact streaming statistics of all samples (f64 sums).
-    pub gram: FloatGram,
+    /// Exact streaming statistics of all samples (f64 sums), the first
+    /// [`MeasuredGram::initial`] of them only filling the lag history.
+    pub gram: MeasuredGram<f64>,
     /// Line of the first and last sample (0 when there is none).
     pub lines: (u64, u64),
     /// Smallest and largest input.
@@ -34,6 +36,14 @@ impl RecordStats {
     /// Number of samples.
     pub fn rows(&self) -> u32 {
         self.gram.len()
+    }
+
+    /// `""`, or with measured initial conditions `" (the first M only fill the lag history)"`.
+    pub fn initial_note(&self) -> String {
+        match self.gram.initial() {
+            0 => String::new(),
+            m => format!(" (the first {m} only fill the lag history: --initial measured)"),
+        }
     }
 
     /// `"1024 data rows (lines 2–1025)"`.
@@ -80,30 +90,42 @@ impl RecordStats {
                 }
                 CoreError::TooShort { needed, .. } => IdError::file(
                     &self.path,
-                    format!("{}, at least {needed} needed", self.describe_rows()),
+                    format!(
+                        "{}, at least {} needed{}",
+                        self.describe_rows(),
+                        needed + self.gram.initial(),
+                        self.initial_note()
+                    ),
                 ),
                 other => IdError::file(&self.path, format!("{other}")),
             })
     }
 }
 
-/// Reads a whole CSV record into streaming statistics (one pass, constant memory).
+/// Reads a whole CSV record into streaming statistics with zero history (one pass, constant
+/// memory).
 ///
 /// Errors: everything [`CsvRecord`] reports, with file and line.
 pub fn read_record(path: impl AsRef<Path>) -> Result<RecordStats, IdError> {
-    let path = path.as_ref();
-    read_samples(path, CsvRecord::open(path)?)
+    read_record_with(path, 0)
 }
 
-/// [`read_record`] of a stream of samples (e.g. an [`crate::input::Input`]'s) named
+/// [`read_record`] whose first `initial` samples only fill the lag history (measured
+/// initial conditions, [`MeasuredGram`]).
+pub fn read_record_with(path: impl AsRef<Path>, initial: u32) -> Result<RecordStats, IdError> {
+    let path = path.as_ref();
+    read_samples(path, CsvRecord::open(path)?, initial)
+}
+
+/// [`read_record_with`] of a stream of samples (e.g. an [`crate::input::Input`]'s) named
 /// `path` in messages.
-pub fn read_samples<I>(path: &Path, samples: I) -> Result<RecordStats, IdError>
+pub fn read_samples<I>(path: &Path, samples: I, initial: u32) -> Result<RecordStats, IdError>
 where
     I: IntoIterator<Item = Result<Sample, IdError>>,
 {
     let mut stats = RecordStats {
         path: path.to_path_buf(),
-        gram: FloatGram::new(),
+        gram: MeasuredGram::new(initial),
         lines: (0, 0),
         u_range: (f64::INFINITY, f64::NEG_INFINITY),
         y_range: (f64::INFINITY, f64::NEG_INFINITY),
@@ -144,6 +166,9 @@ pub struct Figures {
     pub fit_one_step: f64,
     /// Free-run fit % (what MATLAB `compare` shows).
     pub fit_free_run: f64,
+    /// Residual analysis of the one-step residuals on the scored samples (MATLAB `resid`);
+    /// `None` when they are all zero or the input is constant there.
+    pub residuals: Option<Residuals>,
 }
 
 /// Scores `model` on a stream of samples; `trace` (if any) receives every measured and
@@ -157,9 +182,13 @@ where
     I: IntoIterator<Item = Result<Sample, IdError>>,
 {
     let mut ev = Evaluation::new(model);
+    let mut resid = ResidualStats::new();
     for (i, s) in samples.into_iter().enumerate() {
         let s = s?;
         let pred = ev.push(s.u, s.y);
+        if let Some((one_step, _)) = pred {
+            resid.push(s.u, s.y - one_step);
+        }
         if let Some(t) = trace.as_deref_mut() {
             t.push(i as u64, s.y, pred);
         }
@@ -174,6 +203,7 @@ where
             rmse_free_run: b.rmse,
             fit_one_step: a.fit,
             fit_free_run: b.fit,
+            residuals: resid.finish(),
         }),
         _ => None,
     })

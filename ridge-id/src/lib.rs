@@ -12,14 +12,14 @@
 //! simulation's plots) can reuse the pieces:
 //! - [`csv::CsvRecord`]: streaming CSV reader (the `csv` crate) with line-numbered errors.
 //! - [`eval::read_record`]: one streaming pass into exact statistics
-//!   ([`ridge_core::FloatGram`], `f64`).
+//!   ([`ridge_core_host::FloatGram`], `f64`).
 //! - [`eval::evaluate_file`]: one streaming pass scoring a model one-step and free-run
 //!   from measured initial conditions (seeded with the first `m = max(p, d + q − 1)`
 //!   measured samples, scored on samples `m..N`), optionally collecting a bounded
 //!   [`eval::Trace`] for [`plot::write_png`].
 //! - [`Options`] (`src/options.rs`): what a run does; estimators, criteria and offsets are
-//!   ridge-core's [`ridge_core::MethodKind`], [`ridge_core::Criterion`] and
-//!   [`ridge_core::Offset`], named by their `name()` on the command line and in reports.
+//!   ridge-core's [`ridge_core_host::MethodKind`], [`ridge_core_host::Criterion`] and
+//!   [`ridge_core_host::Offset`], named by their `name()` on the command line and in reports.
 //! - [`run`]: the whole identification of [`Options`] → [`Report`] (`src/report.rs`: text
 //!   or JSON); every failure is an [`IdError`] (`src/error.rs`), one line naming the file,
 //!   the line and the problem.
@@ -52,23 +52,28 @@ pub mod control;
 pub mod csv;
 pub mod error;
 pub mod eval;
+pub mod initial;
 pub mod input;
 pub mod options;
 pub mod plot;
+pub mod refine;
 pub mod report;
+pub mod residuals;
 pub mod warnings;
 
 pub use control::{ControlOptions, ControlReport};
 pub use error::IdError;
-pub use eval::{evaluate_file, read_record, Figures, RecordStats, Trace};
+pub use eval::{evaluate_file, read_record, read_record_with, Figures, RecordStats, Trace};
+pub use initial::Initial;
 pub use options::Options;
 pub use report::{Hyper, Report, SearchInfo};
 
-use ridge_core::{
+use ridge_core_host::{
     ArxModel, Criterion, Error as CoreError, Grid, MethodKind, Normal, Rls, Search, Structure,
 };
 
 use input::{evaluate_input, read_input, Input};
+use refine::{Refine, Select};
 use warnings::number;
 
 /// Where `--plot OUT.png` puts the closed-loop step of `--control`: `OUT-control.png`, next
@@ -85,17 +90,35 @@ pub fn control_plot_path(plot: &std::path::Path) -> std::path::PathBuf {
     plot.with_file_name(format!("{stem}-control{ext}"))
 }
 
+/// Where `--plot OUT.png` puts the residual analysis: `OUT-residuals.png`, next to it.
+pub fn residuals_plot_path(plot: &std::path::Path) -> std::path::PathBuf {
+    let stem = plot
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = plot
+        .extension()
+        .map(|e| format!(".{}", e.to_string_lossy()))
+        .unwrap_or_default();
+    plot.with_file_name(format!("{stem}-residuals{ext}"))
+}
+
 /// Points kept per signal for the plot.
 pub const PLOT_POINTS: usize = 2000;
 
-/// Rows a structure needs on a record: `m` seed samples, one per coefficient, plus one
-/// (the core's [`ridge_core::Normal::system`] rule).
-pub fn rows_needed(s: Structure, offset: ridge_core::Offset) -> u32 {
+/// Regression rows a structure needs on a record: `m` seed samples, one per coefficient, plus
+/// one (the core's [`ridge_core_host::Normal::system`] rule; with measured initial conditions
+/// the record needs the `M` initial samples more).
+pub fn rows_needed(s: Structure, offset: ridge_core_host::Offset) -> u32 {
     (s.seed_len() + s.params(offset) + 1) as u32
 }
 
 /// Checks that `rec` has enough rows for the smallest candidate of `grid`.
-fn check_rows(rec: &RecordStats, grid: &Grid, offset: ridge_core::Offset) -> Result<(), IdError> {
+fn check_rows(
+    rec: &RecordStats,
+    grid: &Grid,
+    offset: ridge_core_host::Offset,
+) -> Result<(), IdError> {
     let Some((s, needed)) = grid
         .iter()
         .map(|s| (s, rows_needed(s, offset)))
@@ -103,7 +126,8 @@ fn check_rows(rec: &RecordStats, grid: &Grid, offset: ridge_core::Offset) -> Res
     else {
         return Ok(());
     };
-    if rec.rows() < needed {
+    if rec.gram.rows() < needed {
+        let needed = needed + rec.gram.initial();
         let which = if grid.len() == 1 {
             "structure"
         } else {
@@ -113,12 +137,13 @@ fn check_rows(rec: &RecordStats, grid: &Grid, offset: ridge_core::Offset) -> Res
             &rec.path,
             format!(
                 "{}, but the {which} (p = {}, q = {}, d = {}) needs at least {needed} \
-                 (m = {} seed samples, one per coefficient, plus one)",
+                 (m = {} seed samples, one per coefficient, plus one){}",
                 rec.describe_rows(),
                 s.p,
                 s.q,
                 s.d,
-                s.seed_len()
+                s.seed_len(),
+                rec.initial_note()
             ),
         ));
     }
@@ -252,16 +277,19 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         input::check_output(p)?;
     }
     let grid = opts.effective_grid();
+    let initial = opts.hyper.initial.samples(&grid);
     let (est_in, val_in) = Input::open_pair(&opts.input, opts.validate.as_deref())?;
-    let est = read_input(&est_in)?;
-    let val = val_in.as_ref().map(read_input).transpose()?;
-    let est_normal = est.normal()?;
+    let est = read_input(&est_in, initial)?;
+    let val = val_in
+        .as_ref()
+        .map(|v| read_input(v, initial))
+        .transpose()?;
     check_rows(&est, &grid, opts.offset)?;
+    let est_normal = est.normal()?;
     let val_normal = match (&val, opts.criterion) {
         (Some(v), Criterion::Validation) => {
-            let n = v.normal()?;
             check_rows(v, &grid, opts.offset)?;
-            Some(n)
+            Some(v.normal()?)
         }
         (Some(v), _) => {
             // Not needed for the search, but a record without excitation cannot
@@ -317,6 +345,52 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         _ => (sel.fit.model(), sel.fit.iterations, sel.fit.rss, sel.score),
     };
 
+    // --select free-run and --refine oe (src/refine.rs): they change the model, whose RSS and
+    // score are then computed from the statistics like the RLS model's.
+    let val_data = match (&opts.validate, opts.select, opts.refine) {
+        (Some(p), Select::FreeRun, _) | (Some(p), _, Refine::Oe) => Some(refine::load(p)?),
+        _ => None,
+    };
+    let mut tuned = model;
+    if let (Select::FreeRun, Some(vd)) = (opts.select, &val_data) {
+        let mut models = Vec::new();
+        search
+            .for_each(&est_normal, val_normal.as_ref(), |_, fit, _| {
+                models.push(fit.model())
+            })
+            .map_err(|e| IdError::Usage(format!("--select free-run: {e}")))?;
+        if let Some((best, _)) = refine::best_free_run(&models, vd) {
+            tuned = best;
+        }
+    }
+    let refinement = match opts.refine {
+        Refine::Oe => {
+            let (m, r) = refine::refine(tuned, &opts.input, val_data.as_deref())?;
+            tuned = m;
+            Some(r)
+        }
+        Refine::None => None,
+    };
+    let (model, iterations, rss, score) = if tuned == model {
+        (model, iterations, rss, score)
+    } else {
+        let s = tuned.structure();
+        let rss_of = |n: &Normal<f64>, path: &std::path::Path| {
+            n.rss(&tuned)
+                .map_err(|e| IdError::file(path, format!("cannot score the model: {e}")))
+        };
+        let new_rss = rss_of(&est_normal, &opts.input)?;
+        let (score_rss, score_samples) = match (&val_normal, &val) {
+            (Some(vn), Some(v)) => (rss_of(vn, &v.path)?, vn.samples()),
+            _ => (new_rss, est_normal.samples()),
+        };
+        let score =
+            opts.criterion
+                .value(opts.hyper.alpha, score_rss, score_samples, s, opts.offset);
+        (tuned, iterations, new_rss, score)
+    };
+    let structure = model.structure();
+
     let mut est_trace = opts
         .plot
         .as_ref()
@@ -335,10 +409,17 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         u: est.u_range.1 - est.u_range.0,
         y: est.y_range.1 - est.y_range.0,
     };
+    // The firmware's controller design, for the device's orders (p, q, d ≤ 6).
+    let device = opts
+        .control
+        .as_ref()
+        .map(|_| control::device_model(&model))
+        .transpose()?;
     let control = opts
         .control
         .as_ref()
-        .map(|c| control::control(&model, c, span));
+        .zip(device.as_ref())
+        .map(|(c, m)| control::control(m, c, span));
     // The simulated loop's limits are checked even without --plot: bad ones are a usage
     // error whatever is printed.
     let limits = opts
@@ -347,10 +428,12 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         .map(|c| c.limits(est.u_range))
         .transpose()?;
     let mut control_plot = None;
-    if let (Some(path), Some(report), Some(limits)) = (&opts.plot, &control, limits) {
+    if let (Some(path), Some(report), Some(limits), Some(device)) =
+        (&opts.plot, &control, limits, &device)
+    {
         if let Some(designed) = report.designed() {
             if let Some(step) =
-                control::simulate_step(&model, &designed.design, limits, report.options.ts)
+                control::simulate_step(device, &designed.design, limits, report.options.ts)
             {
                 let s = structure;
                 let d = &designed.design;
@@ -371,6 +454,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         }
     }
 
+    let mut residuals_plot = None;
     if let (Some(path), Some(et)) = (&opts.plot, &est_trace) {
         let s = structure;
         let title = |what: &str, p: &std::path::Path, f: &Figures| {
@@ -396,6 +480,20 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
             });
         }
         plot::write_png(path, &panels)?;
+        let mut rows = Vec::new();
+        for (what, f) in [
+            ("estimation", Some(&estimation)),
+            ("validation", validation.as_ref()),
+        ] {
+            if let Some(r) = f.and_then(|f| f.residuals.as_ref()) {
+                rows.push((what.to_string(), r));
+            }
+        }
+        if !rows.is_empty() {
+            let out = residuals_plot_path(path);
+            residuals::write_png(&out, &rows)?;
+            residuals_plot = Some(out);
+        }
     }
 
     let warnings = warnings::warnings(&warnings::Run {
@@ -428,6 +526,10 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         estimation,
         validation,
         plot: opts.plot.clone(),
+        initial_samples: initial,
+        select: opts.select,
+        refinement,
+        residuals_plot,
         control,
         control_plot,
         warnings,

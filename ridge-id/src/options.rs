@@ -4,13 +4,14 @@
 
 use std::path::PathBuf;
 
-use ridge_core::{
+use ridge_core_host::{
     AdaptiveLasso, Criterion, Grid, Method as CoreMethod, MethodKind, Offset, OrderRange, Ridge,
     RidgeM, Structure, D_MAX, P_MAX, Q_MAX,
 };
 
 use crate::control::ControlOptions;
 use crate::error::IdError;
+use crate::refine::{Refine, Select};
 use crate::report::Hyper;
 
 /// Parses an inclusive order range: `1..=6` or a single number `3`, checked against
@@ -87,6 +88,10 @@ pub struct Options {
     pub plot: Option<PathBuf>,
     /// Design a controller for the identified model (`--control`; see [`crate::control`]).
     pub control: Option<ControlOptions>,
+    /// How the structure is chosen (default: by the criterion; [`Select`]).
+    pub select: Select,
+    /// Output-error refinement of the chosen model (default none; [`Refine`]).
+    pub refine: Refine,
 }
 
 impl Options {
@@ -103,6 +108,8 @@ impl Options {
             offset: Offset::None,
             plot: None,
             control: None,
+            select: Select::Criterion,
+            refine: Refine::None,
         }
     }
 
@@ -174,6 +181,16 @@ impl Options {
         if self.criterion == Criterion::Validation && self.validate.is_none() {
             return bad(
                 "--criterion validation needs a validation record: add --validate VAL.csv".into(),
+            );
+        }
+        if self.select == Select::FreeRun && self.validate.is_none() {
+            return bad(
+                "--select free-run needs a validation record: add --validate VAL.csv".into(),
+            );
+        }
+        if self.select == Select::FreeRun && self.method == MethodKind::Rls {
+            return bad(
+                "--select free-run chooses among the search's fits: not with --method rls".into(),
             );
         }
         if let Err(e) = self.effective_grid().check() {

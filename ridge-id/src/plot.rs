@@ -25,7 +25,7 @@ pub struct Panel<'a> {
 
 static FONTS: Once = Once::new();
 
-fn register_fonts() {
+pub(crate) fn register_fonts() {
     FONTS.call_once(|| {
         for family in ["sans-serif", "serif", "monospace"] {
             // The font is a valid TTF shipped by the crate; failure would only lose text.

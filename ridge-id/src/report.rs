@@ -4,11 +4,13 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use ridge_core::{ArxModel, Criterion, MethodKind, Offset};
+use ridge_core_host::{ArxModel, Criterion, MethodKind, Offset};
 use serde::Serialize;
 
 use crate::control::ControlReport;
 use crate::eval::Figures;
+use crate::initial::Initial;
+use crate::refine::{Refinement, Select};
 use crate::warnings::Warning;
 
 /// Hyper-parameters of a run (all of them, whether the method uses them or not).
@@ -28,6 +30,8 @@ pub struct Hyper {
     pub lambda: f64,
     /// RLS initial covariance δ > 0, `P₀ = δI` (default 1e3).
     pub delta: f64,
+    /// Initial conditions of the regression (default [`Initial::Measured`]).
+    pub initial: Initial,
 }
 
 impl Default for Hyper {
@@ -41,6 +45,7 @@ impl Default for Hyper {
             tol: 1e-6,
             lambda: 1.0,
             delta: 1e3,
+            initial: Initial::Measured,
         }
     }
 }
@@ -81,7 +86,8 @@ pub struct Report {
     pub score: f64,
     /// Ridge-M iterates / adaptive-LASSO sweeps / 1 for closed forms / samples for RLS.
     pub iterations: u32,
-    /// `‖y − Xw‖²` on the estimation record with zero history (the regression of eq. 6).
+    /// `‖y − Xw‖²` on the estimation record's regression rows (rows `M+1..N` from measured
+    /// initial conditions, all rows with zero history: [`Hyper::initial`]).
     pub rss: f64,
     /// Hyper-parameters.
     pub hyper: Hyper,
@@ -93,6 +99,14 @@ pub struct Report {
     pub validation: Option<Figures>,
     /// The PNG written, if any.
     pub plot: Option<PathBuf>,
+    /// The PNG of the residual analysis written (`--plot`), if any.
+    pub residuals_plot: Option<PathBuf>,
+    /// How the structure was chosen.
+    pub select: Select,
+    /// What `--refine oe` did, if asked.
+    pub refinement: Option<Refinement>,
+    /// Samples `M` that only filled the lag history (0 with [`Initial::Zero`]).
+    pub initial_samples: u32,
     /// The controller design of `--control` (or why it was refused).
     pub control: Option<ControlReport>,
     /// The PNG of the simulated closed-loop step written (`--control --plot`), if any.
@@ -116,6 +130,18 @@ struct JsonHyper {
     alpha: f64,
     max_iter: u32,
     tol: f64,
+    initial: &'static str,
+    select: &'static str,
+}
+
+#[derive(Serialize)]
+struct JsonRefine {
+    method: &'static str,
+    steps: u32,
+    kept: bool,
+    estimation_rmse_free_run: [f64; 2],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    validation_rmse_free_run: Option<[f64; 2]>,
 }
 
 #[derive(Serialize)]
@@ -124,6 +150,17 @@ struct JsonFigures {
     rmse_one_step: f64,
     rmse_free_run: f64,
     fit_free_run: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    residuals: Option<JsonResiduals>,
+}
+
+#[derive(Serialize)]
+struct JsonResiduals {
+    autocorr: Vec<f64>,
+    crosscorr: Vec<f64>,
+    bound: f64,
+    white: bool,
+    independent: bool,
 }
 
 impl From<&Figures> for JsonFigures {
@@ -133,6 +170,13 @@ impl From<&Figures> for JsonFigures {
             rmse_one_step: f.rmse_one_step,
             rmse_free_run: f.rmse_free_run,
             fit_free_run: f.fit_free_run,
+            residuals: f.residuals.map(|r| JsonResiduals {
+                autocorr: r.autocorr.to_vec(),
+                crosscorr: r.crosscorr.to_vec(),
+                bound: r.bound,
+                white: r.white,
+                independent: r.independent,
+            }),
         }
     }
 }
@@ -151,6 +195,8 @@ struct Json<'a> {
     estimation: JsonFigures,
     #[serde(skip_serializing_if = "Option::is_none")]
     validation: Option<JsonFigures>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    refine: Option<JsonRefine>,
     #[serde(skip_serializing_if = "Option::is_none")]
     control: Option<JsonControl<'a>>,
     warnings: Vec<&'a str>,
@@ -238,12 +284,17 @@ fn hp(v: f64) -> String {
 impl Report {
     /// The JSON object of `ridge-id --json`:
     /// `{"method", "criterion", "structure": {"p","q","d"}, "theta", "phi", "offset",
-    /// "score", "iterations", "hyper": {"gamma","beta","alpha","max_iter","tol"},
-    /// "estimation": {"n","rmse_one_step","rmse_free_run","fit_free_run"},
-    /// "validation": {…} (only with a validation record), "control": {…} (only with
-    /// --control), "warnings": [str, …]}` (always present, empty when all is well; see
+    /// "score", "iterations", "hyper": {"gamma","beta","alpha","max_iter","tol","initial","select"},
+    /// "estimation": {"n","rmse_one_step","rmse_free_run","fit_free_run","residuals"},
+    /// "validation": {…} (only with a validation record), "refine": {"method": "oe", "steps",
+    /// "kept", "estimation_rmse_free_run": [before, after], "validation_rmse_free_run":
+    /// [before, after]} (only with --refine oe), "control": {…} (only with --control),
+    /// "warnings": [str, …]}` (always present, empty when all is well; see
     /// [`crate::warnings`]).
     /// `offset` is the intercept (0 without one); `n` counts the scored samples `m..N`.
+    /// `"residuals"` (omitted when the residuals are all zero or the input is constant):
+    /// `{"autocorr": [r_1 … r_25], "crosscorr": [c_0 … c_25], "bound", "white",
+    /// "independent"}`, the residual analysis of [`crate::residuals`].
     /// A non-finite number (a diverging free run) is written as `null`.
     ///
     /// `"control"` is, for a designed controller,
@@ -287,9 +338,18 @@ impl Report {
                 alpha: self.hyper.alpha,
                 max_iter: self.hyper.max_iter,
                 tol: self.hyper.tol,
+                initial: self.hyper.initial.name(),
+                select: self.select.name(),
             },
             estimation: JsonFigures::from(&self.estimation),
             validation: self.validation.as_ref().map(JsonFigures::from),
+            refine: self.refinement.map(|r| JsonRefine {
+                method: "oe",
+                steps: r.steps,
+                kept: r.kept,
+                estimation_rmse_free_run: [r.estimation.0, r.estimation.1],
+                validation_rmse_free_run: r.validation.map(|v| [v.0, v.1]),
+            }),
             control: self.control.as_ref().map(JsonControl::from),
             warnings: self.warnings.iter().map(|w| w.message.as_str()).collect(),
         }
@@ -379,6 +439,14 @@ impl Report {
             }
         };
         let _ = writeln!(o, "  criterion   {crit}");
+        let initial = match self.hyper.initial {
+            Initial::Measured => format!(
+                "measured: the first M = {} samples fill the lag history, rows M+1..N",
+                self.initial_samples
+            ),
+            Initial::Zero => "zero: zero history before the record, rows 1..N (eq. 6)".into(),
+        };
+        let _ = writeln!(o, "  initial     {initial}");
         let search = if self.search.fixed {
             "fixed by --structure".to_string()
         } else {
@@ -388,6 +456,27 @@ impl Report {
             )
         };
         let _ = writeln!(o, "  search      {search}");
+        if self.select == Select::FreeRun {
+            let _ = writeln!(
+                o,
+                "  select      free-run: the candidate with the lowest validation free-run RMSE \
+                 (the validation figures below are then not an independent test)"
+            );
+        }
+        if let Some(r) = &self.refinement {
+            let val = r
+                .validation
+                .map(|(a, b)| format!(", validation {} -> {}", num(a), num(b)))
+                .unwrap_or_default();
+            let _ = writeln!(
+                o,
+                "  refine      oe: {} Gauss-Newton steps, free-run RMSE estimation {} -> {}{val}: {}",
+                r.steps,
+                num(r.estimation.0),
+                num(r.estimation.1),
+                if r.kept { "kept" } else { "discarded (not better on validation)" }
+            );
+        }
         let _ = writeln!(
             o,
             "  structure   p = {}, q = {}, d = {}   offset: {}",
@@ -401,7 +490,8 @@ impl Report {
             MethodKind::RidgeM => " (stopped: step below tol)",
             MethodKind::Rls => " (one update per sample)",
             MethodKind::AdaptiveLasso
-                if self.iterations >= ridge_core::AdaptiveLasso::<f64>::default().max_sweeps =>
+                if self.iterations
+                    >= ridge_core_host::AdaptiveLasso::<f64>::default().max_sweeps =>
             {
                 " (coordinate-descent sweeps: budget reached, not converged)"
             }
@@ -456,6 +546,30 @@ impl Report {
         if let Some(v) = &self.validation {
             row("validation", v);
         }
+        let _ = writeln!(
+            o,
+            "  Residual analysis (one-step residuals, as MATLAB resid; 99 % bound 2.576/sqrt(N)):"
+        );
+        let mut resid = |name: &str, f: &Figures| {
+            let Some(r) = &f.residuals else {
+                let _ = writeln!(o, "  {name:<11} (none: zero residuals or constant input)");
+                return;
+            };
+            let max = |v: &[f64]| v.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+            let _ = writeln!(
+                o,
+                "  {name:<11} {} (max |r_k|, k 1..25: {:.3}), {} of the input (max |c_k|, k 0..25: {:.3}); bound {:.3}",
+                if r.white { "white" } else { "not white" },
+                max(&r.autocorr),
+                if r.independent { "independent" } else { "not independent" },
+                max(&r.crosscorr),
+                r.bound
+            );
+        };
+        resid("estimation", &self.estimation);
+        if let Some(v) = &self.validation {
+            resid("validation", v);
+        }
         if let (Some(p), Some(r)) = (&self.validate, self.validate_rows) {
             let _ = writeln!(o, "  (validation record: {}, {r} samples)", p.display());
         }
@@ -473,6 +587,9 @@ impl Report {
         if let Some(p) = &self.plot {
             let _ = writeln!(o);
             let _ = writeln!(o, "  plot written to {}", p.display());
+        }
+        if let Some(p) = &self.residuals_plot {
+            let _ = writeln!(o, "  residual analysis plot written to {}", p.display());
         }
         if let Some(p) = &self.control_plot {
             let _ = writeln!(o, "  closed-loop step plot written to {}", p.display());

@@ -16,7 +16,7 @@
 use std::path::Path;
 
 use nalgebra::{DMatrix, SymmetricEigen};
-use ridge_core::{ArxModel, Estimator, MethodKind, Normal, Offset, Ols, Regressor};
+use ridge_core_host::{ArxModel, Estimator, MethodKind, Normal, Offset, Ols, Regressor};
 
 use crate::control::{denominator, roots};
 use crate::eval::Figures;
@@ -116,7 +116,7 @@ pub fn warnings(run: &Run<'_>) -> Vec<Warning> {
 
 /// [`WarningKind::Unstable`]: the largest `|z|` of the model's poles is 1 or more.
 pub fn unstable(model: &ArxModel<f64>) -> Option<Warning> {
-    let poles = roots(&denominator(model), 0.0);
+    let poles = roots(&denominator(model.theta()), 0.0);
     let largest = poles
         .as_ref()
         .and_then(|p| p.first())

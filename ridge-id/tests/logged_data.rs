@@ -32,8 +32,8 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{DMatrix, DVector};
-use ridge_core::{MethodKind, Offset, Structure};
-use ridge_id::{run, Figures, Options, Report};
+use ridge_core_host::{MethodKind, Offset, Structure};
+use ridge_id::{run, Figures, Initial, Options, Report};
 
 fn data(record: &str, half: &str) -> PathBuf {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -69,11 +69,24 @@ fn raw(path: &Path) -> (Vec<f64>, Vec<f64>) {
 /// The regression of eq. (6): row t = [y_{t-1} … y_{t-p}, u_{t-d} … u_{t-d-q+1}, (1)],
 /// zero before the record; target y_t; t = 0..N.
 fn regression(u: &[f64], y: &[f64], s: Structure, offset: Offset) -> (DMatrix<f64>, DVector<f64>) {
+    regression_from(u, y, s, offset, 0)
+}
+
+/// The regression from measured initial conditions: rows t = m..N only (every lag of a
+/// structure with max(p, d + q − 1) ≤ m read from the record).
+fn regression_from(
+    u: &[f64],
+    y: &[f64],
+    s: Structure,
+    offset: Offset,
+    m: usize,
+) -> (DMatrix<f64>, DVector<f64>) {
     let (p, q, d) = (usize::from(s.p), usize::from(s.q), usize::from(s.d));
-    let n = y.len();
+    let n = y.len() - m;
     let k = p + q + offset.params();
     let at = |v: &[f64], t: usize, lag: usize| if t >= lag { v[t - lag] } else { 0.0 };
-    let x = DMatrix::from_fn(n, k, |t, c| {
+    let x = DMatrix::from_fn(n, k, |r, c| {
+        let t = r + m;
         if c < p {
             at(y, t, c + 1)
         } else if c < p + q {
@@ -82,7 +95,7 @@ fn regression(u: &[f64], y: &[f64], s: Structure, offset: Offset) -> (DMatrix<f6
             1.0
         }
     });
-    (x, DVector::from_column_slice(y))
+    (x, DVector::from_column_slice(&y[m..]))
 }
 
 /// The report's model as a vector in the column order of [`regression`].
@@ -129,8 +142,10 @@ fn ridge_m(
     (w_prev, max_iter)
 }
 
+/// Zero history (`--initial zero`): the regression of eq. (6) that these tests rebuild.
 fn options(record: &str, method: MethodKind, offset: Offset) -> Options {
     let mut o = Options::new(data(record, "estimation"));
+    o.hyper.initial = Initial::Zero;
     o.validate = Some(data(record, "validation"));
     o.method = method;
     o.offset = offset;
@@ -169,6 +184,43 @@ fn ols_matches_explicit_least_squares() {
                     "{record} {s:?}: rss {} vs {rss_ref}",
                     r.rss
                 );
+            }
+        }
+    }
+}
+
+/// `--initial measured` (the default): least squares on rows M..N, M = 11 for the paper's grid
+/// (d 6 + q 6 − 1) and max(p, d + q − 1) for a fixed structure.
+#[test]
+fn measured_initial_conditions_match_explicit_least_squares_on_rows_m_to_n() {
+    for record in RECORDS {
+        let (u, y) = raw(&data(record, "estimation"));
+        for offset in [Offset::None, Offset::Intercept] {
+            let mut o = options(record, MethodKind::Ols, offset);
+            o.hyper.initial = Initial::Measured;
+            let searched = run(&o).unwrap();
+            let mut cases = vec![(searched.model.structure(), 11, searched)];
+            for s in [
+                Structure::new(6, 6, 0).unwrap(),
+                Structure::new(2, 3, 4).unwrap(),
+            ] {
+                o.structure = Some(s);
+                let m = usize::from(s.p).max(usize::from(s.d + s.q) - 1);
+                cases.push((s, m, run(&o).unwrap()));
+            }
+            for (s, m, r) in cases {
+                let (x, yv) = regression_from(&u, &y, s, offset, m);
+                let w_ref = least_squares(&x, &yv);
+                let e = rel(&coefficients(&r), &w_ref);
+                // (6,6,0) without an intercept on the tanks is the worst conditioned: 7e-6
+                // measured (the zero-history rows' large start-up values condition it better).
+                assert!(
+                    e < 3e-5,
+                    "{record} {s:?} {offset:?} M {m}: relative error {e:e}"
+                );
+                let rss_ref = (&yv - &x * &w_ref).norm_squared();
+                assert!(((r.rss - rss_ref) / rss_ref).abs() < 1e-8, "{record} {s:?}");
+                assert_eq!(r.initial_samples as usize, m);
             }
         }
     }
@@ -245,7 +297,32 @@ fn explicit_scores(r: &Report, path: &Path) -> Figures {
         .sqrt();
     let norm = |e: &[f64]| e.iter().map(|v| v * v).sum::<f64>().sqrt();
     let rmse = |e: &[f64]| norm(e) / (e.len() as f64).sqrt();
+    // The residual analysis by its definition (MATLAB resid): one-step residuals e and the
+    // input with its mean removed over the scored samples, sums over pairs inside them.
+    let us = &u[seed..];
+    let ubar = us.iter().sum::<f64>() / us.len() as f64;
+    let up: Vec<f64> = us.iter().map(|v| v - ubar).collect();
+    let see: f64 = e1.iter().map(|v| v * v).sum();
+    let suu: f64 = up.iter().map(|v| v * v).sum();
+    let ns = e1.len();
+    let autocorr: [f64; 25] = std::array::from_fn(|i| {
+        let k = i + 1;
+        (k..ns).map(|t| e1[t] * e1[t - k]).sum::<f64>() / see
+    });
+    let crosscorr: [f64; 26] = std::array::from_fn(|k| {
+        (k..ns).map(|t| e1[t] * up[t - k]).sum::<f64>() / (see * suu).sqrt()
+    });
+    let bound = 2.576 / (ns as f64).sqrt();
+    let residuals = Some(ridge_id::residuals::Residuals {
+        n: ns as u32,
+        autocorr,
+        crosscorr,
+        bound,
+        white: autocorr.iter().all(|r| r.abs() <= bound),
+        independent: crosscorr.iter().all(|c| c.abs() <= bound),
+    });
     Figures {
+        residuals,
         n: e1.len() as u32,
         rmse_one_step: rmse(&e1),
         rmse_free_run: rmse(&ef),
@@ -272,6 +349,17 @@ fn scores_match_explicit_simulation() {
                 ];
                 for (got, want) in pairs {
                     assert_eq!(got.n, want.n);
+                    let (gr, wr) = (got.residuals.unwrap(), want.residuals.unwrap());
+                    for (a, b) in gr.autocorr.iter().zip(&wr.autocorr) {
+                        assert!((a - b).abs() < 1e-9, "{record} {method} r_k {a} vs {b}");
+                    }
+                    for (a, b) in gr.crosscorr.iter().zip(&wr.crosscorr) {
+                        assert!((a - b).abs() < 1e-9, "{record} {method} c_k {a} vs {b}");
+                    }
+                    assert_eq!(
+                        (gr.n, gr.bound, gr.white, gr.independent),
+                        (wr.n, wr.bound, wr.white, wr.independent)
+                    );
                     let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.abs().max(1.0);
                     assert!(
                         close(got.rmse_one_step, want.rmse_one_step)
@@ -292,7 +380,7 @@ fn scores_match_explicit_simulation() {
 /// (BIC), or nothing with the validation record's RSS and N (validation).
 #[test]
 fn rls_score_is_the_criterion_of_its_residuals() {
-    use ridge_core::Criterion;
+    use ridge_core_host::Criterion;
     for record in RECORDS {
         for (criterion, offset) in [
             (Criterion::Aic, Offset::Intercept),
@@ -385,7 +473,7 @@ fn buck_converter_validation_fits_are_sane() {
 /// 0.451 at convergence after 407 071 sweeps; buck converter: 136 119 sweeps needed).
 #[test]
 fn adaptive_lasso_default_converges_on_real_records() {
-    use ridge_core::{AdaptiveLasso, Estimator};
+    use ridge_core_host::{AdaptiveLasso, Estimator};
     for (record, s) in [
         ("cascaded-tanks", Structure::new(3, 4, 0).unwrap()),
         ("buck-converter", Structure::new(2, 3, 0).unwrap()),
@@ -416,6 +504,66 @@ fn adaptive_lasso_default_converges_on_real_records() {
             fit.iterations,
             default.max_sweeps,
             converged.iterations
+        );
+    }
+}
+
+/// `--select free-run` picks, among the candidates of the grid, the one whose validation
+/// free-run RMSE is lowest: checked against every candidate run alone (`--structure`).
+#[test]
+fn select_free_run_is_the_best_candidate_on_validation() {
+    use ridge_core_host::{Grid, OrderRange};
+    use ridge_id::refine::Select;
+    for record in RECORDS {
+        // Zero history: a candidate fitted alone has the same rows as in the search.
+        let mut o = options(record, MethodKind::Ols, Offset::Intercept);
+        o.grid = Grid {
+            p: OrderRange::new(1, 3),
+            q: OrderRange::new(1, 3),
+            d: OrderRange::new(0, 2),
+        };
+        let mut best = (f64::INFINITY, None);
+        for s in o.grid.iter() {
+            let mut one = o.clone();
+            one.structure = Some(s);
+            let r = run(&one).unwrap();
+            let v = r.validation.unwrap().rmse_free_run;
+            if v < best.0 {
+                best = (v, Some(s));
+            }
+        }
+        o.select = Select::FreeRun;
+        let r = run(&o).unwrap();
+        let v = r.validation.unwrap().rmse_free_run;
+        eprintln!("{record}: {:?} {v}", r.model.structure());
+        assert_eq!(Some(r.model.structure()), best.1, "{record}");
+        assert!(
+            (v - best.0).abs() <= 1e-12 * best.0,
+            "{record}: {v} vs {}",
+            best.0
+        );
+    }
+}
+
+/// `--refine oe` is kept only when it lowers the validation free-run RMSE, and the report's
+/// validation figure is then the refined model's.
+#[test]
+fn output_error_refinement_is_kept_only_where_it_helps_on_validation() {
+    use ridge_id::refine::Refine;
+    for record in RECORDS {
+        let mut o = options(record, MethodKind::Ols, Offset::Intercept);
+        o.hyper.initial = Initial::Measured;
+        o.refine = Refine::Oe;
+        let r = run(&o).unwrap();
+        let f = r.refinement.unwrap();
+        let (before, after) = f.validation.unwrap();
+        assert_eq!(f.kept, after < before, "{record}: {f:?}");
+        // The Gauss–Newton fit never raises the estimation free-run error it minimises.
+        assert!(f.estimation.1 <= f.estimation.0, "{record}: {f:?}");
+        let v = r.validation.unwrap().rmse_free_run;
+        assert!(
+            (v - before.min(after)).abs() <= 1e-9 * v,
+            "{record}: {v} vs {f:?}"
         );
     }
 }
