@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use proptest::prelude::*;
 use proptest::test_runner::Config;
-use ridge_core::{
+use ridge_core_host::{
     AdaptiveLasso, Criterion, Evaluation, FloatGram, Grid, Method, MethodKind, Offset, OrderRange,
     Ridge, RidgeM, Rls, Scale, Search, Structure,
 };

@@ -365,10 +365,18 @@ fn the_issue_reproductions_warn_and_strict_exits_1() {
     assert_eq!(e.lines().count(), 1, "{e}");
     assert!(e.starts_with("error: --strict: 2 warning(s)"), "{e}");
 
-    // Four rows: 3 rows past the seed for 2 coefficients, fewer than 10 a coefficient.
+    // Four rows: 3 rows past the seed for 2 coefficients, fewer than 10 a coefficient (with
+    // zero history: measured initial conditions refuse 4 rows outright, the grid's longest
+    // lag being 11).
     let four = tmp("four.csv");
     fs::write(&four, "u,y\n1,0.5\n-1,0.9\n0.5,-0.2\n1,0.3\n").unwrap();
-    let j = json(&ridge_id(&["--input", four.to_str().unwrap(), "--json"]));
+    let j = json(&ridge_id(&[
+        "--input",
+        four.to_str().unwrap(),
+        "--initial",
+        "zero",
+        "--json",
+    ]));
     assert!(kinds(&j).contains(&"too-short".into()), "{}", j["warnings"]);
     // 21 rows = 1 seed + 10 × 2: enough for (1,1,0), the structure fixed.
     let mut t = String::from("u,y\n");
@@ -384,6 +392,8 @@ fn the_issue_reproductions_warn_and_strict_exits_1() {
         p.to_str().unwrap(),
         "--structure",
         "1,1,0",
+        "--initial",
+        "zero",
         "--json",
     ]));
     assert!(
