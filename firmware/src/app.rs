@@ -332,21 +332,8 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             Some(c) => c.pending.take(),
             None => return,
         };
-        if let Some(command) = pending {
+        if let Some(command) = pending.or_else(|| receive_line(board)) {
             self.execute(board, command);
-            return;
-        }
-        if board.receive_overrun() {
-            if let Some(c) = board.console() {
-                c.line.overrun();
-            }
-        }
-        while let Some(byte) = board.receive() {
-            let Some(c) = board.console() else { return };
-            if let Some(command) = c.line.push(byte) {
-                self.execute(board, command);
-                return;
-            }
         }
     }
 
@@ -415,15 +402,16 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
                 if let Some(c) = board.console() {
                     c.log = on;
                 }
-                Ok("log")
+                uwriteln!(self.out, "OK log").ok();
+                if on {
+                    uwriteln!(self.out, "{}", LOG_HEADER).ok();
+                }
+                return;
             }
         };
         match answer {
             Ok(name) => {
                 uwriteln!(self.out, "OK {}", name).ok();
-                if name == "log" && board.console().is_some_and(|c| c.log) {
-                    uwriteln!(self.out, "{}", LOG_HEADER).ok();
-                }
             }
             Err(CommandError::Range(what)) => {
                 uwriteln!(self.out, "ERR range {}", what).ok();
@@ -667,25 +655,32 @@ impl<I: I2c, P: SetDutyCycle, B: Board> Watch<'_, I, P, B> {
         if self.board.console().is_none_or(|c| c.pending.is_some()) {
             return;
         }
-        if self.board.receive_overrun() {
-            if let Some(c) = self.board.console() {
-                c.line.overrun();
-            }
+        let Some(command) = receive_line(self.board) else {
+            return;
+        };
+        if command == Ok(Command::Stop) {
+            self.pump.stop().ok();
+            self.applied = 0;
         }
-        while let Some(byte) = self.board.receive() {
-            let Some(c) = self.board.console() else {
-                return;
-            };
-            if let Some(command) = c.line.push(byte) {
-                if command == Ok(Command::Stop) {
-                    self.pump.stop().ok();
-                    self.applied = 0;
-                }
-                c.pending = Some(command);
-                return;
-            }
+        if let Some(c) = self.board.console() {
+            c.pending = Some(command);
         }
     }
+}
+
+/// Reads received bytes into the console's line up to the end of one line: its command (or
+/// why it is none). `None` when no line was completed (or the board has no console). A
+/// receiver overrun marks the line in progress as damaged first.
+fn receive_line(board: &mut impl Board) -> Option<Result<Command, CommandError>> {
+    if board.receive_overrun() {
+        board.console()?.line.overrun();
+    }
+    while let Some(byte) = board.receive() {
+        if let Some(command) = board.console()?.line.push(byte) {
+            return Some(command);
+        }
+    }
+    None
 }
 
 /// The blocking work the loop runs between ticks.

@@ -23,8 +23,9 @@
 use ufmt::{uDisplay, uWrite, Formatter};
 
 use crate::event::{write_list, write_model, FaultReason, COEF_DIGITS};
-use crate::report::{Decimal, Fixed};
+use crate::report::{Decimal, Fixed, Milli};
 use crate::selfid::State;
+use crate::sfm3300::counts_to_millislm;
 use crate::units::FLOW_SCALE;
 use ridge_core::control::Rst;
 use ridge_core::ArxModel;
@@ -110,7 +111,7 @@ impl uDisplay for Status {
             "STATUS state={} duty={} flow={} sp=",
             self.state.name(),
             Decimal::new(i32::from(self.duty), 2),
-            Decimal::new(counts_to_slm_e5(self.counts) / 100, 3)
+            Milli(counts_to_millislm(self.counts))
         )?;
         match self.setpoint {
             Some(r) => uDisplay::fmt(&Fixed::new(r, 3), f)?,

@@ -830,9 +830,14 @@ fn bad_commands_answer_err_and_change_nothing() {
 
 #[test]
 fn status_model_and_forget_answer() {
-    let (_w, uart, mut board, mut app) = running();
+    let (w, uart, mut board, mut app) = running();
     let status = ask(&mut board, &mut app, &uart, "STATUS\n");
     assert!(status.starts_with("STATUS state=run "), "{status}");
+    // The last reading, rounded to milli-slm.
+    let counts = app.selfid().reading();
+    assert_eq!(counts, w.borrow().reading);
+    let want = format!("{:.3}", f64::from(counts) / 120.0);
+    assert_eq!(field(&status, "flow"), want);
     assert_eq!(field(&status, "fault"), "none");
     let model = ask(&mut board, &mut app, &uart, "MODEL\n");
     let id = uart
