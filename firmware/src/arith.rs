@@ -2,7 +2,7 @@
 //! comparing a board's arithmetic with the host's (`src/bin/avr-arith.rs`,
 //! `scripts/avr-arith-check`). Diagnostics: on the ATmega2560 build this currently
 //! disagrees with the host (see README, "Known limits").
-use ridge_core::{IntGram, Offset, Scale, Search, Structure};
+use ridge_core::{IntGram, Offset, Real, Scale, Search, Structure};
 
 fn record() -> (IntGram, i64, i64, i64) {
     let mut g = IntGram::new();
@@ -139,8 +139,36 @@ pub fn write<W: ufmt::uWrite>(w: &mut W) {
         }
     }
     for x in [2.0f32, 0.3, 1.0e-40, 3.4e38, 12_345.678, 1.000_000_1, 0.25] {
-        let _ = ufmt::uwriteln!(w, "sqrt {}", ridge_core::real::sqrt_f32(x).to_bits());
+        let _ = ufmt::uwriteln!(w, "sqrt {}", Real::sqrt(x).to_bits());
     }
+    // The board's √ and ln against independent references on 2048 pseudo-random positive
+    // finite f32 (every exponent): √ against the digit-by-digit `sqrt_f32` (correctly rounded,
+    // tested against libm on the host), ln against the f64 log rounded to f32.
+    let (mut sqrt_bad, mut ln_worst) = (0u16, 0u32);
+    let mut z: u32 = 0x9E37_79B9;
+    for _ in 0..2048 {
+        z ^= z << 13;
+        z ^= z >> 17;
+        z ^= z << 5;
+        let x = f32::from_bits(z % 0x7F80_0000);
+        if x == 0.0 {
+            continue;
+        }
+        if Real::sqrt(x).to_bits() != ridge_core::real::sqrt_f32(x).to_bits() {
+            sqrt_bad += 1;
+        }
+        let want = libm::log(f64::from(x)) as f32;
+        let got = Real::ln(x);
+        let ulps = if (want < 0.0) == (got < 0.0) {
+            want.to_bits().abs_diff(got.to_bits())
+        } else {
+            u32::MAX
+        };
+        ln_worst = ln_worst.max(ulps);
+    }
+    let _ = ufmt::uwriteln!(w, "sqrt-mismatch {}", sqrt_bad);
+    // avr-libc's `log` measured 2 ulp at worst here, libm's `logf` 1.
+    let _ = ufmt::uwriteln!(w, "ln-within-2-ulp {}", ln_worst <= 2);
     let _ = ufmt::uwriteln!(w, "i64f32 {}", (123_456_789_012i64 as f32).to_bits());
     let _ = ufmt::uwriteln!(
         w,

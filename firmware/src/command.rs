@@ -32,7 +32,7 @@ pub const MAX_DECIMALS: u8 = 3;
 pub type Milli = i32;
 
 /// Largest magnitude of a number, thousandths (10⁶ units).
-const MAX_MILLI: i64 = 1_000_000_000;
+const MAX_MILLI: Milli = 1_000_000_000;
 
 /// A breath profile as typed: every value in thousandths of its unit, `None` where the key was
 /// left out.
@@ -222,7 +222,9 @@ fn number(text: &[u8]) -> Result<Milli, CommandError> {
         Some((b'+', rest)) => (false, rest),
         _ => (false, text),
     };
-    let mut value: i64 = 0;
+    // i32 throughout (i64 multiplications are library calls on the ATmega2560): every
+    // product is checked against MAX_MILLI / 10 first, so none exceeds 10⁹ + 9 < 2³¹.
+    let mut value: Milli = 0;
     let mut decimals: Option<u8> = None;
     let mut any = false;
     for &b in digits {
@@ -234,7 +236,7 @@ fn number(text: &[u8]) -> Result<Milli, CommandError> {
                     }
                     *n += 1;
                 }
-                value = value * 10 + i64::from(b - b'0');
+                value = times_ten(value)? + Milli::from(b - b'0');
                 if value > MAX_MILLI {
                     return Err(CommandError::BadNumber);
                 }
@@ -248,13 +250,17 @@ fn number(text: &[u8]) -> Result<Milli, CommandError> {
         return Err(CommandError::BadNumber);
     }
     for _ in decimals.unwrap_or(0)..MAX_DECIMALS {
-        value *= 10;
+        value = times_ten(value)?;
     }
-    if value > MAX_MILLI {
+    Ok(if negative { -value } else { value })
+}
+
+/// `10 · value` for `0 ≤ value`, refused above [`MAX_MILLI`].
+fn times_ten(value: Milli) -> Result<Milli, CommandError> {
+    if value > MAX_MILLI / 10 {
         return Err(CommandError::BadNumber);
     }
-    let value = if negative { -value } else { value };
-    Milli::try_from(value).map_err(|_| CommandError::BadNumber)
+    Ok(value * 10)
 }
 
 /// Assembles received bytes into lines: [`push`](Line::push) one byte at a time; a `\n` or

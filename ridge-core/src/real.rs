@@ -73,11 +73,13 @@ impl Real for f32 {
     }
     #[inline]
     fn sqrt(self) -> Self {
-        // libm's sqrtf works with 64-bit products, ~8000 cycles per call on an 8-bit MCU; the
-        // digit-by-digit root needs only 32-bit shifts and subtractions (~1000 cycles).
+        // On AVR avr-libc's assembly `sqrt`: 140 bytes of flash against 562 for `sqrt_f32` below
+        // (and ~8000 cycles for libm's sqrtf, which works with 64-bit products), and correctly
+        // rounded like both (`scripts/avr-arith-check` compares it with `sqrt_f32`).
         #[cfg(target_arch = "avr")]
         {
-            sqrt_f32(self)
+            // SAFETY: avr-libc's `sqrt(double)` with `double` 32-bit on AVR: a pure function.
+            unsafe { avr_libm::sqrt(self) }
         }
         #[cfg(not(target_arch = "avr"))]
         {
@@ -86,7 +88,18 @@ impl Real for f32 {
     }
     #[inline]
     fn ln(self) -> Self {
-        libm::logf(self)
+        // On AVR avr-libc's assembly `log`: ~240 bytes with its helpers against 700 for libm's
+        // logf; within 2 ulp of the correctly rounded value where logf is within 1
+        // (`scripts/avr-arith-check` measures it).
+        #[cfg(target_arch = "avr")]
+        {
+            // SAFETY: as for `sqrt`.
+            unsafe { avr_libm::log(self) }
+        }
+        #[cfg(not(target_arch = "avr"))]
+        {
+            libm::logf(self)
+        }
     }
     #[inline]
     fn abs(self) -> Self {
@@ -146,8 +159,8 @@ impl Real for f64 {
 }
 
 /// Correctly rounded `√x` of an `f32` (round to nearest, as IEEE 754 requires of `sqrt`) with
-/// 32-bit integer operations only: [`Real::sqrt`] for `f32` on AVR, where it takes ~1000
-/// cycles against ~8000 for `libm::sqrtf`. Special values as IEEE 754: `√(−0) = −0`,
+/// 32-bit integer operations only (~1000 cycles on AVR against ~8000 for `libm::sqrtf`): the
+/// reference the ATmega2560's [`Real::sqrt`] (avr-libc's) is checked against. Special values as IEEE 754: `√(−0) = −0`,
 /// `√(+∞) = +∞`, NaN for NaN and for any input below zero.
 ///
 /// Method: the digit-by-digit (restoring) square root of the significand, one result bit per
@@ -275,5 +288,15 @@ mod tests {
             check(f32::from_bits(b));
             b += 997;
         }
+    }
+}
+
+/// avr-libc's math functions, linked from its `libm.a` by the firmware's linker wrapper
+/// (`scripts/avr-gcc-wrapper`); `double` is 32-bit there.
+#[cfg(target_arch = "avr")]
+mod avr_libm {
+    extern "C" {
+        pub fn sqrt(x: f32) -> f32;
+        pub fn log(x: f32) -> f32;
     }
 }
