@@ -12,6 +12,7 @@
 //! | [`sfm3300`] | SFM3300 flow-sensor driver (embedded-hal I2C) |
 //! | [`pump`] | blower PWM output with limits and a ramp limit (embedded-hal PWM) |
 //! | [`persist`] | the stored model record (magic, version, CRC-32) |
+//! | [`slots`] | two slots for that record: a write cut at any byte keeps the previous model |
 //! | [`event`], [`report`] | report lines and their fixed-point formatting (ufmt) |
 //! | [`command`], [`console`] | the operator's console: command lines, their answers, the CSV log |
 //! | [`units`] | the rig's units: duty scale, SFM3300 encoding, loop rate, [`units::SCALE`] |
@@ -35,5 +36,6 @@ pub mod ring;
 pub mod selfid;
 pub mod setpoint;
 pub mod sfm3300;
+pub mod slots;
 pub mod tracking;
 pub mod units;

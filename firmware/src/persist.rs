@@ -134,20 +134,8 @@ pub fn encode(model: &ArxModel<f32>, fit: f32) -> [u8; RECORD_LEN] {
 /// Only the first [`RECORD_LEN`] bytes are read (a board may pass a whole EEPROM page).
 /// Checks, in this order: length, magic, version, CRC, structure and layout, finiteness.
 pub fn decode(bytes: &[u8]) -> Result<(ArxModel<f32>, f32), PersistError> {
-    let rec: &[u8; RECORD_LEN] = bytes
-        .get(..RECORD_LEN)
-        .and_then(|b| b.try_into().ok())
-        .ok_or(PersistError::Length)?;
-    let [m0, m1, m2, m3, version, p, q, d, off, ..] = *rec;
-    if [m0, m1, m2, m3] != MAGIC {
-        return Err(PersistError::Magic);
-    }
-    if version != VERSION {
-        return Err(PersistError::Version);
-    }
-    if crc32(rec.get(..CRC_AT).unwrap_or(&[])) != read_u32(rec, CRC_AT) {
-        return Err(PersistError::Crc);
-    }
+    let rec = intact(bytes)?;
+    let [_, _, _, _, _, p, q, d, off, ..] = *rec;
     let offset = match off {
         0 => Offset::None,
         1 => Offset::Intercept,
@@ -189,6 +177,26 @@ pub fn decode(bytes: &[u8]) -> Result<(ArxModel<f32>, f32), PersistError> {
         _ => PersistError::Structure,
     })?;
     Ok((model, fit))
+}
+
+/// The first [`RECORD_LEN`] bytes of `bytes` if they are whole as [`encode`] wrote them:
+/// length, magic, version and CRC (the first four checks of [`decode`], which a two-slot store
+/// uses to pick the slot to load).
+pub fn intact(bytes: &[u8]) -> Result<&[u8; RECORD_LEN], PersistError> {
+    let rec: &[u8; RECORD_LEN] = bytes
+        .get(..RECORD_LEN)
+        .and_then(|b| b.try_into().ok())
+        .ok_or(PersistError::Length)?;
+    if rec.get(..4) != Some(&MAGIC[..]) {
+        return Err(PersistError::Magic);
+    }
+    if rec.get(4) != Some(&VERSION) {
+        return Err(PersistError::Version);
+    }
+    if crc32(rec.get(..CRC_AT).unwrap_or(&[])) != read_u32(rec, CRC_AT) {
+        return Err(PersistError::Crc);
+    }
+    Ok(rec)
 }
 
 /// Sequential writer into the record buffer (never panics: writes past the end are dropped).

@@ -559,19 +559,118 @@ fn avr_tester_runs_the_firmware_with_the_sfm3300_slave() {
     assert!(!state.borrow().served().is_empty());
 }
 
-/// EEPROM through simavr: a record written with the firmware's own encoder at the board's
-/// address (0) is loaded at boot (`LOADED`, no identification); the same record with one byte
+/// The two EEPROM slots in the real firmware: slot A holds a whole record the state machine
+/// refuses (fit 50 % < the 70 % acceptance), so the firmware identifies anew and saves record B
+/// into the other slot, a byte per tick. The EEPROM is copied at every tick of that save and
+/// the board rebooted from copies cut at several points: until B's sequence number (its last
+/// byte) is written, A is the record found (refused again for its fit: whole, not `crc`);
+/// afterwards B is loaded. (The host test `firmware/tests/slots.rs` cuts at every byte.)
+#[test]
+fn a_save_cut_at_any_point_keeps_the_other_slot() {
+    use ridge_core::{ArxModel, Offset};
+    use ridge_pump_firmware::persist::{self, RECORD_LEN};
+    use ridge_pump_firmware::slots::{self, SLOT_LEN, STORE_LEN, UNWRITTEN};
+
+    let model = ArxModel::new(&[0.9f32], &[12.0], 3, Offset::Intercept, -1.5).expect("model");
+    let a = persist::encode(&model, 50.0);
+    let (a_at, a_bytes) =
+        slots::slot_bytes(&a, &slots::plan(&[0xFF; STORE_LEN])).expect("slot bytes");
+    let mut cfg = BenchConfig::new(elf());
+    cfg.eeprom = vec![(a_at, a_bytes.to_vec())];
+    let mut bench = Bench::new(cfg.clone()).expect("bench");
+    let end = bench.run_until(150.0, |l| l.text.starts_with("ACCEPT"));
+    assert!(
+        matches!(end, simavr_harness::bench::RunEnd::Line(_)),
+        "no ACCEPT: {:?}",
+        bench.lines.iter().map(|l| &l.text).collect::<Vec<_>>()
+    );
+    assert!(
+        bench
+            .lines
+            .iter()
+            .any(|l| l.text.starts_with("STORED-REJECTED fit=50.0<70.0")),
+        "record A not refused for its fit"
+    );
+    // B goes to the slot A is not in.
+    let b_at = SLOT_LEN - usize::from(a_at);
+    let mut copies = Vec::new();
+    for _ in 0..300 {
+        bench.run_for(0.01);
+        let e = bench.machine.eeprom();
+        if copies.last() != Some(&e) {
+            copies.push(e.clone());
+        }
+        if bench.lines.iter().any(|l| l.text == "PERSIST saved") {
+            break;
+        }
+    }
+    let last = copies.last().cloned().expect("EEPROM copies");
+    assert_ne!(
+        last[b_at + RECORD_LEN],
+        UNWRITTEN,
+        "B's sequence number never written"
+    );
+    assert_eq!(
+        last[..STORE_LEN][usize::from(a_at)..][..SLOT_LEN],
+        a_bytes[..],
+        "A touched"
+    );
+    // Cuts: the first copy with B's first bytes, one in the middle, the last one before B's
+    // sequence number, and the finished save.
+    let before_seq: Vec<&Vec<u8>> = copies
+        .iter()
+        .filter(|e| e[b_at + RECORD_LEN] == UNWRITTEN)
+        .collect();
+    assert!(
+        before_seq.len() >= 10,
+        "{} copies before the sequence number",
+        before_seq.len()
+    );
+    let cuts = [
+        before_seq[0],
+        before_seq[before_seq.len() / 2],
+        before_seq[before_seq.len() - 1],
+        &last,
+    ];
+    for (i, eeprom) in cuts.iter().enumerate() {
+        let mut cfg = BenchConfig::new(elf());
+        cfg.eeprom = vec![(0, eeprom[..STORE_LEN].to_vec())];
+        let mut boot = Bench::new(cfg).expect("bench");
+        boot.run_until(4.0, |l| {
+            l.text.starts_with("LOADED") || l.text.starts_with("STORED-REJECTED")
+        });
+        let texts: Vec<&str> = boot.lines.iter().map(|l| l.text.as_str()).collect();
+        if i + 1 < cuts.len() {
+            assert!(
+                texts
+                    .iter()
+                    .any(|l| l.starts_with("STORED-REJECTED fit=50.0<70.0")),
+                "cut {i}: record A not found whole: {texts:?}"
+            );
+        } else {
+            assert!(
+                texts.iter().any(|l| l.starts_with("LOADED")),
+                "finished save: B not loaded: {texts:?}"
+            );
+        }
+    }
+}
+
+/// EEPROM through simavr: a record written with the firmware's own encoder into its slot
+/// (the one a blank EEPROM's first save goes to) is loaded at boot (`LOADED`, no identification); the same record with one byte
 /// flipped is rejected (`STORED-REJECTED`) and the firmware identifies anew (`EXCITE`).
 #[test]
 fn persisted_record_is_loaded_and_a_corrupted_one_rejected() {
     use ridge_core::{ArxModel, Offset};
-    use ridge_pump_firmware::persist;
+    use ridge_pump_firmware::{persist, slots};
 
     let model = ArxModel::new(&[0.9f32], &[12.0], 3, Offset::Intercept, -1.5).expect("model");
     let record = persist::encode(&model, 88.5);
+    let plan = slots::plan(&[0xFF; slots::STORE_LEN]);
     let boot = |bytes: &[u8]| {
+        let (at, slot) = slots::slot_bytes(bytes, &plan).expect("slot");
         let mut cfg = BenchConfig::new(elf());
-        cfg.eeprom = vec![(0, bytes.to_vec())];
+        cfg.eeprom = vec![(at, slot.to_vec())];
         let mut bench = Bench::new(cfg).expect("bench");
         bench.run_until(4.0, |l| {
             l.text.starts_with("LOADED") || l.text.starts_with("EXCITE")

@@ -28,10 +28,10 @@ mod image {
     use core::mem::MaybeUninit;
     use core::ptr::addr_of_mut;
     use ridge_pump_firmware::app::{App, Board};
-    use ridge_pump_firmware::persist::RECORD_LEN;
     use ridge_pump_firmware::pump::Pump;
     use ridge_pump_firmware::selfid::{SelfIdentification, DEFAULT_CONFIG};
     use ridge_pump_firmware::sfm3300::Sfm3300;
+    use ridge_pump_firmware::slots::{self, Plan, SLOT_LEN, STORE_LEN};
     use ufmt::uwriteln;
 
     /// I2C clock: 400 kHz, the SFM3300's maximum (fast mode). One 3-byte read then takes
@@ -44,7 +44,11 @@ mod image {
     struct Mega {
         ticker: timer::Ticker,
         watchdog: watchdog::Watchdog,
-        eeprom: eeprom::Eeprom<RECORD_LEN>,
+        eeprom: eeprom::Eeprom<SLOT_LEN>,
+        /// Which slot is in use and where the next save goes.
+        plan: Plan,
+        /// A save in progress: whether it forgets (writes the all-0xFF tombstone).
+        forgetting: Option<bool>,
     }
 
     impl Board for Mega {
@@ -55,11 +59,22 @@ mod image {
         fn pet(&mut self) {
             self.watchdog.pet();
         }
+        /// Writes `record` into the slot not in use, sequence number last (`slots`).
+        #[inline(never)]
         fn save(&mut self, record: &[u8]) {
-            self.eeprom.save(record);
+            self.forgetting = Some(record.iter().all(|&b| b == 0xFF));
+            let plan = &self.plan;
+            self.eeprom
+                .save(slots::target_offset(plan), record, plan.seq);
         }
         fn poll_store(&mut self) -> Option<bool> {
-            self.eeprom.poll()
+            let done = self.eeprom.poll();
+            if done == Some(true) {
+                if let Some(forgot) = self.forgetting.take() {
+                    self.plan = slots::after_write(&self.plan, forgot);
+                }
+            }
+            done
         }
         fn stack(&self) -> Option<(u16, u16)> {
             Some(stack::usage())
@@ -98,9 +113,11 @@ mod image {
             Err(e) => match e {},
         };
         let sensor = Sfm3300::new(twi::Twi::new(dp.TWI, dp.PORTD, I2C_HZ));
-        let mut eeprom = eeprom::Eeprom::<RECORD_LEN>::new(dp.EEPROM);
-        let stored = eeprom.load();
-        let sid = SelfIdentification::new(&DEFAULT_CONFIG, stored.as_ref().map(|r| &r[..]));
+        let mut eeprom = eeprom::Eeprom::<SLOT_LEN>::new(dp.EEPROM);
+        let store: [u8; STORE_LEN] = eeprom.load();
+        let plan = slots::plan(&store);
+        let stored = slots::record(&store, &plan);
+        let sid = SelfIdentification::new(&DEFAULT_CONFIG, stored);
 
         let ticker = timer::Ticker::new(dp.TC3);
         // SAFETY: all interrupt handlers (Timer3 compare, USART0 UDRE) only use state that is
@@ -120,6 +137,8 @@ mod image {
             ticker,
             watchdog,
             eeprom,
+            plan,
+            forgetting: None,
         });
         (app, board)
     }

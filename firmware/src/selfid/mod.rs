@@ -249,6 +249,7 @@ impl SelfIdentification {
     /// identified model must pass (stable, static gain of the right sign and size, fit at
     /// least [`Config::min_fit`]), is reported once ([`Event::StoredRejected`], on the first
     /// tick) and a new model is identified.
+    #[inline(never)]
     pub fn new(config: &'static Config, stored: Option<&[u8]>) -> Self {
         let checked = stored.map(|bytes| {
             let (m, fit) = persist::decode(bytes).map_err(StoredReason::Record)?;

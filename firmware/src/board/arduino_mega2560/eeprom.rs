@@ -7,14 +7,14 @@
 //! (no wear, no time); at the end the whole record is read back and compared, and a mismatch
 //! restarts the write (up to [`ATTEMPTS`] times).
 //!
-//! The record sits at [`BASE`]. It carries no framing of its own here: the state machine's
-//! record is expected to validate itself (magic/version/CRC), since a reset or power loss in the
-//! middle of a save leaves a mix of old and new bytes. An erased EEPROM (all `0xFF`) is reported
-//! as "no record".
+//! The store starts at [`BASE`]: two slots ([`ridge_pump_firmware::slots`]), so that a reset or
+//! power loss in the middle of a save, which leaves a mix of old and new bytes in the slot
+//! being written, never loses the record in the other slot. This driver only reads the store
+//! and writes one slot's bytes in address order.
 
 use avr_device::atmega2560::EEPROM;
 
-/// EEPROM address of the record.
+/// EEPROM address of the store (slot 0; slot 1 follows).
 pub const BASE: u16 = 0;
 
 /// Write passes (each followed by a read-back) before a save is reported as failed.
@@ -24,10 +24,12 @@ pub const ATTEMPTS: u8 = 3;
 const EERE: u8 = 1 << 0;
 const EEPE: u8 = 1 << 1;
 
-/// The EEPROM with a background writer for one record of `N` bytes.
+/// The EEPROM with a background writer for `N` bytes (one slot) at a time.
 pub struct Eeprom<const N: usize> {
     ee: EEPROM,
     buf: [u8; N],
+    /// Address of `buf`'s first byte.
+    at: u16,
     next: usize,
     attempts_left: u8,
 }
@@ -38,6 +40,7 @@ impl<const N: usize> Eeprom<N> {
         Eeprom {
             ee,
             buf: [0xFF; N],
+            at: BASE,
             next: 0,
             attempts_left: 0,
         }
@@ -67,24 +70,26 @@ impl<const N: usize> Eeprom<N> {
         });
     }
 
-    /// Reads the stored record; `None` if the EEPROM is erased there (all `0xFF`).
-    pub fn load(&mut self) -> Option<[u8; N]> {
-        let mut record = [0u8; N];
-        for (i, slot) in record.iter_mut().enumerate() {
-            *slot = self.read_byte(BASE + i as u16);
+    /// Reads the `M` bytes of the store.
+    pub fn load<const M: usize>(&mut self) -> [u8; M] {
+        let mut store = [0u8; M];
+        for (i, byte) in store.iter_mut().enumerate() {
+            *byte = self.read_byte(BASE + i as u16);
         }
-        if record.iter().all(|&b| b == 0xFF) {
-            None
-        } else {
-            Some(record)
-        }
+        store
     }
 
-    /// Queues `record` for writing (a save in progress is superseded). Records of another
-    /// length than `N` are ignored.
-    pub fn save(&mut self, record: &[u8]) {
-        if record.len() == N {
-            self.buf.copy_from_slice(record);
+    /// Queues `body` then `last` (`N` bytes in all) for writing at `offset` from [`BASE`] (a
+    /// save in progress is superseded). Ignored unless `body` has `N − 1` bytes.
+    pub fn save(&mut self, offset: u16, body: &[u8], last: u8) {
+        if body.len() + 1 == N {
+            for (slot, &b) in self.buf.iter_mut().zip(body) {
+                *slot = b;
+            }
+            if let Some(slot) = self.buf.last_mut() {
+                *slot = last;
+            }
+            self.at = BASE + offset;
             self.next = 0;
             self.attempts_left = ATTEMPTS;
         }
@@ -104,15 +109,15 @@ impl<const N: usize> Eeprom<N> {
         while self.next < N {
             let i = self.next;
             self.next += 1;
-            let address = BASE + i as u16;
+            let address = self.at + i as u16;
             if self.read_byte(address) != self.buf[i] {
                 self.start_write(address, self.buf[i]);
                 return None;
             }
         }
         // Pass complete and the last write finished: verify everything.
-        let buf = self.buf;
-        let mismatch = (0..N).any(|i| self.read_byte(BASE + i as u16) != buf[i]);
+        let (buf, at) = (self.buf, self.at);
+        let mismatch = (0..N).any(|i| self.read_byte(at + i as u16) != buf[i]);
         self.attempts_left -= 1;
         if !mismatch {
             self.attempts_left = 0;
