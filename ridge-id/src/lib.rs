@@ -50,6 +50,7 @@
 pub mod cli;
 pub mod control;
 pub mod csv;
+pub mod device;
 pub mod error;
 pub mod eval;
 pub mod initial;
@@ -59,6 +60,7 @@ pub mod plot;
 pub mod refine;
 pub mod report;
 pub mod residuals;
+pub mod segment;
 pub mod warnings;
 
 pub use control::{ControlOptions, ControlReport};
@@ -72,7 +74,7 @@ use ridge_core_host::{
     ArxModel, Criterion, Error as CoreError, Grid, MethodKind, Normal, Rls, Search, Structure,
 };
 
-use input::{evaluate_input, read_input, Input};
+use input::{evaluate_input, Input};
 use refine::{Refine, Select};
 use warnings::number;
 
@@ -278,11 +280,25 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
     }
     let grid = opts.effective_grid();
     let initial = opts.hyper.initial.samples(&grid);
-    let (est_in, val_in) = Input::open_pair(&opts.input, opts.validate.as_deref())?;
-    let est = read_input(&est_in, initial)?;
+    // --phase: the estimation record is one segment of a pump's capture, its statistics
+    // taken around the operating point (src/segment.rs).
+    let segment = opts
+        .segment
+        .as_ref()
+        .map(|s| segment::read(&opts.input, s))
+        .transpose()?;
+    let (est_in, val_in) = match &segment {
+        Some(seg) => {
+            let val = opts.validate.as_deref().map(Input::open).transpose()?;
+            (seg.input(), val)
+        }
+        None => Input::open_pair(&opts.input, opts.validate.as_deref())?,
+    };
+    let shift = segment.as_ref().and_then(|s| s.operating_point);
+    let est = segment::read_shifted(&est_in, initial, shift)?;
     let val = val_in
         .as_ref()
-        .map(|v| read_input(v, initial))
+        .map(|v| segment::read_shifted(v, initial, shift))
         .transpose()?;
     check_rows(&est, &grid, opts.offset)?;
     let est_normal = est.normal()?;
@@ -343,6 +359,14 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
             (model, samples, rss, score)
         }
         _ => (sel.fit.model(), sel.fit.iterations, sel.fit.rss, sel.score),
+    };
+    // The model of the statistics (of the deviations with --phase), for the warnings; the
+    // model reported and scored is the absolute one.
+    let fitted = model;
+    let model = match shift {
+        Some(op) => segment::absolute_model(&model, op)
+            .map_err(|e| IdError::file(est_in.name(), format!("absolute model: {e}")))?,
+        None => model,
     };
 
     // --select free-run and --refine oe (src/refine.rs): they change the model, whose RSS and
@@ -499,7 +523,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
     let warnings = warnings::warnings(&warnings::Run {
         opts,
         normal: &est_normal,
-        model: &model,
+        model: if shift.is_some() { &fitted } else { &model },
         iterations,
         estimation: (est_in.name(), &estimation),
         validation: val_in.as_ref().map(|v| v.name()).zip(validation.as_ref()),
@@ -533,6 +557,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         control,
         control_plot,
         warnings,
+        segment: segment.map(|s| s.info(&opts.segment)),
     })
 }
 
