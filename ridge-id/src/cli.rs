@@ -254,11 +254,11 @@ pub struct IdentifyArgs {
     /// docs/real-logs.md.
     #[arg(long, value_name = "NAME")]
     pub phase: Option<String>,
-    /// --phase: take the N-th segment of the phase in the file (from 1) instead of the last
+    /// --phase (or --device): take the N-th segment of the phase in the file (from 1) instead of the last
     /// complete one.
-    #[arg(long, value_name = "N", requires = "phase", value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub attempt: Option<u32>,
-    /// --phase: the operating point subtracted before the statistics (the model printed is
+    /// --phase (or --device): the operating point subtracted before the statistics (the model printed is
     /// the absolute one, with the intercept): log = u0, y0 of the `# EXCITE` line before the
     /// segment (the pump's; the default), none, or U0,Y0 in the log's units.
     #[arg(
@@ -397,6 +397,13 @@ impl IdentifyArgs {
                     seg.operating_point = op;
                 }
             }
+        }
+        if opts.segment.is_none() && (self.attempt.is_some() || self.operating_point.is_some()) {
+            return Err(IdError::Usage(
+                "--attempt and --operating-point select within a segment: add --phase NAME \
+                 (or --device)"
+                    .into(),
+            ));
         }
         Ok(opts)
     }
