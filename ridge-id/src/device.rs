@@ -8,10 +8,10 @@
 //! (Ridge-M γ = 1000, β = 0.01, ε = 1e-6, 200 iterates, delay-free AIC with α = 12, p 1..=6,
 //! q 1..=6, d 0..=6, no offset, exact pruning) in `f32`; the model of the deviations becomes
 //! the absolute model with the intercept `c = y0 (1 − Σθ) − u0 Σφ`. `--device` sets exactly
-//! these options (the hyper-parameters are the firmware's `f32` values, widened to `f64`);
-//! the arithmetic stays `ridge-id`'s `f64`, so coefficients agree to `f32` precision, not
-//! bit for bit. The validation record does not change the model (it only accepts or
-//! rejects it), so `--device` sets nothing for it.
+//! these options (the hyper-parameters are the firmware's `f32` constants as the decimals its
+//! source names); the arithmetic stays `ridge-id`'s `f64`, so coefficients agree to `f32`
+//! precision, not bit for bit. The validation record does not change the model (it only
+//! accepts or rejects it), so `--device` sets nothing for it.
 
 use ridge_core_host::{Criterion, Grid, MethodKind, Offset, OrderRange};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
@@ -56,11 +56,11 @@ pub fn apply(opts: &mut Options) -> Result<(), IdError> {
         .name()
         .parse::<Offset>()
         .map_err(|_| unsupported(s.offset.name()))?;
-    opts.hyper.gamma = f64::from(ridge_m.gamma);
-    opts.hyper.beta = f64::from(ridge_m.beta);
-    opts.hyper.tol = f64::from(ridge_m.tol);
+    opts.hyper.gamma = decimal(ridge_m.gamma);
+    opts.hyper.beta = decimal(ridge_m.beta);
+    opts.hyper.tol = decimal(ridge_m.tol);
     opts.hyper.max_iter = ridge_m.max_iter;
-    opts.hyper.alpha = f64::from(s.alpha);
+    opts.hyper.alpha = decimal(s.alpha);
     // The pump's statistics assume zero history before the record (around the operating
     // point, where that is what the plant had).
     opts.hyper.initial = Initial::Zero;
@@ -81,6 +81,13 @@ pub fn apply(opts: &mut Options) -> Result<(), IdError> {
     Ok(())
 }
 
+/// The `f64` of the shortest decimal that reads back as `v` (`0.01f32` → `0.01`, where
+/// widening gives 0.0099999998): the value the firmware's source names. The two differ by
+/// less than an `f32` rounding, far below what the `f32` solve changes.
+fn decimal(v: f32) -> f64 {
+    v.to_string().parse().unwrap_or(f64::from(v))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -99,24 +106,8 @@ mod tests {
     fn device_options_are_the_documented_ones() {
         let device = parsed("--device");
         let spelled = parsed(DEVICE_OPTIONS);
-        // The documented spelling gives the firmware's values (the f32 ones widened: 0.01f32
-        // is 0.0099999998 in f64).
-        assert_eq!(device.grid, spelled.grid);
-        assert_eq!(device.segment, spelled.segment);
-        assert_eq!(
-            (device.method, device.criterion, device.offset),
-            (spelled.method, spelled.criterion, spelled.offset)
-        );
-        assert_eq!(device.hyper.initial, spelled.hyper.initial);
-        assert_eq!(device.hyper.max_iter, spelled.hyper.max_iter);
-        for (a, b) in [
-            (device.hyper.gamma, spelled.hyper.gamma),
-            (device.hyper.beta, spelled.hyper.beta),
-            (device.hyper.alpha, spelled.hyper.alpha),
-            (device.hyper.tol, spelled.hyper.tol),
-        ] {
-            assert!((a - b).abs() <= 1e-7 * b.abs(), "{a} vs {b}");
-        }
+        // The documented spelling gives exactly the firmware's values.
+        assert_eq!(device, spelled);
         // A phase of one's own is kept.
         let other = parsed("--device --phase validate --attempt 2");
         let seg = other.segment.unwrap();

@@ -38,6 +38,12 @@
 //! - [`input::Input`]: a regular file (streamed for every pass) or input that can be read only
 //!   once (`--input -`, a pipe, a FIFO: read once into memory, at most
 //!   [`input::MEMORY_ROWS`] rows).
+//! - [`segment`] (`--phase`, `--attempt`, `--operating-point`): one segment of a pump's log
+//!   capture (rows of one `phase`, `#` comment lines with the pump's `EXCITE` and `ID` lines)
+//!   as the estimation record, around the pump's operating point; [`device`] (`--device`):
+//!   the firmware's identification settings (docs/real-logs.md, "Check the pump's
+//!   identification on the PC"). Tested against the firmware itself in
+//!   `host-tests/tests/device_log.rs`.
 //! - [`warnings`]: what should not be trusted about a model (unstable, negative fit, too
 //!   short or too little excited for the structure, Ridge-M stopped on a non-move), in every
 //!   [`Report`]; `--strict` exits 1 on any.
