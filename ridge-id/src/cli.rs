@@ -13,11 +13,13 @@ use ridge_core_host::{
 };
 
 use crate::control::{ControlOptions, DEFAULT_TS, EXIT_REFUSED};
+use crate::error::IdError;
 use crate::initial::Initial;
 use crate::options::{parse_range, parse_structure, Options, MAX_ITER_LIMIT};
 use crate::refine::{Refine, Select};
 use crate::report::Hyper;
 use crate::run;
+use crate::segment::{OperatingPoint, SegmentOptions};
 use ridge_core::control::Spec;
 
 /// `ridge-id`: identify an ARX model from a logged CSV record.
@@ -246,6 +248,36 @@ pub struct IdentifyArgs {
     /// Design the flow controller for the identified model (see --help).
     #[arg(long, long_help = CONTROL_HELP)]
     pub control: bool,
+    /// Estimation record = the rows of --input whose phase column is NAME (a pump's log
+    /// capture: header t,u,y,r,phase, other lines as # comments): the last complete segment
+    /// of such rows, or the --attempt-th; refused when rows are missing. See
+    /// docs/real-logs.md.
+    #[arg(long, value_name = "NAME")]
+    pub phase: Option<String>,
+    /// --phase (or --device): take the N-th segment of the phase in the file (from 1) instead of the last
+    /// complete one.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub attempt: Option<u32>,
+    /// --phase (or --device): the operating point subtracted before the statistics (the model printed is
+    /// the absolute one, with the intercept): log = u0, y0 of the `# EXCITE` line before the
+    /// segment (the pump's; the default), none, or U0,Y0 in the log's units.
+    #[arg(
+        long,
+        value_name = "log|none|U0,Y0",
+        requires = "phase",
+        allow_hyphen_values = true
+    )]
+    pub operating_point: Option<OperatingPoint>,
+    /// Identify as the pump does (docs/real-logs.md), with the firmware's own settings: the
+    /// same as --phase excite --operating-point log --initial zero --offset none --method
+    /// ridge-m --criterion aic --gamma 1000 --beta 0.01 --alpha 12 --max-iter 200 --tol 1e-6
+    /// --p 1..=6 --q 1..=6 --d 0..=6 (--phase, --attempt and --operating-point may still be
+    /// given).
+    #[arg(long, conflicts_with_all = [
+        "method", "criterion", "gamma", "beta", "alpha", "max_iter", "tol", "p", "q", "d",
+        "structure", "offset", "initial", "select", "refine",
+    ])]
+    pub device: bool,
     /// The speed knob of --control: time constant of the closed-loop setpoint response, in
     /// seconds [default: a quarter of the model's open-loop time constant (its slow pole),
     /// within 2 Ts..2 s; 0.1 s without a slow pole].
@@ -312,8 +344,11 @@ pub struct IdentifyArgs {
 
 impl IdentifyArgs {
     /// The library options of these arguments.
-    pub fn options(&self) -> Options {
-        Options {
+    ///
+    /// Errors: `--device` with firmware settings ridge-id cannot express (see
+    /// [`crate::device::apply`]).
+    pub fn options(&self) -> Result<Options, IdError> {
+        let mut opts = Options {
             input: self.input.clone(),
             validate: self.validate.clone(),
             method: self.method,
@@ -348,7 +383,29 @@ impl IdentifyArgs {
                 u_max: self.u_max,
                 u_step: self.u_step,
             }),
+            segment: self.phase.as_ref().map(|phase| SegmentOptions {
+                phase: phase.clone(),
+                attempt: self.attempt,
+                operating_point: self.operating_point.unwrap_or_default(),
+            }),
+        };
+        if self.device {
+            crate::device::apply(&mut opts)?;
+            if let Some(seg) = &mut opts.segment {
+                seg.attempt = self.attempt.or(seg.attempt);
+                if let Some(op) = self.operating_point {
+                    seg.operating_point = op;
+                }
+            }
         }
+        if opts.segment.is_none() && (self.attempt.is_some() || self.operating_point.is_some()) {
+            return Err(IdError::Usage(
+                "--attempt and --operating-point select within a segment: add --phase NAME \
+                 (or --device)"
+                    .into(),
+            ));
+        }
+        Ok(opts)
     }
 }
 
@@ -386,7 +443,7 @@ pub fn main() -> ExitCode {
     }));
     let cli = Cli::parse();
     match cli.command {
-        Command::Identify(args) => match run(&args.options()) {
+        Command::Identify(args) => match args.options().and_then(|o| run(&o)) {
             Ok(report) => {
                 let text = if args.json {
                     let mut s = report.to_json_string();

@@ -38,6 +38,12 @@
 //! - [`input::Input`]: a regular file (streamed for every pass) or input that can be read only
 //!   once (`--input -`, a pipe, a FIFO: read once into memory, at most
 //!   [`input::MEMORY_ROWS`] rows).
+//! - [`segment`] (`--phase`, `--attempt`, `--operating-point`): one segment of a pump's log
+//!   capture (rows of one `phase`, `#` comment lines with the pump's `EXCITE` and `ID` lines)
+//!   as the estimation record, around the pump's operating point; [`device`] (`--device`):
+//!   the firmware's identification settings (docs/real-logs.md, "Check the pump's
+//!   identification on the PC"). Tested against the firmware itself in
+//!   `host-tests/tests/device_log.rs`.
 //! - [`warnings`]: what should not be trusted about a model (unstable, negative fit, too
 //!   short or too little excited for the structure, Ridge-M stopped on a non-move), in every
 //!   [`Report`]; `--strict` exits 1 on any.
@@ -50,6 +56,7 @@
 pub mod cli;
 pub mod control;
 pub mod csv;
+pub mod device;
 pub mod error;
 pub mod eval;
 pub mod initial;
@@ -59,6 +66,7 @@ pub mod plot;
 pub mod refine;
 pub mod report;
 pub mod residuals;
+pub mod segment;
 pub mod warnings;
 
 pub use control::{ControlOptions, ControlReport};
@@ -72,7 +80,7 @@ use ridge_core_host::{
     ArxModel, Criterion, Error as CoreError, Grid, MethodKind, Normal, Rls, Search, Structure,
 };
 
-use input::{evaluate_input, read_input, Input};
+use input::{evaluate_input, Input};
 use refine::{Refine, Select};
 use warnings::number;
 
@@ -278,11 +286,25 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
     }
     let grid = opts.effective_grid();
     let initial = opts.hyper.initial.samples(&grid);
-    let (est_in, val_in) = Input::open_pair(&opts.input, opts.validate.as_deref())?;
-    let est = read_input(&est_in, initial)?;
+    // --phase: the estimation record is one segment of a pump's capture, its statistics
+    // taken around the operating point (src/segment.rs).
+    let segment = opts
+        .segment
+        .as_ref()
+        .map(|s| segment::read(&opts.input, s))
+        .transpose()?;
+    let (est_in, val_in) = match &segment {
+        Some(seg) => {
+            let val = opts.validate.as_deref().map(Input::open).transpose()?;
+            (seg.input(), val)
+        }
+        None => Input::open_pair(&opts.input, opts.validate.as_deref())?,
+    };
+    let shift = segment.as_ref().and_then(|s| s.operating_point);
+    let est = segment::read_shifted(&est_in, initial, shift)?;
     let val = val_in
         .as_ref()
-        .map(|v| read_input(v, initial))
+        .map(|v| segment::read_shifted(v, initial, shift))
         .transpose()?;
     check_rows(&est, &grid, opts.offset)?;
     let est_normal = est.normal()?;
@@ -343,6 +365,14 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
             (model, samples, rss, score)
         }
         _ => (sel.fit.model(), sel.fit.iterations, sel.fit.rss, sel.score),
+    };
+    // The model of the statistics (of the deviations with --phase), for the warnings; the
+    // model reported and scored is the absolute one.
+    let fitted = model;
+    let model = match shift {
+        Some(op) => segment::absolute_model(&model, op)
+            .map_err(|e| IdError::file(est_in.name(), format!("absolute model: {e}")))?,
+        None => model,
     };
 
     // --select free-run and --refine oe (src/refine.rs): they change the model, whose RSS and
@@ -499,7 +529,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
     let warnings = warnings::warnings(&warnings::Run {
         opts,
         normal: &est_normal,
-        model: &model,
+        model: if shift.is_some() { &fitted } else { &model },
         iterations,
         estimation: (est_in.name(), &estimation),
         validation: val_in.as_ref().map(|v| v.name()).zip(validation.as_ref()),
@@ -533,6 +563,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         control,
         control_plot,
         warnings,
+        segment: segment.map(|s| s.info(&opts.segment)),
     })
 }
 

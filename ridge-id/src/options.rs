@@ -13,6 +13,7 @@ use crate::control::ControlOptions;
 use crate::error::IdError;
 use crate::refine::{Refine, Select};
 use crate::report::Hyper;
+use crate::segment::SegmentOptions;
 
 /// Parses an inclusive order range: `1..=6` or a single number `3`, checked against
 /// `lo..=hi`.
@@ -92,6 +93,9 @@ pub struct Options {
     pub select: Select,
     /// Output-error refinement of the chosen model (default none; [`Refine`]).
     pub refine: Refine,
+    /// The estimation record is one segment of a pump's log capture (`--phase`, see
+    /// [`crate::segment`]); `None`: the whole of [`Options::input`].
+    pub segment: Option<SegmentOptions>,
 }
 
 impl Options {
@@ -110,6 +114,7 @@ impl Options {
             control: None,
             select: Select::Criterion,
             refine: Refine::None,
+            segment: None,
         }
     }
 
@@ -198,6 +203,24 @@ impl Options {
         }
         if let Some(c) = &self.control {
             c.check()?;
+        }
+        if let Some(seg) = &self.segment {
+            if seg.phase.trim().is_empty() {
+                return bad("--phase: give the phase name, e.g. --phase excite".into());
+            }
+            // These read the whole --input file again by its path.
+            for (on, what) in [
+                (self.method == MethodKind::Rls, "--method rls"),
+                (self.select == Select::FreeRun, "--select free-run"),
+                (self.refine == Refine::Oe, "--refine oe"),
+                (self.input.as_os_str() == "-", "--input - (standard input)"),
+            ] {
+                if on {
+                    return bad(format!(
+                        "--phase: not with {what}, which would read the whole capture"
+                    ));
+                }
+            }
         }
         Ok(())
     }

@@ -11,6 +11,7 @@ use crate::control::ControlReport;
 use crate::eval::Figures;
 use crate::initial::Initial;
 use crate::refine::{Refinement, Select};
+use crate::segment::SegmentInfo;
 use crate::warnings::Warning;
 
 /// Hyper-parameters of a run (all of them, whether the method uses them or not).
@@ -114,6 +115,9 @@ pub struct Report {
     /// What should not be trusted about the model ([`crate::warnings`]); empty when all
     /// is well.
     pub warnings: Vec<Warning>,
+    /// The segment of a pump's capture used as the estimation record (`--phase`), with the
+    /// pump's own result for it.
+    pub segment: Option<SegmentInfo>,
 }
 
 #[derive(Serialize)]
@@ -200,6 +204,8 @@ struct Json<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     control: Option<JsonControl<'a>>,
     warnings: Vec<&'a str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    segment: Option<serde_json::Value>,
 }
 
 #[derive(Serialize)]
@@ -352,6 +358,7 @@ impl Report {
             }),
             control: self.control.as_ref().map(JsonControl::from),
             warnings: self.warnings.iter().map(|w| w.message.as_str()).collect(),
+            segment: self.segment.as_ref().map(|s| s.to_json(&self.model)),
         }
     }
 
@@ -447,6 +454,9 @@ impl Report {
             Initial::Zero => "zero: zero history before the record, rows 1..N (eq. 6)".into(),
         };
         let _ = writeln!(o, "  initial     {initial}");
+        if let Some(seg) = &self.segment {
+            o.push_str(&seg.to_text(m));
+        }
         let search = if self.search.fixed {
             "fixed by --structure".to_string()
         } else {
