@@ -32,6 +32,10 @@ pub const MAGIC: [u8; 4] = *b"RPMD";
 /// Format version written by [`encode`] and the only one [`decode`] accepts.
 pub const VERSION: u8 = 1;
 
+/// EEPROM byte address of the record on the ATmega2560 (the board's `eeprom::BASE` is this
+/// constant; host tools such as `ridge-id identify --eeprom` place their image here).
+pub const EEPROM_ADDRESS: u16 = 0;
+
 /// Offset of the CRC in the record (the CRC covers bytes `0..CRC_AT`).
 const CRC_AT: usize = RECORD_LEN - 4;
 const THETA_AT: usize = 9;

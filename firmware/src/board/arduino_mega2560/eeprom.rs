@@ -14,8 +14,8 @@
 
 use avr_device::atmega2560::EEPROM;
 
-/// EEPROM address of the record.
-pub const BASE: u16 = 0;
+/// EEPROM address of the record (defined in the library, so that host tools use the same one).
+pub const BASE: u16 = ridge_pump_firmware::persist::EEPROM_ADDRESS;
 
 /// Write passes (each followed by a read-back) before a save is reported as failed.
 pub const ATTEMPTS: u8 = 3;
