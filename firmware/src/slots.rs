@@ -27,6 +27,10 @@
 
 use crate::persist::{self, RECORD_LEN};
 
+/// EEPROM byte address of the store on the ATmega2560 (the board's `eeprom::BASE` is this
+/// constant; `ridge-id identify --eeprom` places its image here).
+pub const EEPROM_BASE: u16 = 0;
+
 /// Bytes of one slot: the record and its sequence number.
 pub const SLOT_LEN: usize = RECORD_LEN + 1;
 
@@ -118,6 +122,19 @@ fn valid(slot: &[u8]) -> bool {
 fn is_tombstone(slot: &[u8]) -> bool {
     slot.get(..RECORD_LEN)
         .is_some_and(|r| r.iter().all(|&b| b == 0xFF))
+}
+
+/// The store holding `record` alone, as a first save into an erased store leaves it: the
+/// record in the slot [`plan`] picks for that save, with sequence number 0, the other slot
+/// erased (so that no older record of the EEPROM survives a write of this image). `None` for
+/// a record of another length.
+pub fn store_with(record: &[u8]) -> Option<[u8; STORE_LEN]> {
+    let mut store = [0xFF; STORE_LEN];
+    let (at, bytes) = slot_bytes(record, &plan(&store))?;
+    store
+        .get_mut(usize::from(at)..usize::from(at) + SLOT_LEN)?
+        .copy_from_slice(&bytes);
+    Some(store)
 }
 
 /// Offset from the board's base address of the slot the next write goes to under `plan`.

@@ -254,7 +254,9 @@ fn capture(lines: &[String]) -> String {
 fn ridge_id(path: &std::path::Path, args: &str) -> Report {
     let mut argv = vec!["ridge-id", "identify", "--input", path.to_str().unwrap()];
     argv.extend(args.split_whitespace());
-    let Command::Identify(a) = Cli::try_parse_from(argv).unwrap().command;
+    let Command::Identify(a) = Cli::try_parse_from(argv).unwrap().command else {
+        panic!("not an identify command");
+    };
     ridge_id::run(&a.options().unwrap()).unwrap_or_else(|e| panic!("ridge-id: {e}"))
 }
 

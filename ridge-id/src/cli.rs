@@ -32,6 +32,8 @@ pub struct Cli {
 }
 
 /// Subcommands.
+// Parsed once per run: the size of the largest variant does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Identify y_t = Σθ_i y_{t-i} + Σφ_j u_{t-j-d} (+ c) from a CSV log with columns u and y
@@ -41,6 +43,11 @@ pub enum Command {
     /// design the firmware's flow controller for the model.
     #[command(after_long_help = EXIT_HELP, after_help = EXIT_HELP)]
     Identify(IdentifyArgs),
+    /// Capture the pump's serial output (log rows and report lines) into a CSV that identify
+    /// reads: the header t,u,y,r,phase, every log row verbatim, every other device line as a
+    /// "# " comment; only complete lines, a running count on stderr, Ctrl-C ends cleanly
+    /// (src/capture.rs).
+    Capture(crate::capture::CaptureArgs),
 }
 
 /// The exit statuses, in `--help`.
@@ -241,6 +248,9 @@ pub struct IdentifyArgs {
     /// stopped without converging); the report is printed all the same.
     #[arg(long)]
     pub strict: bool,
+    /// The model for the pump: --eeprom, --record, --stm32-slot (src/export.rs).
+    #[command(flatten)]
+    pub export: crate::export::ExportArgs,
     /// Write a PNG of measured vs one-step vs free-run output (with --control, also
     /// OUT-control.png: the simulated closed-loop step).
     #[arg(long, value_name = "OUT.png")]
@@ -457,6 +467,16 @@ pub fn main() -> ExitCode {
                     .as_ref()
                     .is_some_and(|c| c.refusal().is_some());
                 if print(&text) {
+                    let failed = args.strict && !report.warnings.is_empty();
+                    if !failed && !refused && args.export.any() {
+                        match crate::export::export(&args.export, &report) {
+                            Ok(notes) => notes.iter().for_each(|n| eprintln!("{n}")),
+                            Err(e) => {
+                                eprintln!("error: {e}");
+                                return ExitCode::FAILURE;
+                            }
+                        }
+                    }
                     if args.strict && !report.warnings.is_empty() {
                         eprintln!(
                             "error: --strict: {} warning(s), the first: {}",
@@ -479,6 +499,13 @@ pub fn main() -> ExitCode {
                 ExitCode::FAILURE
             }
         },
+        Command::Capture(args) => match crate::capture::run(&args) {
+            Ok(_) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::FAILURE
+            }
+        },
     }
 }
 
@@ -491,6 +518,7 @@ mod tests {
         argv.extend(extra);
         Cli::try_parse_from(argv).map(|cli| match cli.command {
             Command::Identify(a) => a,
+            Command::Capture(_) => unreachable!("identify was parsed"),
         })
     }
 

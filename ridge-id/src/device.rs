@@ -99,6 +99,7 @@ mod tests {
         argv.extend(extra.split_whitespace());
         match Cli::try_parse_from(argv).unwrap().command {
             Command::Identify(a) => a.options().unwrap(),
+            _ => panic!("not an identify command"),
         }
     }
 

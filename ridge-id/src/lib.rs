@@ -53,12 +53,14 @@
 //! validation record once for its statistics and once to score the model. The plot
 //! keeps at most ~2000 points per signal (a min/max envelope for longer records).
 
+pub mod capture;
 pub mod cli;
 pub mod control;
 pub mod csv;
 pub mod device;
 pub mod error;
 pub mod eval;
+pub mod export;
 pub mod initial;
 pub mod input;
 pub mod options;

@@ -14,8 +14,9 @@
 
 use avr_device::atmega2560::EEPROM;
 
-/// EEPROM address of the store (slot 0; slot 1 follows).
-pub const BASE: u16 = 0;
+/// EEPROM address of the store (slot 0; slot 1 follows), defined in the library so that host
+/// tools (`ridge-id identify --eeprom`) use the same one.
+pub const BASE: u16 = ridge_pump_firmware::slots::EEPROM_BASE;
 
 /// Write passes (each followed by a read-back) before a save is reported as failed.
 pub const ATTEMPTS: u8 = 3;

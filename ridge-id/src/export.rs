@@ -1,0 +1,429 @@
+//! `identify --eeprom PATH.hex`, `--record PATH.bin`, `--stm32-slot PATH.bin`: the identified
+//! model as the firmware's persisted record, ready to be flashed into the pump.
+//!
+//! The record's bytes are the firmware's own [`persist::encode`] (69 bytes, layout in
+//! `firmware/src/persist.rs`); nothing here re-implements that layout. The model of
+//! `ridge-id` is `f64` with `p, q, d ≤ 12`; the record holds `p, q ∈ 1..=6`, `d ∈ 0..=6` and
+//! `f32` numbers. A model that does not fit is refused ([`ExportError`]), and so is one the
+//! firmware would reject when it loads the record at boot (the same checks, run here on the
+//! decoded record: [`persist::decode`], `ridge_core::control::check_model` with the
+//! firmware's default limits, fit at least `Config::min_fit`), since it would be discarded and
+//! the pump would identify anew.
+//!
+//! What goes where:
+//! - `--eeprom PATH.hex`: Intel HEX (I8HEX: 16 data bytes a line, an end-of-file record) of
+//!   the ATmega2560's two-slot store ([`slots`], 140 bytes at EEPROM byte address
+//!   [`slots::EEPROM_BASE`] = 0, where the image reads it: `board/arduino_mega2560/eeprom.rs`,
+//!   `BASE` is that constant) holding the record alone ([`slots::store_with`]: as a first save
+//!   leaves it, the other slot erased), for
+//!   `avrdude -p m2560 -c wiring -P /dev/ttyACM0 -b 115200 -D -U eeprom:w:PATH.hex:i`.
+//! - `--record PATH.bin`: the raw 69 record bytes.
+//! - `--stm32-slot PATH.bin`: what the STM32F411 image loads: its flash store
+//!   (`board/blackpill_f411.rs`, `FlashStore`) is an append-only log of slots in sector 7
+//!   at [`STM32_SLOT_ADDRESS`] (0x0806_0000); a slot is a 4-byte header (`"RP"`, the record
+//!   length as a little-endian `u16`), the record, and `0xFF` up to a multiple of 16 bytes
+//!   (80 bytes). The raw record written at the sector start would not be loaded (no header);
+//!   this image is, as the first slot of an otherwise erased sector:
+//!   `probe-rs download --chip STM32F411CEUx --binary-format bin --base-address 0x08060000
+//!   PATH.bin`. Those slot constants are private to the board module (compiled for Cortex-M
+//!   only), so they are repeated below; `tests/export.rs` checks them against its source.
+//!
+//! The fit field (percent, `f32`) holds the free-run fit of the `--validate` record as
+//! `ridge-id` reports it (`validation.fit_free_run`), the figure the firmware stores after
+//! its own validation record (B-Multistep); without `--validate`, the estimation record's
+//! free-run fit (`estimation.fit_free_run`), which is optimistic: say `--validate`.
+//!
+//! Files are written only when the whole run succeeds (exit 0), each to a temporary file in
+//! the same directory that is renamed into place once every output is complete: a refusal or
+//! an I/O error leaves no output file and no partial one.
+
+use std::fmt;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+use ridge_core::control::{check_model, ModelFault};
+use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
+use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
+use ridge_pump_firmware::slots::{self, EEPROM_BASE, STORE_LEN};
+
+use crate::Report;
+
+/// Size of the ATmega2560's EEPROM in bytes: an image must end within it.
+pub const AVR_EEPROM_SIZE: usize = 4096;
+
+/// Address of the STM32F411's record store: flash sector 7 (`0x0800_0000` +
+/// `SECTOR_OFFSET` 0x6_0000 in `board/blackpill_f411.rs`).
+pub const STM32_SLOT_ADDRESS: u32 = 0x0806_0000;
+
+/// Header of a slot of the STM32F411 flash store (`MAGIC` in `board/blackpill_f411.rs`).
+pub const STM32_SLOT_MAGIC: [u8; 2] = *b"RP";
+
+/// Length of a slot of the STM32F411 flash store in bytes: header + record, rounded up to 16.
+pub const STM32_SLOT_LEN: usize = (4 + RECORD_LEN).div_ceil(16) * 16;
+
+/// The options of `identify` that write the model for the pump.
+#[derive(Debug, Clone, Default, Args)]
+pub struct ExportArgs {
+    /// Write the model as the firmware's persisted record in an Intel HEX EEPROM image for
+    /// the ATmega2560 (record at EEPROM address 0), for avrdude -U eeprom:w:PATH.hex:i.
+    /// Refused (exit 1, nothing written) if the model does not fit the record (p, q in
+    /// 1..=6, d in 0..=6, f32 numbers) or the firmware's boot checks would reject it.
+    #[arg(long, value_name = "PATH.hex")]
+    pub eeprom: Option<PathBuf>,
+    /// Write the raw 69-byte record (same model, same checks as --eeprom).
+    #[arg(long, value_name = "PATH.bin")]
+    pub record: Option<PathBuf>,
+    /// Write the STM32F411's flash slot holding the record (80 bytes: "RP", length, record,
+    /// 0xFF padding) for address 0x08060000 (sector 7), e.g. probe-rs download --chip
+    /// STM32F411CEUx --binary-format bin --base-address 0x08060000 PATH.bin.
+    #[arg(long, value_name = "PATH.bin")]
+    pub stm32_slot: Option<PathBuf>,
+}
+
+impl ExportArgs {
+    /// Whether any output was asked for.
+    pub fn any(&self) -> bool {
+        self.eeprom.is_some() || self.record.is_some() || self.stm32_slot.is_some()
+    }
+}
+
+/// Why a model was not written.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ExportError {
+    /// An order or the delay is beyond the record's range.
+    Structure {
+        /// The model's structure `(p, q, d)`.
+        pqd: (u8, u8, u8),
+    },
+    /// A number is not finite in `f32` (NaN, infinite, or beyond ±3.4e38).
+    NonFinite {
+        /// Which number (`theta_2`, `phi_0`, `c`, `fit`).
+        what: String,
+        /// Its `f64` value.
+        value: f64,
+    },
+    /// The encoded record does not decode (cannot happen for a model that passed the checks
+    /// above; kept so that a firmware change shows as an error, not a bad file).
+    Decode(PersistError),
+    /// The firmware's model check at boot would reject it (unstable, static gain outside the
+    /// firmware's limits, non-finite).
+    Model(String),
+    /// The fit is below the firmware's minimum: it would reject the record at boot.
+    Fit {
+        /// The fit written, percent.
+        fit: f32,
+        /// The firmware's minimum, percent.
+        min: f32,
+        /// Which record the fit is from.
+        source: &'static str,
+    },
+    /// Writing a file failed.
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The error.
+        message: String,
+    },
+}
+
+impl fmt::Display for ExportError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ExportError::Structure { pqd: (p, q, d) } => write!(
+                f,
+                "the model (p, q, d) = ({p}, {q}, {d}) does not fit the firmware's record \
+                 (p and q in 1..={}, d in 0..={}); identify with --p 1..=6 --q 1..=6 --d 0..=6",
+                ridge_core::P_MAX,
+                ridge_core::D_MAX
+            ),
+            ExportError::NonFinite { what, value } => write!(
+                f,
+                "{what} = {value:e} is not a finite f32, as the firmware's record stores it"
+            ),
+            ExportError::Decode(e) => write!(
+                f,
+                "the encoded record does not decode ({}): firmware and ridge-id disagree",
+                e.name()
+            ),
+            ExportError::Model(why) => {
+                write!(f, "the firmware would reject this model at boot: {why}")
+            }
+            ExportError::Fit { fit, min, source } => write!(
+                f,
+                "the {source} free-run fit {fit:.1} % is below the firmware's minimum {min:.1} %: \
+                 it would reject the record at boot"
+            ),
+            ExportError::Io { path, message } => {
+                write!(f, "cannot write {}: {message}", path.display())
+            }
+        }
+    }
+}
+
+impl std::error::Error for ExportError {}
+
+/// The fit that goes into the record (percent) and which record it is from: the validation
+/// record's free-run fit, or without one the estimation record's.
+pub fn record_fit(report: &Report) -> (f64, &'static str) {
+    match &report.validation {
+        Some(v) => (v.fit_free_run, "validation"),
+        None => (report.estimation.fit_free_run, "estimation"),
+    }
+}
+
+/// `value` as a finite `f32`, or the error naming it.
+fn to_f32(what: &str, value: f64) -> Result<f32, ExportError> {
+    let v = value as f32;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(ExportError::NonFinite {
+            what: what.to_string(),
+            value,
+        })
+    }
+}
+
+/// The firmware's record of `model` with fit `fit` (percent; `source` names its record in
+/// messages), after the checks the firmware applies when it loads a record at boot.
+pub fn encode_record(
+    model: &ridge_core_host::ArxModel<f64>,
+    fit: f64,
+    source: &'static str,
+) -> Result<[u8; RECORD_LEN], ExportError> {
+    let s = model.structure();
+    let fits = (1..=ridge_core::P_MAX).contains(&usize::from(s.p))
+        && (1..=ridge_core::Q_MAX).contains(&usize::from(s.q))
+        && usize::from(s.d) <= ridge_core::D_MAX;
+    if !fits {
+        return Err(ExportError::Structure {
+            pqd: (s.p, s.q, s.d),
+        });
+    }
+    let theta = model
+        .theta()
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| to_f32(&format!("theta_{}", i + 1), v))
+        .collect::<Result<Vec<_>, _>>()?;
+    let phi = model
+        .phi()
+        .iter()
+        .enumerate()
+        .map(|(j, &v)| to_f32(&format!("phi_{j}"), v))
+        .collect::<Result<Vec<_>, _>>()?;
+    let offset = match model.offset() {
+        ridge_core_host::Offset::None => ridge_core::Offset::None,
+        ridge_core_host::Offset::Intercept => ridge_core::Offset::Intercept,
+    };
+    let c = match offset {
+        ridge_core::Offset::Intercept => to_f32("c", model.intercept())?,
+        ridge_core::Offset::None => 0.0,
+    };
+    let fit32 = to_f32("fit", fit)?;
+    let m32 = ridge_core::ArxModel::new(&theta, &phi, s.d, offset, c).map_err(|e| match e {
+        ridge_core::Error::NonFinite => ExportError::NonFinite {
+            what: "a coefficient".into(),
+            value: f64::NAN,
+        },
+        _ => ExportError::Structure {
+            pqd: (s.p, s.q, s.d),
+        },
+    })?;
+    let bytes = persist::encode(&m32, fit32);
+    // The firmware's boot checks, on what it will read (`SelfIdentification::new`).
+    let (loaded, loaded_fit) = persist::decode(&bytes).map_err(ExportError::Decode)?;
+    check_model(&loaded, &DEFAULT_CONFIG.control.model).map_err(|e| {
+        let limits = &DEFAULT_CONFIG.control.model;
+        ExportError::Model(match e {
+            ModelFault::NonFinite => "a coefficient is not finite".into(),
+            ModelFault::Unstable => format!(
+                "a pole of the model lies outside the radius {} (unstable or nearly)",
+                limits.stable_radius
+            ),
+            ModelFault::Gain { gain } => format!(
+                "static gain B(1)/A(1) = {gain} outside the firmware's {}..={} slm per unit \
+                 duty (is u the duty as a fraction 0..1 and y the flow in slm, as in the \
+                 pump's log?)",
+                limits.gain_min, limits.gain_max
+            ),
+        })
+    })?;
+    if loaded_fit.is_nan() || loaded_fit < DEFAULT_CONFIG.min_fit {
+        return Err(ExportError::Fit {
+            fit: loaded_fit,
+            min: DEFAULT_CONFIG.min_fit,
+            source,
+        });
+    }
+    Ok(bytes)
+}
+
+/// One Intel HEX record line (without its line end): `:LLAAAATT<data>CC`.
+fn hex_line(kind: u8, address: u16, data: &[u8]) -> String {
+    let mut line = String::with_capacity(11 + 2 * data.len());
+    let [hi, lo] = address.to_be_bytes();
+    // Data records are at most 16 bytes here, so the length fits a byte.
+    let len = data.len() as u8;
+    let mut sum = len.wrapping_add(hi).wrapping_add(lo).wrapping_add(kind);
+    line.push_str(&format!(":{len:02X}{address:04X}{kind:02X}"));
+    for &b in data {
+        sum = sum.wrapping_add(b);
+        line.push_str(&format!("{b:02X}"));
+    }
+    line.push_str(&format!("{:02X}", sum.wrapping_neg()));
+    line
+}
+
+/// `data` at `address` as an Intel HEX file (I8HEX: data records of at most 16 bytes, then
+/// the end-of-file record; lines end in `\n`). `None` if the data would end past 64 KiB.
+pub fn intel_hex(data: &[u8], address: u16) -> Option<String> {
+    if usize::from(address) + data.len() > 0x1_0000 {
+        return None;
+    }
+    let mut out = String::new();
+    for (i, chunk) in data.chunks(16).enumerate() {
+        out.push_str(&hex_line(0x00, address + (i * 16) as u16, chunk));
+        out.push('\n');
+    }
+    out.push_str(&hex_line(0x01, 0, &[]));
+    out.push('\n');
+    Some(out)
+}
+
+/// The STM32F411 flash slot holding `record` ([`STM32_SLOT_LEN`] bytes, see the
+/// [module docs](self)).
+pub fn stm32_slot(record: &[u8; RECORD_LEN]) -> Vec<u8> {
+    let mut slot = Vec::with_capacity(STM32_SLOT_LEN);
+    slot.extend_from_slice(&STM32_SLOT_MAGIC);
+    slot.extend_from_slice(&(RECORD_LEN as u16).to_le_bytes());
+    slot.extend_from_slice(record);
+    slot.resize(STM32_SLOT_LEN, 0xFF);
+    slot
+}
+
+/// The EEPROM image of `record`: the two-slot store holding it ([`slots::store_with`]) as
+/// Intel HEX at [`EEPROM_BASE`].
+pub fn eeprom_image(record: &[u8; RECORD_LEN]) -> String {
+    const _: () = assert!(EEPROM_BASE as usize + STORE_LEN <= AVR_EEPROM_SIZE);
+    // A record of RECORD_LEN bytes always fits a slot; within 64 KiB by the assertion above.
+    slots::store_with(record)
+        .and_then(|store| intel_hex(&store, EEPROM_BASE))
+        .unwrap_or_default()
+}
+
+/// A temporary name next to `path` (same directory, so that the rename is atomic).
+fn temp_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
+}
+
+fn io_error(path: &Path, e: std::io::Error) -> ExportError {
+    ExportError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+/// Writes every `(path, bytes)` all or nothing: each to a temporary file first (synced), then
+/// all renamed into place. On an error the temporary files are removed and no output exists
+/// that was not there before (a rename failing part-way can leave the earlier ones renamed;
+/// renames within a directory do not fail short of a vanished directory).
+pub fn write_all_or_nothing(files: &[(PathBuf, Vec<u8>)]) -> Result<(), ExportError> {
+    let mut temps: Vec<PathBuf> = Vec::new();
+    let cleanup = |temps: &[PathBuf]| {
+        for t in temps {
+            std::fs::remove_file(t).ok();
+        }
+    };
+    for (path, bytes) in files {
+        let tmp = temp_path(path);
+        let written = std::fs::File::create(&tmp).and_then(|mut f| {
+            f.write_all(bytes)?;
+            f.sync_all()
+        });
+        if let Err(e) = written {
+            std::fs::remove_file(&tmp).ok();
+            cleanup(&temps);
+            return Err(io_error(path, e));
+        }
+        temps.push(tmp);
+    }
+    for (i, (path, _)) in files.iter().enumerate() {
+        if let Err(e) = std::fs::rename(&temps[i], path) {
+            cleanup(&temps[i..]);
+            return Err(io_error(path, e));
+        }
+    }
+    Ok(())
+}
+
+/// Builds and writes the outputs `args` asks for, from `report`; returns one line per file
+/// for stderr. Nothing is written on an error.
+pub fn export(args: &ExportArgs, report: &Report) -> Result<Vec<String>, ExportError> {
+    let (fit, source) = record_fit(report);
+    let record = encode_record(&report.model, fit, source)?;
+    let s = report.model.structure();
+    let what = format!(
+        "(p, q, d) = ({}, {}, {}), fit {:.1} % ({source} free-run)",
+        s.p, s.q, s.d, fit
+    );
+    let mut files = Vec::new();
+    let mut notes = Vec::new();
+    if let Some(path) = &args.eeprom {
+        files.push((path.clone(), eeprom_image(&record).into_bytes()));
+        notes.push(format!(
+            "wrote {}: Intel HEX, the {STORE_LEN}-byte two-slot store at EEPROM address {EEPROM_BASE:#06x} with the record of {RECORD_LEN} bytes, {what}",
+            path.display()
+        ));
+    }
+    if let Some(path) = &args.record {
+        files.push((path.clone(), record.to_vec()));
+        notes.push(format!(
+            "wrote {}: raw record, {RECORD_LEN} bytes, {what}",
+            path.display()
+        ));
+    }
+    if let Some(path) = &args.stm32_slot {
+        files.push((path.clone(), stm32_slot(&record)));
+        notes.push(format!(
+            "wrote {}: STM32F411 flash slot, {STM32_SLOT_LEN} bytes for address {STM32_SLOT_ADDRESS:#010x}, {what}",
+            path.display()
+        ));
+    }
+    write_all_or_nothing(&files)?;
+    Ok(notes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hex_lines_have_valid_checksums() {
+        // The example of the Intel HEX specification's data record.
+        assert_eq!(
+            hex_line(
+                0,
+                0x0010,
+                &[0x61, 0x64, 0x64, 0x72, 0x65, 0x73, 0x73, 0x20, 0x67, 0x61, 0x70]
+            ),
+            ":0B0010006164647265737320676170A7"
+        );
+        assert_eq!(hex_line(1, 0, &[]), ":00000001FF");
+        assert_eq!(intel_hex(&[0; 2], 0xFFFF), None);
+    }
+
+    #[test]
+    fn slot_layout() {
+        assert_eq!(STM32_SLOT_LEN, 80);
+        let slot = stm32_slot(&[7; RECORD_LEN]);
+        assert_eq!(&slot[..4], b"RP\x45\x00");
+        assert!(slot[4..4 + RECORD_LEN].iter().all(|&b| b == 7));
+        assert!(slot[4 + RECORD_LEN..].iter().all(|&b| b == 0xFF));
+    }
+}

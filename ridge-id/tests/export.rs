@@ -1,0 +1,445 @@
+//! `identify --eeprom / --record / --stm32-slot`: the files hold the firmware's record of the
+//! model the JSON report gives, at the addresses the boards read; refusals write nothing.
+//!
+//! Independent truths: the JSON of the same run (the model), the firmware's own
+//! `persist::decode` and boot path (`SelfIdentification::new` with the record, as the boards
+//! call it), the `ihex` crate and a small hand-written Intel HEX parser (checksums), the board
+//! sources for the addresses.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use pump_sim::arx::simulate_arx;
+use ridge_pump_firmware::event::Event;
+use ridge_pump_firmware::persist::{self, RECORD_LEN};
+use ridge_pump_firmware::selfid::{SelfIdentification, DEFAULT_CONFIG};
+use ridge_pump_firmware::slots::{self, EEPROM_BASE, SLOT_LEN, STORE_LEN};
+use serde_json::Value;
+
+const BIN: &str = env!("CARGO_BIN_EXE_ridge-id");
+
+/// A fresh, empty directory for one test.
+fn dir(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("ridge_id_export")
+        .join(name);
+    fs::remove_dir_all(&d).ok();
+    fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Duty steps in 0.2..0.6 (a fraction, as the pump's log), held 5..=60 samples.
+fn duty_steps(n: usize, seed: u64) -> Vec<f64> {
+    let mut s = seed ^ 0x9E37_79B9_7F4A_7C15;
+    let mut next = || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 33) as f64 / (1u64 << 31) as f64
+    };
+    let mut u = Vec::with_capacity(n);
+    while u.len() < n {
+        let level = 0.2 + 0.4 * next();
+        let hold = 5 + (next() * 56.0) as usize;
+        for _ in 0..hold.min(n - u.len()) {
+            u.push(level);
+        }
+    }
+    u
+}
+
+/// A pump-like plant (slm per unit duty): poles 0.8 and 0.5, static gain 5 / 0.1 = 50 slm,
+/// delay 3 samples, a flow offset of 2 slm.
+const THETA: [f64; 2] = [1.3, -0.4];
+const PHI: [f64; 2] = [3.0, 2.0];
+const DELAY: usize = 3;
+const OFFSET: f64 = 2.0;
+
+/// A log `t,u,y` of the plant; `u_scale` 100 writes the duty in percent.
+fn log(path: &Path, n: usize, seed: u64, u_scale: f64) {
+    let u = duty_steps(n, seed);
+    let y = simulate_arx(&THETA, &PHI, DELAY, &u, 0.02, seed);
+    let mut text = String::from("t,u,y\n");
+    for (i, (u, y)) in u.iter().zip(&y).enumerate() {
+        text.push_str(&format!(
+            "{:.2},{},{}\n",
+            i as f64 * 0.01,
+            u * u_scale,
+            y + OFFSET
+        ));
+    }
+    fs::write(path, text).unwrap();
+}
+
+fn identify(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .arg("identify")
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn f32_close(got: f32, want: f64) -> bool {
+    // One rounding to f32: within half an ulp, i.e. 2^-24 relative (plus subnormal slack).
+    (f64::from(got) - want).abs() <= want.abs() * 2f64.powi(-24) + 1e-38
+}
+
+/// An independent Intel HEX reader: every line's checksum verified, data records (type 00)
+/// placed at their address, the end-of-file record (01) required last; any other record type
+/// is an error. Returns (address, byte) pairs.
+fn parse_hex(text: &str) -> Vec<(u16, u8)> {
+    let mut out = Vec::new();
+    let mut eof = false;
+    for line in text.lines() {
+        assert!(!eof, "a line after the end-of-file record");
+        let hex = line.strip_prefix(':').expect("a line without ':'");
+        assert!(hex.len() % 2 == 0 && hex.len() >= 10, "line {line}");
+        let bytes: Vec<u8> = (0..hex.len())
+            .step_by(2)
+            .map(|i| u8::from_str_radix(&hex[i..i + 2], 16).unwrap())
+            .collect();
+        let sum = bytes.iter().fold(0u8, |a, &b| a.wrapping_add(b));
+        assert_eq!(sum, 0, "checksum of {line}");
+        let len = usize::from(bytes[0]);
+        assert_eq!(bytes.len(), len + 5, "length of {line}");
+        let addr = u16::from_be_bytes([bytes[1], bytes[2]]);
+        match bytes[3] {
+            0x00 => {
+                for (k, &b) in bytes[4..4 + len].iter().enumerate() {
+                    out.push((addr + k as u16, b));
+                }
+            }
+            0x01 => eof = true,
+            t => panic!("record type {t:02X} in an EEPROM image"),
+        }
+    }
+    assert!(eof, "no end-of-file record");
+    out
+}
+
+/// The ATmega2560's 4 KB EEPROM after avrdude wrote `hex` to an erased chip.
+fn eeprom_after(hex: &str) -> Vec<u8> {
+    let mut ee = vec![0xFFu8; 4096];
+    for (a, b) in parse_hex(hex) {
+        ee[usize::from(a)] = b;
+    }
+    ee
+}
+
+/// What the firmware's boot path makes of `stored` (the bytes the board's load returns):
+/// the `LOADED` model and fit, or the first other event.
+fn boot(stored: &[u8]) -> Result<(ridge_core::ArxModel<f32>, f32), String> {
+    let mut sm = SelfIdentification::new(&DEFAULT_CONFIG, Some(stored));
+    // A steady 20 slm (2400 counts) until the state machine has settled and loads the model.
+    for _ in 0..2000 {
+        if let Some(e) = sm.tick(Ok(2400)).event {
+            return match e {
+                Event::Loaded { model, fit } => Ok((model, fit)),
+                other => Err(format!("{other:?}")),
+            };
+        }
+    }
+    Err("no event".into())
+}
+
+#[test]
+fn files_hold_the_json_model_at_the_boards_addresses() {
+    let d = dir("json");
+    let (est, val) = (d.join("est.csv"), d.join("val.csv"));
+    log(&est, 3000, 1, 1.0);
+    log(&val, 3000, 2, 1.0);
+    let (hex, bin, slot) = (d.join("m.hex"), d.join("m.bin"), d.join("slot.bin"));
+    let out = identify(&[
+        "--input",
+        s(&est),
+        "--validate",
+        s(&val),
+        "--offset",
+        "intercept",
+        "--json",
+        "--eeprom",
+        s(&hex),
+        "--record",
+        s(&bin),
+        "--stm32-slot",
+        s(&slot),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+
+    // The raw record decodes (the firmware's decoder) to the JSON's model.
+    let record = fs::read(&bin).unwrap();
+    assert_eq!(record.len(), RECORD_LEN);
+    let (model, fit) = persist::decode(&record).unwrap();
+    let st = model.structure();
+    let js = &json["structure"];
+    assert_eq!(
+        (u64::from(st.p), u64::from(st.q), u64::from(st.d)),
+        (
+            js["p"].as_u64().unwrap(),
+            js["q"].as_u64().unwrap(),
+            js["d"].as_u64().unwrap()
+        )
+    );
+    let list = |k: &str| -> Vec<f64> {
+        json[k]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect()
+    };
+    let (theta, phi) = (list("theta"), list("phi"));
+    assert_eq!(model.theta().len(), theta.len());
+    assert_eq!(model.phi().len(), phi.len());
+    for (g, w) in model
+        .theta()
+        .iter()
+        .zip(&theta)
+        .chain(model.phi().iter().zip(&phi))
+    {
+        assert!(f32_close(*g, *w), "{g} vs {w}");
+    }
+    assert_eq!(model.offset(), ridge_core::Offset::Intercept);
+    assert!(f32_close(
+        model.intercept(),
+        json["offset"].as_f64().unwrap()
+    ));
+    let val_fit = json["validation"]["fit_free_run"].as_f64().unwrap();
+    assert!(f32_close(fit, val_fit), "{fit} vs {val_fit}");
+    assert!(stderr.contains("validation free-run"), "{stderr}");
+
+    // The EEPROM image: the ihex crate reads it (checksums verified), one end-of-file
+    // record, the record's bytes at the address the ATmega2560 image reads.
+    let hex_text = fs::read_to_string(&hex).unwrap();
+    let mut placed = vec![None; 4096];
+    let mut eofs = 0;
+    for rec in ihex::Reader::new(&hex_text) {
+        match rec.unwrap() {
+            ihex::Record::Data { offset, value } => {
+                for (k, b) in value.into_iter().enumerate() {
+                    let a = usize::from(offset) + k;
+                    assert!(placed[a].is_none(), "address {a} twice");
+                    placed[a] = Some(b);
+                }
+            }
+            ihex::Record::EndOfFile => eofs += 1,
+            other => panic!("unexpected record {other:?}"),
+        }
+    }
+    assert_eq!(eofs, 1);
+    // The image is the whole two-slot store: the firmware's slot choice finds the record in
+    // it, the sequence number is the first one (0) and the other slot is erased.
+    let base = usize::from(EEPROM_BASE);
+    let store: [u8; STORE_LEN] = placed[base..base + STORE_LEN]
+        .iter()
+        .map(|b| b.expect("a store byte missing from the image"))
+        .collect::<Vec<u8>>()
+        .try_into()
+        .unwrap();
+    assert_eq!(placed.iter().flatten().count(), STORE_LEN, "extra bytes");
+    let plan = slots::plan(&store);
+    assert_eq!(slots::record(&store, &plan), Some(&record[..]));
+    let used = usize::from(plan.load.expect("a slot is loaded")) * SLOT_LEN;
+    assert_eq!(store[used + RECORD_LEN], 0);
+    let other = SLOT_LEN - used;
+    assert!(store[other..other + SLOT_LEN].iter().all(|&b| b == 0xFF));
+    // The same through the hand-written reader.
+    assert_eq!(&eeprom_after(&hex_text)[base..base + STORE_LEN], &store[..]);
+
+    // The STM32F411 slot: header "RP" + length, the record, 0xFF to 80 bytes.
+    let slot_bytes = fs::read(&slot).unwrap();
+    assert_eq!(slot_bytes.len(), (4 + RECORD_LEN).div_ceil(16) * 16);
+    assert_eq!(&slot_bytes[..2], b"RP");
+    assert_eq!(
+        u16::from_le_bytes([slot_bytes[2], slot_bytes[3]]),
+        RECORD_LEN as u16
+    );
+    assert_eq!(&slot_bytes[4..4 + RECORD_LEN], &record[..]);
+    assert!(slot_bytes[4 + RECORD_LEN..].iter().all(|&b| b == 0xFF));
+
+    // The firmware's boot path loads it.
+    let (loaded, loaded_fit) = boot(&record).unwrap();
+    assert_eq!(loaded, model);
+    assert_eq!(loaded_fit.to_bits(), fit.to_bits());
+}
+
+/// The firmware's own boot accepts an EEPROM image of a known model (the plant above, with
+/// its intercept `c = offset · (1 − Σθ)`), read back from an erased 4 KB EEPROM written by
+/// the image.
+#[test]
+fn firmware_boot_accepts_an_image_of_a_known_model() {
+    let c = OFFSET * (1.0 - THETA.iter().sum::<f64>());
+    let model = ridge_core_host::ArxModel::new(
+        &THETA,
+        &PHI,
+        DELAY as u8,
+        ridge_core_host::Offset::Intercept,
+        c,
+    )
+    .unwrap();
+    let record = ridge_id::export::encode_record(&model, 91.25, "validation").unwrap();
+    let hex = ridge_id::export::eeprom_image(&record);
+    let ee = eeprom_after(&hex);
+    let base = usize::from(EEPROM_BASE);
+    let store: [u8; STORE_LEN] = ee[base..base + STORE_LEN].try_into().unwrap();
+    let plan = slots::plan(&store);
+    let (loaded, fit) = boot(slots::record(&store, &plan).expect("a record")).unwrap();
+    let st = loaded.structure();
+    assert_eq!((st.p, st.q, st.d), (2, 2, 3));
+    for (g, w) in loaded
+        .theta()
+        .iter()
+        .zip(&THETA)
+        .chain(loaded.phi().iter().zip(&PHI))
+    {
+        assert!(f32_close(*g, *w));
+    }
+    assert!(f32_close(loaded.intercept(), c));
+    assert_eq!(fit, 91.25);
+}
+
+/// Every entry of `d` (no output, no temporary file left behind) besides the inputs.
+fn outputs(d: &Path) -> Vec<String> {
+    let mut names: Vec<String> = fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| !n.ends_with(".csv"))
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn too_large_orders_are_refused_and_nothing_is_written() {
+    let d = dir("orders");
+    let est = d.join("est.csv");
+    log(&est, 3000, 3, 1.0);
+    for (structure, what) in [
+        ("7,2,3", "(7, 2, 3)"),
+        ("2,7,3", "(2, 7, 3)"),
+        ("2,2,9", "(2, 2, 9)"),
+    ] {
+        let out = identify(&[
+            "--input",
+            s(&est),
+            "--structure",
+            structure,
+            "--offset",
+            "intercept",
+            "--eeprom",
+            s(&d.join("m.hex")),
+            "--record",
+            s(&d.join("m.bin")),
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{structure}: {stderr}");
+        assert!(
+            stderr.contains(what) && stderr.contains("does not fit"),
+            "{stderr}"
+        );
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(outputs(&d).is_empty(), "{:?}", outputs(&d));
+    }
+}
+
+#[test]
+fn a_model_the_firmware_would_reject_at_boot_is_refused() {
+    let d = dir("boot-checks");
+    let est = d.join("est.csv");
+    // The duty in percent: the static gain is 0.5 slm per percent, outside 20..=2000 slm per
+    // unit duty.
+    log(&est, 3000, 4, 100.0);
+    let hex = d.join("m.hex");
+    let out = identify(&[
+        "--input",
+        s(&est),
+        "--offset",
+        "intercept",
+        "--eeprom",
+        s(&hex),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("static gain"), "{stderr}");
+    assert!(outputs(&d).is_empty());
+
+    // Library level: a fit below the firmware's 70 %, an unstable model, a coefficient beyond
+    // f32.
+    let m = |theta: &[f64], phi: &[f64]| {
+        ridge_core_host::ArxModel::new(theta, phi, 0, ridge_core_host::Offset::None, 0.0).unwrap()
+    };
+    use ridge_id::export::{encode_record, ExportError};
+    let good = m(&[0.9], &[5.0]);
+    assert!(encode_record(&good, 70.0, "validation").is_ok());
+    assert!(matches!(
+        encode_record(&good, 69.9, "validation"),
+        Err(ExportError::Fit { .. })
+    ));
+    assert!(matches!(
+        encode_record(&good, f64::NAN, "validation"),
+        Err(ExportError::NonFinite { .. })
+    ));
+    assert!(matches!(
+        encode_record(&m(&[1.01], &[5.0]), 90.0, "validation"),
+        Err(ExportError::Model(_))
+    ));
+    assert!(matches!(
+        encode_record(&m(&[0.9], &[1e39]), 90.0, "validation"),
+        Err(ExportError::NonFinite { .. })
+    ));
+}
+
+#[test]
+fn an_unwritable_output_leaves_no_file() {
+    let d = dir("io");
+    let est = d.join("est.csv");
+    log(&est, 3000, 5, 1.0);
+    let out = identify(&[
+        "--input",
+        s(&est),
+        "--offset",
+        "intercept",
+        "--record",
+        s(&d.join("m.bin")),
+        "--eeprom",
+        s(&d.join("missing-dir").join("m.hex")),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("cannot write"), "{stderr}");
+    assert!(outputs(&d).is_empty(), "{:?}", outputs(&d));
+    // Without --validate the record's fit is the estimation record's, and stderr says so.
+    let out = identify(&[
+        "--input",
+        s(&est),
+        "--offset",
+        "intercept",
+        "--record",
+        s(&d.join("m.bin")),
+    ]);
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("estimation free-run"));
+}
+
+/// The addresses and the slot layout used by ridge-id are the boards' (the board modules are
+/// compiled for their targets only, so their sources are read).
+#[test]
+fn addresses_match_the_board_sources() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/src/board");
+    let avr = fs::read_to_string(root.join("arduino_mega2560/eeprom.rs")).unwrap();
+    assert!(avr.contains("pub const BASE: u16 = ridge_pump_firmware::slots::EEPROM_BASE;"));
+    let stm = fs::read_to_string(root.join("blackpill_f411.rs")).unwrap();
+    assert!(stm.contains("pub const SECTOR_OFFSET: usize = 0x6_0000;"));
+    assert_eq!(ridge_id::export::STM32_SLOT_ADDRESS, 0x0800_0000 + 0x6_0000);
+    assert!(stm.contains("const MAGIC: [u8; 2] = *b\"RP\";"));
+    assert_eq!(&ridge_id::export::STM32_SLOT_MAGIC, b"RP");
+    assert!(stm.contains("const SLOT: usize = (4 + N).div_ceil(16) * 16;"));
+    assert!(stm.contains("let len = (N as u16).to_le_bytes();"));
+}
