@@ -322,32 +322,23 @@ impl<R: Read> CsvRecord<R> {
         }
         let names: Vec<&str> = self.row.iter().map(unquote).collect();
         let find = |want: &str| -> Result<usize, IdError> {
-            let mut hits = names.iter().enumerate().filter(|(_, n)| **n == want);
-            match (hits.next(), hits.next()) {
-                (Some((i, _)), None) => Ok(i),
-                (Some(_), Some(_)) => Err(IdError::line(
+            column(&names, want, &self.path, self.line)?.ok_or_else(|| {
+                let other_separator =
+                    matches!(names.as_slice(), [one] if one.contains([';', '\t']));
+                let hint = if other_separator {
+                    " (columns must be separated by commas)"
+                } else {
+                    ""
+                };
+                IdError::line(
                     &self.path,
                     self.line,
-                    format!("header has two columns named {want}"),
-                )),
-                (None, _) => {
-                    let other_separator =
-                        matches!(names.as_slice(), [one] if one.contains([';', '\t']));
-                    let hint = if other_separator {
-                        " (columns must be separated by commas)"
-                    } else {
-                        ""
-                    };
-                    Err(IdError::line(
-                        &self.path,
-                        self.line,
-                        format!(
-                            "header has no column named {want} (found: {}){hint}",
-                            found(&names)
-                        ),
-                    ))
-                }
-            }
+                    format!(
+                        "header has no column named {want} (found: {}){hint}",
+                        found(&names)
+                    ),
+                )
+            })
         };
         let (u, y) = (find("u")?, find("y")?);
         self.columns = names.len();
@@ -382,27 +373,7 @@ impl<R: Read> CsvRecord<R> {
     }
 
     fn number(&self, cell: &str, column: &str) -> Result<f64, IdError> {
-        let s = unquote(cell);
-        if s.is_empty() {
-            return Err(IdError::line(
-                &self.path,
-                self.line,
-                format!("column {column}: empty cell"),
-            ));
-        }
-        match s.parse::<f64>() {
-            Ok(v) if v.is_finite() => Ok(v),
-            Ok(_) => Err(IdError::line(
-                &self.path,
-                self.line,
-                format!("column {column}: {} is not a finite number", quote(s)),
-            )),
-            Err(_) => Err(IdError::line(
-                &self.path,
-                self.line,
-                format!("column {column}: {} is not a number", quote(s)),
-            )),
-        }
+        number(unquote(cell), column, &self.path, self.line)
     }
 
     fn next_sample(&mut self) -> Result<Option<Sample>, IdError> {
@@ -436,9 +407,53 @@ impl<R: Read> Iterator for CsvRecord<R> {
     }
 }
 
+/// The index of the header column `want` among `names` (`None`: there is none); two columns
+/// of that name are an error on line `line` of `path`.
+pub(crate) fn column(
+    names: &[&str],
+    want: &str,
+    path: &Path,
+    line: u64,
+) -> Result<Option<usize>, IdError> {
+    let mut hits = names.iter().enumerate().filter(|(_, n)| **n == want);
+    match (hits.next(), hits.next()) {
+        (Some(_), Some(_)) => Err(IdError::line(
+            path,
+            line,
+            format!("header has two columns named {want}"),
+        )),
+        (hit, _) => Ok(hit.map(|(i, _)| i)),
+    }
+}
+
+/// The finite number in the (unquoted) cell `s` of column `column`, else an error on line
+/// `line` of `path` naming the cell.
+pub(crate) fn number(s: &str, column: &str, path: &Path, line: u64) -> Result<f64, IdError> {
+    if s.is_empty() {
+        return Err(IdError::line(
+            path,
+            line,
+            format!("column {column}: empty cell"),
+        ));
+    }
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(_) => Err(IdError::line(
+            path,
+            line,
+            format!("column {column}: {} is not a finite number", quote(s)),
+        )),
+        Err(_) => Err(IdError::line(
+            path,
+            line,
+            format!("column {column}: {} is not a number", quote(s)),
+        )),
+    }
+}
+
 /// The column names of a header for a message: `t, u`, cut to about [`QUOTE_CHARS`]
 /// characters (`a, b, … (1234 columns)` when longer).
-fn found(names: &[&str]) -> String {
+pub(crate) fn found(names: &[&str]) -> String {
     let all = names.join(", ");
     if all.chars().count() <= QUOTE_CHARS {
         return all;
@@ -450,7 +465,7 @@ fn found(names: &[&str]) -> String {
 /// A cell without surrounding blanks and double quotes. The `csv` reader has removed the
 /// quotes of a cell that starts with one; this also takes them off ` "u" ` (blanks outside
 /// the quotes, which the reader keeps as text).
-fn unquote(cell: &str) -> &str {
+pub(crate) fn unquote(cell: &str) -> &str {
     let t = cell.trim();
     t.strip_prefix('"')
         .and_then(|s| s.strip_suffix('"'))

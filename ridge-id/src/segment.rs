@@ -44,7 +44,7 @@ use ridge_core_host::{ArxModel, Offset};
 use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, SAMPLE_RATE_HZ};
 use serde::Serialize;
 
-use crate::csv::{quote, Sample, MAX_LINE};
+use crate::csv::{column, found, number, quote, unquote, Sample, MAX_LINE};
 use crate::error::IdError;
 use crate::eval::{read_samples, RecordStats};
 use crate::input::{read_input, Input, MEMORY_ROWS};
@@ -601,29 +601,16 @@ fn parse_id(rest: &str, line: u64) -> Option<DeviceId> {
 /// The header's columns: `u`, `y` and `phase` required, `t` optional.
 fn parse_header(text: &str, name: &Path, line: u64) -> Result<Columns, IdError> {
     let names: Vec<&str> = text.split(',').map(unquote).collect();
-    let find = |want: &str| -> Result<Option<usize>, IdError> {
-        let mut hits = names.iter().enumerate().filter(|(_, n)| **n == want);
-        match (hits.next(), hits.next()) {
-            (Some(_), Some(_)) => Err(IdError::line(
-                name,
-                line,
-                format!("header has two columns named {want}"),
-            )),
-            (hit, _) => Ok(hit.map(|(i, _)| i)),
-        }
-    };
+    let find = |want: &str| column(&names, want, name, line);
     let need = |want: &str| -> Result<usize, IdError> {
         find(want)?.ok_or_else(|| {
-            let mut found = names.join(", ");
-            if found.chars().count() > 80 {
-                found = found.chars().take(80).collect::<String>() + "…";
-            }
             IdError::line(
                 name,
                 line,
                 format!(
-                    "header has no column named {want} (found: {found}); --phase reads the \
-                     pump's log capture, header t,u,y,r,phase"
+                    "header has no column named {want} (found: {}); --phase reads the \
+                     pump's log capture, header t,u,y,r,phase",
+                    found(&names)
                 ),
             )
         })
@@ -635,39 +622,6 @@ fn parse_header(text: &str, name: &Path, line: u64) -> Result<Columns, IdError> 
         y: need("y")?,
         phase: need("phase")?,
     })
-}
-
-/// A finite number in `cell` of column `column`.
-fn number(cell: &str, column: &str, name: &Path, line: u64) -> Result<f64, IdError> {
-    if cell.is_empty() {
-        return Err(IdError::line(
-            name,
-            line,
-            format!("column {column}: empty cell"),
-        ));
-    }
-    match cell.parse::<f64>() {
-        Ok(v) if v.is_finite() => Ok(v),
-        Ok(_) => Err(IdError::line(
-            name,
-            line,
-            format!("column {column}: {} is not a finite number", quote(cell)),
-        )),
-        Err(_) => Err(IdError::line(
-            name,
-            line,
-            format!("column {column}: {} is not a number", quote(cell)),
-        )),
-    }
-}
-
-/// A cell without surrounding blanks and double quotes.
-fn unquote(cell: &str) -> &str {
-    let t = cell.trim();
-    t.strip_prefix('"')
-        .and_then(|s| s.strip_suffix('"'))
-        .map(str::trim)
-        .unwrap_or(t)
 }
 
 /// Lines of a reader, at most [`MAX_LINE`] bytes each, UTF-8, numbered from 1; a `\r`
