@@ -74,18 +74,17 @@ pub fn plan(store: &[u8; STORE_LEN]) -> Plan {
     let (s0, s1) = store.split_at(SLOT_LEN);
     let seq = |s: &[u8]| s.get(RECORD_LEN).copied().unwrap_or(UNWRITTEN);
     let (q0, q1) = (seq(s0), seq(s1));
-    // Newest written slot first.
-    let order: [u8; 2] = match (q0 == UNWRITTEN, q1 == UNWRITTEN) {
-        (false, false) if newer(q1, q0) => [1, 0],
-        (true, false) => [1, 0],
-        _ => [0, 1],
+    // (index, slot, sequence number) of the newest written slot first; slot 0 first when
+    // neither is written.
+    let slot1_newest = q1 != UNWRITTEN && (q0 == UNWRITTEN || newer(q1, q0));
+    let ((first, s_first, newest), (second, s_second, q_second)) = if slot1_newest {
+        ((1, s1, q1), (0, s0, q0))
+    } else {
+        ((0, s0, q0), (1, s1, q1))
     };
-    let slot = |i: u8| if i == 0 { s0 } else { s1 };
-    let [first, second] = order;
-    let newest = seq(slot(first));
-    let load = if newest == UNWRITTEN || is_tombstone(slot(first)) {
+    let load = if newest == UNWRITTEN || is_tombstone(s_first) {
         None
-    } else if !valid(slot(first)) && seq(slot(second)) != UNWRITTEN && valid(slot(second)) {
+    } else if !valid(s_first) && q_second != UNWRITTEN && valid(s_second) {
         Some(second)
     } else {
         // Whole, or damaged with nothing to fall back to: the state machine's decoder then
@@ -118,8 +117,8 @@ fn valid(slot: &[u8]) -> bool {
     persist::intact(slot).is_ok()
 }
 
-/// A forgotten record: all `0xFF`.
-fn is_tombstone(slot: &[u8]) -> bool {
+/// A forgotten record (what `FORGET` saves): all `0xFF`. Takes a record or a whole slot.
+pub fn is_tombstone(slot: &[u8]) -> bool {
     slot.get(..RECORD_LEN)
         .is_some_and(|r| r.iter().all(|&b| b == 0xFF))
 }
@@ -146,12 +145,11 @@ pub fn target_offset(plan: &Plan) -> u16 {
 /// under `plan`: [`target_offset`] and the slot's [`SLOT_LEN`] bytes (the record, then
 /// `plan.seq`), to be written in order. `None` for a record of another length.
 pub fn slot_bytes(record: &[u8], plan: &Plan) -> Option<(u16, [u8; SLOT_LEN])> {
+    if record.len() != RECORD_LEN {
+        return None;
+    }
     let mut out = [plan.seq; SLOT_LEN];
-    out.get_mut(..RECORD_LEN)?.copy_from_slice(
-        record
-            .get(..RECORD_LEN)
-            .filter(|_| record.len() == RECORD_LEN)?,
-    );
+    out.get_mut(..RECORD_LEN)?.copy_from_slice(record);
     Some((target_offset(plan), out))
 }
 

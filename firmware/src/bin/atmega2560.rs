@@ -62,7 +62,7 @@ mod image {
         /// Writes `record` into the slot not in use, sequence number last (`slots`).
         #[inline(never)]
         fn save(&mut self, record: &[u8]) {
-            self.forgetting = Some(record.iter().all(|&b| b == 0xFF));
+            self.forgetting = Some(slots::is_tombstone(record));
             let plan = &self.plan;
             self.eeprom
                 .save(slots::target_offset(plan), record, plan.seq);
