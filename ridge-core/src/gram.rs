@@ -495,6 +495,11 @@ impl<A: Accumulator> Gram<A> {
     /// the stack, which matters on an 8 KB MCU. On error `out` is left empty. `scale` is
     /// taken by reference: on AVR, arguments that spill to the stack are miscompiled by the
     /// current backend (found with `scripts/avr-arith-check`).
+    ///
+    /// Never inlined: inlined into the ATmega2560's search, its locals widened that large
+    /// frame, whose offsets beyond 63 bytes each cost an address computation (−602 B of
+    /// flash, −26 B of stack out of line).
+    #[inline(never)]
     pub fn normal_into<T: Real>(&self, scale: &Scale, normal: &mut Normal<T>) -> Result<()> {
         fill_normal(self, scale, normal)
     }

@@ -24,6 +24,7 @@ pub mod bench;
 pub mod firmware;
 pub mod machine;
 pub mod pwm;
+pub mod relax;
 pub mod report;
 pub mod sensor;
 pub mod session;

@@ -225,7 +225,7 @@ fn deepest(
 }
 
 /// `0000013a <main>:` → `main`.
-fn label(line: &str) -> Option<&str> {
+pub(crate) fn label(line: &str) -> Option<&str> {
     let (addr, rest) = line.split_once(" <")?;
     if addr.is_empty() || !addr.bytes().all(|c| c.is_ascii_hexdigit()) {
         return None;
@@ -254,6 +254,14 @@ fn target(line: &str) -> Option<&str> {
     let end = line.rfind('>')?;
     let inner = line.get(start + 1..end)?;
     Some(inner.split('+').next().unwrap_or(inner))
+}
+
+/// The address a branch, call or jump lands at, from its comment: `… ; 0x7c2a <f+0x2>` →
+/// `0x7c2a`.
+pub(crate) fn target_address(line: &str) -> Option<u32> {
+    let (_, comment) = line.rsplit_once("; 0x")?;
+    let hex = comment.split(|c: char| !c.is_ascii_hexdigit()).next()?;
+    u32::from_str_radix(hex, 16).ok()
 }
 
 /// `r28, 0x5B` → 0x5B; `r28, 91` → 91.
