@@ -82,7 +82,7 @@ mod recording;
 mod run;
 mod search;
 
-pub use config::{Config, ControlConfig, DEFAULT_CONFIG};
+pub use config::{Config, ControlConfig, DEFAULT_CONFIG, LOSS_SHIFT};
 pub use guard::Guard;
 pub use recording::{absolute_model, SETTLE_MEAN_TICKS};
 pub use search::{SearchJob, SearchOutcome};
@@ -658,7 +658,18 @@ impl SelfIdentification {
             self.last_counts
         };
         let u0 = self.cfg.base_duty;
-        match (*then, self.model) {
+        let then = *then;
+        // The operating point is what the no-flow check expects from now on; a base duty
+        // that gave less than the stall flow is a pump (or PWM line) giving no flow.
+        if u0 > 0 && y0 < self.cfg.stall_flow {
+            return Some(self.fault_detected(FaultReason::NoFlow {
+                duty: u0,
+                counts: y0,
+                expected: self.cfg.stall_flow,
+            }));
+        }
+        self.guard.expect_operating_point(u0, y0);
+        match (then, self.model) {
             (Then::Load, Some(model)) => {
                 self.phase = Phase::Design { model };
                 self.duty = self.cfg.base_duty;
