@@ -128,6 +128,18 @@ impl Guard {
         Some(y.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16)
     }
 
+    /// Takes over the counters of `watched`, a copy of this guard that checked the tick
+    /// boundaries of a blocking job (the search, the design), so that a fault that started
+    /// during the job is detected in the documented time after it; the limits and the
+    /// expected flow stay this guard's.
+    pub fn resume(&mut self, watched: &Guard) {
+        self.errors = watched.errors;
+        self.stall = watched.stall;
+        self.last = watched.last;
+        self.repeats = watched.repeats;
+        self.loss = watched.loss;
+    }
+
     /// Checks one tick's sensor result `flow` (counts, 1/120 slm), read after the pump ran at
     /// `applied` (1/10 000) for the tick. `Ok(Some(counts))`: a good reading; `Ok(None)`: a
     /// sensor error still within the limit (to be bridged); `Err`: the fault it completes.

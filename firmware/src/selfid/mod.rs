@@ -324,6 +324,13 @@ impl SelfIdentification {
         self.guard
     }
 
+    /// Continues the tick's checks from the counters of `watched`, the copy from
+    /// [`guard`](Self::guard) that checked the tick boundaries of a blocking search or design
+    /// without a fault (see [`Guard::resume`]).
+    pub fn resume_guard(&mut self, watched: &Guard) {
+        self.guard.resume(watched);
+    }
+
     /// Latches a fault that a [`Guard`] found outside [`tick`](Self::tick): duty 0 from now on,
     /// any search result or record in progress is dropped. Returns the [`Event::Fault`] to
     /// report (it is not repeated by the next tick).
@@ -658,18 +665,9 @@ impl SelfIdentification {
             self.last_counts
         };
         let u0 = self.cfg.base_duty;
-        let then = *then;
-        // The operating point is what the no-flow check expects from now on; a base duty
-        // that gave less than the stall flow is a pump (or PWM line) giving no flow.
-        if u0 > 0 && y0 < self.cfg.stall_flow {
-            return Some(self.fault_detected(FaultReason::NoFlow {
-                duty: u0,
-                counts: y0,
-                expected: self.cfg.stall_flow,
-            }));
-        }
+        // The operating point is what the no-flow check expects from now on.
         self.guard.expect_operating_point(u0, y0);
-        match (then, self.model) {
+        match (*then, self.model) {
             (Then::Load, Some(model)) => {
                 self.phase = Phase::Design { model };
                 self.duty = self.cfg.base_duty;
