@@ -79,13 +79,15 @@ pub struct Config {
     /// - in run mode, `y0 + K (u − u0)` at every duty, `K` the identified model's static gain;
     /// - checked only where a quarter of it is at least [`stall_flow`](Self::stall_flow).
     ///
-    /// The settle phase itself faults when its operating point `y0` is below the stall flow
-    /// (the base duty produced no flow). Detection time after the flow is lost: the time for
-    /// the flow to fall below a quarter of the expected one (the blower's coast-down) plus
-    /// `loss_ticks`; with no flow expected before the first settle ends, at most
-    /// [`settle_ticks`](Self::settle_ticks). The 1 s covers the healthy transients that dip
-    /// below a quarter: a duty step down against a filled test lung closes the check valve
-    /// for a few hundred milliseconds. 0 turns the check off (the settle phase's check stays).
+    /// Detection time after the flow is lost: the blower's coast-down below a quarter of
+    /// the expected flow plus `loss_ticks` checked ticks (in run mode and while the base duty
+    /// is held all ticks are checked; during the records those at or above the base duty).
+    /// Nothing is expected before the first settle phase ends, and a dead line from power-up
+    /// settles near 0 slm: that case is the stall check's, in the first stretch of the
+    /// excitation at [`stall_duty`](Self::stall_duty) or more. The settled flow alone proves
+    /// nothing: a stiff test lung gives less than 1 slm at the 30 % base duty. The 1 s covers
+    /// healthy transients below a quarter (a duty step down against a filled test lung closes
+    /// the blower's check valve for a few hundred milliseconds). 0 turns the check off.
     pub loss_ticks: u16,
     /// Run-mode model monitor (one-step residuals, drift).
     pub monitor: MonitorConfig,
