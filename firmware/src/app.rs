@@ -11,8 +11,10 @@
 //!   ticks come as late as the longest stretch between two pets (one factorisation);
 //! - blocking (ATmega2560, for stack): `SelfIdentification::search`; its `pet` closure pets the
 //!   watchdog and, at every 10 ms boundary, reads the sensor and runs the tick's fault checks
-//!   (`SelfIdentification::guard`: sensor errors, flow range, stall), stopping the pump at once
-//!   on a fault; the PWM holds the base duty, the readings are not recorded.
+//!   (`SelfIdentification::guard`: sensor errors, flow range, stall, frozen sensor, no flow),
+//!   stopping the pump at once on a fault; the PWM holds the base duty, the readings are not
+//!   recorded. Afterwards the state machine's checks continue from the watch's counters
+//!   (`SelfIdentification::resume_guard`).
 //!
 //! Either way the search's ticks are counted on the `SEARCH` line, not in `MISSED`. The
 //! controller design (tens of milliseconds) always runs the blocking way, with the same guard,
@@ -469,6 +471,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
             // stops the pump at once; the state machine takes it over after the search.
             let mut watch = Watch::new(&self.sid, &mut self.sensor, &mut self.pump, board);
             let event = self.sid.search(|| watch.pet());
+            self.sid.resume_guard(&watch.guard);
             (ticks, lost, fault) = (watch.ticks, watch.lost, watch.fault);
             event
         };
@@ -488,6 +491,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
     fn design<B: Board>(&mut self, board: &mut B) -> SearchEnd {
         let mut watch = Watch::new(&self.sid, &mut self.sensor, &mut self.pump, board);
         let event = self.sid.design(|| watch.pet());
+        self.sid.resume_guard(&watch.guard);
         SearchEnd {
             job: Job::Design,
             event,

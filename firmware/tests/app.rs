@@ -541,6 +541,75 @@ fn sensor_fault_during_the_blocking_search_stops_the_pump_at_once() {
     assert_eq!(count(&uart.lines(), "FAULT"), 1, "reported once");
 }
 
+/// Runs to the blocking search, injects `fault` into the plant at its start and returns the
+/// simulated time from the injection to the pump's stop (µs), and the `FAULT` line.
+fn fault_during_the_blocking_search(fault: impl FnOnce(&mut World)) -> (u64, String) {
+    let w = world(Plant::reference());
+    let uart = Uart::default();
+    let mut board = FakeBoard::<false>::new(&w);
+    let mut app = app(&w, &uart);
+    app.start(&mut board);
+    run_until(&mut app, &mut board, 8_000, search_is_next);
+    let t0 = {
+        let mut w = w.borrow_mut();
+        fault(&mut w);
+        w.clock
+    };
+    app.step(&mut board); // the tick, then the search
+    let stop = w
+        .borrow()
+        .pwm_log
+        .iter()
+        .find(|(t, c)| *t >= t0 && *c == 0)
+        .map(|(t, _)| t - t0)
+        .expect("the pump was stopped");
+    assert!(
+        w.borrow().clock - t0 > stop,
+        "stopped before the search returned"
+    );
+    let lines = uart.lines();
+    let fault = lines
+        .iter()
+        .find(|l| l.starts_with("FAULT"))
+        .expect("FAULT line")
+        .clone();
+    assert_eq!(app.selfid().state(), State::Fault);
+    for _ in 0..20 {
+        app.step(&mut board);
+    }
+    assert_eq!(w.borrow().pwm, 0);
+    assert_eq!(count(&uart.lines(), "FAULT"), 1, "reported once");
+    (stop, fault)
+}
+
+/// A sensor that freezes at its current reading while the blocking search runs: the watch's
+/// guard sees `frozen_ticks` identical readings and stops the pump within them (plus the
+/// boundary in progress), before the search returns.
+#[test]
+fn frozen_sensor_during_the_blocking_search_stops_the_pump() {
+    let (stop, fault) = fault_during_the_blocking_search(|w| w.plant.stuck = Some(w.reading));
+    let limit = u64::from(Config::default().frozen_ticks);
+    assert!(stop <= (limit + 1) * TICK_US, "stopped after {stop} µs");
+    assert!(fault.starts_with("FAULT sensor=frozen flow="), "{fault}");
+    assert!(fault.ends_with(&format!(" n={limit}")), "{fault}");
+}
+
+/// A pump that gives no flow any more (the plant's reading drops to 0 at once) while the
+/// blocking search holds the 30 % base duty, below the 40 % stall duty: the watch's guard
+/// expects the settled operating point (about 20 slm) and stops the pump after `loss_ticks`
+/// ticks below a quarter of it.
+#[test]
+fn lost_flow_during_the_blocking_search_stops_the_pump() {
+    let (stop, fault) = fault_during_the_blocking_search(|w| w.plant.stuck = Some(0));
+    let limit = u64::from(Config::default().loss_ticks);
+    assert!(stop <= (limit + 1) * TICK_US, "stopped after {stop} µs");
+    assert!(stop >= limit * TICK_US, "stopped after {stop} µs");
+    assert!(
+        fault.starts_with("FAULT noflow duty=30.00 flow=0.000 expect="),
+        "{fault}"
+    );
+}
+
 /// The same fault while a ticking search runs: the state machine's own tick checks latch it
 /// and the pump is stopped within the fault limit.
 #[test]

@@ -314,11 +314,13 @@ fn waits_for_the_sensor_then_settles_at_base_duty() {
     let t = sm.tick(Ok(5));
     assert_eq!(t.duty, 3_000);
     assert_eq!(sm.state(), State::Settle);
-    for _ in 0..198 {
-        assert_eq!(sm.tick(Ok(2_400)).duty, 3_000);
+    // 20 slm with one count of noise (an exact constant would be a frozen sensor): the mean
+    // of the last 50 readings is 2 400 counts.
+    for k in 0..198 {
+        assert_eq!(sm.tick(Ok(2_401 - 2 * (k % 2))).duty, 3_000);
     }
     // The 200th settle tick starts the excitation with the first A-Multistep level.
-    let t = sm.tick(Ok(2_400));
+    let t = sm.tick(Ok(2_399));
     assert_eq!(t.duty, 2_000);
     assert_eq!(sm.state(), State::Excite);
     assert_eq!(
@@ -329,10 +331,17 @@ fn waits_for_the_sensor_then_settles_at_base_duty() {
 
 #[test]
 fn a_flat_response_is_rejected_as_not_excited_then_faults() {
-    // The sensor reads a constant 5 slm whatever the duty (e.g. a blocked duct).
+    // The sensor reads a constant 5 slm whatever the duty (e.g. a blocked duct). With the
+    // default settings that is a frozen sensor after 0.5 s (`frozen_sensor_*` tests); here
+    // the frozen and no-flow checks are off to reach the excitation check behind them.
     let mut plant = Plant::reference();
     plant.stuck = Some(600);
-    let mut rig = Rig::new(Config::default(), None, plant);
+    let cfg = Config {
+        frozen_ticks: 0,
+        loss_ticks: 0,
+        ..Config::default()
+    };
+    let mut rig = Rig::new(cfg, None, plant);
     rig.run_to(State::Fault);
     let rejects: Vec<&String> = rig
         .events
@@ -833,8 +842,9 @@ fn corrupt_stored_bytes_are_reported_and_identification_runs() {
         assert!(sm.model().is_none());
         let t = sm.tick(Ok(0));
         assert_eq!(line(&t.event.unwrap()), format!("STORED-REJECTED {reason}"));
-        for _ in 0..198 {
-            assert_eq!(sm.tick(Ok(2_400)).event, None);
+        // 20 slm with one count of noise (an exact constant would be a frozen sensor).
+        for k in 0..198 {
+            assert_eq!(sm.tick(Ok(2_399 + 2 * (k % 2))).event, None);
         }
         let t = sm.tick(Ok(2_400));
         assert_eq!(sm.state(), State::Excite, "{reason}");

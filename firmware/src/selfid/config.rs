@@ -8,6 +8,14 @@ use crate::monitor::MonitorConfig;
 use crate::setpoint::Program;
 use crate::tracking::TrackingConfig;
 
+/// The no-flow check's fraction of the expected flow, as a right shift: a flow below
+/// `expected >> LOSS_SHIFT` (a quarter) is missing (see [`Config::loss_ticks`]). A quarter,
+/// not a half: a blower that lost up to 75 % of its gain (a leak upstream of the sensor)
+/// still runs, left to the run-mode drift monitor, while a dead pump or PWM line drops to 0;
+/// and the linear expectation may overestimate the convex fan curve's flow by up to a
+/// factor of about 2 in the identified range (the static gain is a secant).
+pub const LOSS_SHIFT: u32 = 2;
+
 /// Settings of the state machine. Duties in 1/10 000 of full scale, flows in SFM3300 counts
 /// (1/120 slm), times in ticks of 10 ms.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,6 +52,43 @@ pub struct Config {
     pub stall_flow: i16,
     /// ... for `stall_ticks` consecutive ticks (default 50 = 0.5 s) is a stall.
     pub stall_ticks: u16,
+    /// Frozen sensor: this many identical consecutive readings (default 50 = 0.5 s) ...
+    ///
+    /// Why an exact repeat is evidence: the SFM3300 resolves 1/120 slm per count, and a
+    /// healthy reading of a running blower moves by several counts from one 10 ms sample to the
+    /// next (the simulated sensor: 3 % of the reading, at 2 slm σ = 7.6 counts, so two
+    /// consecutive readings are equal with probability ≈ 1/(2√π σ) ≈ 0.04). Even if a real
+    /// part were 15 times quieter (σ = 0.5 count), two equal readings in a row would have a
+    /// probability of at most 0.57, and 50 in a row 0.57⁴⁹ ≈ 1e-12. A sensor frozen at a
+    /// plausible flow is therefore flagged after `frozen_ticks` ticks (0.5 s). 0 turns the
+    /// check off.
+    pub frozen_ticks: u16,
+    /// ... at |flow| of at least `frozen_flow` counts (default 240 = 2 slm) is a frozen
+    /// sensor. Below it exact repeats are legitimate (a stopped pump reads a constant zero
+    /// point); a reading frozen there while the pump is commanded on reads as no flow and is
+    /// caught by the stall and no-flow checks. A reading stuck at the sensor's full scale is
+    /// beyond [`flow_limit`](Self::flow_limit) and faults at once as out of range.
+    pub frozen_flow: i16,
+    /// Missing flow response: the flow stays below a quarter of the expected flow (see
+    /// [`LOSS_SHIFT`]) for this many
+    /// consecutive checked ticks (default 100 = 1 s; ticks where no flow is expected do not
+    /// count and do not reset) → `FAULT noflow`. The expected flow at the applied duty `u`:
+    /// - after a settle phase, `y0 · u / u0` for `u ≥ u0` (the settled operating point `u0`,
+    ///   `y0`; a blower's flow rises at least in proportion to the duty above its operating
+    ///   point, as its fan curve is convex and its dead zone above 0), nothing below `u0`;
+    /// - in run mode, `y0 + K (u − u0)` at every duty, `K` the identified model's static gain;
+    /// - checked only where a quarter of it is at least [`stall_flow`](Self::stall_flow).
+    ///
+    /// Detection time after the flow is lost: the blower's coast-down below a quarter of
+    /// the expected flow plus `loss_ticks` checked ticks (in run mode and while the base duty
+    /// is held all ticks are checked; during the records those at or above the base duty).
+    /// Nothing is expected before the first settle phase ends, and a dead line from power-up
+    /// settles near 0 slm: that case is the stall check's, in the first stretch of the
+    /// excitation at [`stall_duty`](Self::stall_duty) or more. The settled flow alone proves
+    /// nothing: a stiff test lung gives less than 1 slm at the 30 % base duty. The 1 s covers
+    /// healthy transients below a quarter (a duty step down against a filled test lung closes
+    /// the blower's check valve for a few hundred milliseconds). 0 turns the check off.
+    pub loss_ticks: u16,
     /// Run-mode model monitor (one-step residuals, drift).
     pub monitor: MonitorConfig,
     /// The flow controller.
@@ -129,6 +174,9 @@ impl Config {
         stall_duty: 4_000,
         stall_flow: 240,
         stall_ticks: 50,
+        frozen_ticks: 50,
+        frozen_flow: 240,
+        loss_ticks: 100,
         monitor: MonitorConfig::DEFAULT,
         control: ControlConfig::DEFAULT,
     };

@@ -54,6 +54,8 @@ impl SelfIdentification {
                 );
                 let preview = run.preview();
                 self.phase = Phase::Run(run);
+                // The no-flow check expects the model's steady state from now on.
+                self.guard.expect_model(model.static_gain());
                 Some(Event::Control {
                     tau: d.tau,
                     alpha: d.alpha,

@@ -1,15 +1,21 @@
-//! [`Guard`]: the fault checks every tick runs first (sensor errors, flow range, stall), also
-//! used on their own while a blocking search keeps the state machine from ticking.
+//! [`Guard`]: the fault checks every tick runs first (sensor errors, flow range, stall, frozen
+//! sensor, missing flow), also used on their own while a blocking search keeps the state
+//! machine from ticking.
 
 use crate::event::{FaultReason, SensorFault};
+use crate::units::DUTY_FULL_SCALE;
 
-use super::Config;
+use super::{Config, LOSS_SHIFT};
 
 /// The fault checks of every tick, with their counters: [`Config::sensor_fault_limit`]
-/// consecutive sensor errors, a reading beyond [`Config::flow_limit`], and a stall
+/// consecutive sensor errors, a reading beyond [`Config::flow_limit`], a stall
 /// ([`Config::stall_duty`] or more with a flow below [`Config::stall_flow`] for
-/// [`Config::stall_ticks`] ticks). [`SelfIdentification::tick`](super::SelfIdentification::tick) runs them first;
-/// [`SelfIdentification::guard`](super::SelfIdentification::guard) hands out a copy for stretches without ticks.
+/// [`Config::stall_ticks`] ticks), a frozen sensor ([`Config::frozen_ticks`] identical
+/// readings at |flow| ≥ [`Config::frozen_flow`]) and a missing flow response (the flow below
+/// a quarter of the expected one for [`Config::loss_ticks`] checked ticks, see [`Guard::expected`]).
+/// [`SelfIdentification::tick`](super::SelfIdentification::tick) runs them first;
+/// [`SelfIdentification::guard`](super::SelfIdentification::guard) hands out a copy for
+/// stretches without ticks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Guard {
     sensor_fault_limit: u8,
@@ -17,14 +23,42 @@ pub struct Guard {
     stall_duty: u16,
     stall_flow: i16,
     stall_ticks: u16,
+    frozen_ticks: u16,
+    frozen_flow: i16,
+    loss_ticks: u16,
     /// Consecutive sensor errors.
     errors: u8,
     /// Consecutive ticks meeting the stall condition.
     stall: u16,
+    /// The previous good reading, counts.
+    last: i16,
+    /// Consecutive good readings equal to the previous one at |flow| ≥ `frozen_flow`.
+    repeats: u16,
+    /// Checked ticks with the flow below a quarter of the expected one (not reset by unchecked ticks).
+    loss: u16,
+    /// The expected flow, if known.
+    expect: Option<Expect>,
 }
 
+/// The flow a healthy pump gives at a duty `u`
+/// (1/10 000): `flow + slope · (u − duty) / 256` counts, for `u ≥ duty` only unless `below`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Expect {
+    /// Reference duty (the operating point's), 1/10 000.
+    duty: u16,
+    /// Flow at the reference duty, counts (1/120 slm).
+    flow: i16,
+    /// Counts per 1/10 000 duty, times 256.
+    slope: i16,
+    /// Whether the law holds below the reference duty too (a model's static gain).
+    below: bool,
+}
+
+/// SFM3300 counts per 1/10 000 duty per (slm per unit duty), times 256: `120 / 10 000 · 256`.
+const SLOPE_Q8_PER_GAIN: f32 = 3.072;
+
 impl Guard {
-    /// The checks of `cfg`, counters at zero.
+    /// The checks of `cfg`, counters at zero, no flow expected yet.
     pub fn new(cfg: &Config) -> Self {
         Guard {
             sensor_fault_limit: cfg.sensor_fault_limit.max(1),
@@ -32,9 +66,78 @@ impl Guard {
             stall_duty: cfg.stall_duty,
             stall_flow: cfg.stall_flow,
             stall_ticks: cfg.stall_ticks.max(1),
+            frozen_ticks: cfg.frozen_ticks,
+            frozen_flow: cfg.frozen_flow,
+            loss_ticks: cfg.loss_ticks,
             errors: 0,
             stall: 0,
+            last: 0,
+            repeats: 0,
+            loss: 0,
+            expect: None,
         }
+    }
+
+    /// From now on expects, at a duty `u ≥ duty` (1/10 000), at least the flow
+    /// `flow · u / duty` (counts): the settled operating point, before a model is in use.
+    /// Nothing is expected below `duty`, nor anywhere if `duty` is 0 or `flow` not positive.
+    pub fn expect_operating_point(&mut self, duty: u16, flow: i16) {
+        self.expect = if duty == 0 || flow <= 0 {
+            None
+        } else {
+            // ≤ 32 767 · 256 / 1, clamped to i16.
+            let slope = (i32::from(flow) * 256 / i32::from(duty)).min(i32::from(i16::MAX));
+            Some(Expect {
+                duty,
+                flow,
+                slope: slope as i16,
+                below: false,
+            })
+        };
+        self.loss = 0;
+    }
+
+    /// From now on expects the model's steady state through the operating point at every duty:
+    /// `flow + gain · (u − duty)` (counts, `gain` the static gain in slm per unit duty, the
+    /// operating point as last given to
+    /// [`expect_operating_point`](Self::expect_operating_point)). A gain that is not positive
+    /// and finite leaves the expectation as it was.
+    pub fn expect_model(&mut self, gain: f32) {
+        if let Some(e) = &mut self.expect {
+            // Written so that NaN fails; `as` saturates.
+            if gain > 0.0 && gain < f32::INFINITY {
+                e.slope = (gain * SLOPE_Q8_PER_GAIN + 0.5) as i16;
+                e.below = true;
+            }
+        }
+        self.loss = 0;
+    }
+
+    /// The flow expected at the duty `applied` (1/10 000), counts: `None` where nothing is
+    /// expected (see [`expect_operating_point`](Self::expect_operating_point) and
+    /// [`expect_model`](Self::expect_model)). Saturates at the `i16` range.
+    pub fn expected(&self, applied: u16) -> Option<i16> {
+        let e = self.expect?;
+        let u = applied.min(DUTY_FULL_SCALE);
+        if u < e.duty && !e.below {
+            return None;
+        }
+        // |slope · du| ≤ 32 767 · 10 000 < 2³¹.
+        let du = i32::from(u) - i32::from(e.duty);
+        let y = i32::from(e.flow) + ((i32::from(e.slope) * du) >> 8);
+        Some(y.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16)
+    }
+
+    /// Takes over the counters of `watched`, a copy of this guard that checked the tick
+    /// boundaries of a blocking job (the search, the design), so that a fault that started
+    /// during the job is detected in the documented time after it; the limits and the
+    /// expected flow stay this guard's.
+    pub fn resume(&mut self, watched: &Guard) {
+        self.errors = watched.errors;
+        self.stall = watched.stall;
+        self.last = watched.last;
+        self.repeats = watched.repeats;
+        self.loss = watched.loss;
     }
 
     /// Checks one tick's sensor result `flow` (counts, 1/120 slm), read after the pump ran at
@@ -74,6 +177,37 @@ impl Guard {
             }
         } else {
             self.stall = 0;
+        }
+        // |c| ≤ flow_limit here: no overflow in abs.
+        if c == self.last && c.abs() >= self.frozen_flow && self.frozen_ticks > 0 {
+            self.repeats = self.repeats.saturating_add(1);
+            // `repeats` equal pairs: `repeats + 1` identical readings.
+            if self.repeats.saturating_add(1) >= self.frozen_ticks {
+                return Err(FaultReason::Frozen {
+                    counts: c,
+                    ticks: self.repeats.saturating_add(1),
+                });
+            }
+        } else {
+            self.repeats = 0;
+        }
+        self.last = c;
+        if let Some(expected) = self.expected(applied).filter(|_| self.loss_ticks > 0) {
+            let part = expected >> LOSS_SHIFT;
+            if part >= self.stall_flow {
+                if c < part {
+                    self.loss = self.loss.saturating_add(1);
+                    if self.loss >= self.loss_ticks {
+                        return Err(FaultReason::NoFlow {
+                            duty: applied,
+                            counts: c,
+                            expected,
+                        });
+                    }
+                } else {
+                    self.loss = 0;
+                }
+            }
         }
         Ok(Some(c))
     }

@@ -82,7 +82,7 @@ mod recording;
 mod run;
 mod search;
 
-pub use config::{Config, ControlConfig, DEFAULT_CONFIG};
+pub use config::{Config, ControlConfig, DEFAULT_CONFIG, LOSS_SHIFT};
 pub use guard::Guard;
 pub use recording::{absolute_model, SETTLE_MEAN_TICKS};
 pub use search::{SearchJob, SearchOutcome};
@@ -323,6 +323,13 @@ impl SelfIdentification {
     /// fault, and hands that to [`fault_detected`](Self::fault_detected) afterwards.
     pub fn guard(&self) -> Guard {
         self.guard
+    }
+
+    /// Continues the tick's checks from the counters of `watched`, the copy from
+    /// [`guard`](Self::guard) that checked the tick boundaries of a blocking search or design
+    /// without a fault (see [`Guard::resume`]).
+    pub fn resume_guard(&mut self, watched: &Guard) {
+        self.guard.resume(watched);
     }
 
     /// Latches a fault that a [`Guard`] found outside [`tick`](Self::tick): duty 0 from now on,
@@ -659,6 +666,8 @@ impl SelfIdentification {
             self.last_counts
         };
         let u0 = self.cfg.base_duty;
+        // The operating point is what the no-flow check expects from now on.
+        self.guard.expect_operating_point(u0, y0);
         match (*then, self.model) {
             (Then::Load, Some(model)) => {
                 self.phase = Phase::Design { model };
