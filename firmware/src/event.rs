@@ -20,7 +20,7 @@
 //! | [`Event::Alarm`] | `ALARM track err=5.125 s=0.50` / `ALARM track clear` |
 //! | [`Event::Residual`] | `RES rms=0.812 mean=-0.013 flow=50.125 n=100` |
 //! | [`Event::Drift`] | `DRIFT rms=3.200 mean=-2.997 flow=35.400 s=3 reid=0` |
-//! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125`, `FAULT sensor=frozen flow=19.058 n=50`, `FAULT noflow duty=30.00 flow=0.125 expect=19.058`, `FAULT control margin=0.412 tries=5` |
+//! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125`, `FAULT sensor=frozen flow=19.058`, `FAULT noflow duty=30.00 flow=0.125 expect=19.058`, `FAULT control margin=0.412 tries=5` |
 
 use crate::excitation::Record;
 use ridge_core::control::{DesignError, ModelFault};
@@ -129,14 +129,12 @@ pub enum FaultReason {
         /// Last flow reading, 1/120 slm.
         counts: i16,
     },
-    /// The sensor repeated the same reading `ticks` times in a row at a flow where its noise
-    /// makes that implausible (see `Config::frozen_ticks`): frozen. `counts` is the reading
-    /// (1/120 slm). Line: `FAULT sensor=frozen flow=19.058 n=50` (slm, readings).
+    /// The sensor repeated the same reading `Config::frozen_ticks` times in a row at a flow
+    /// where its noise makes that implausible: frozen. Line: `FAULT sensor=frozen
+    /// flow=19.058` (slm).
     Frozen {
         /// The repeated reading, 1/120 slm.
         counts: i16,
-        /// Identical readings counted (the configured limit).
-        ticks: u16,
     },
     /// The flow stayed below half the flow expected at the applied duty for the configured
     /// time (see `Config::loss_ticks`): the pump or its PWM line gives no flow. `duty` is the
@@ -575,13 +573,8 @@ impl uDisplay for FaultReason {
             FaultReason::Stall { duty, counts } => {
                 ufmt::uwrite!(f, "stall duty={} flow={}", percent(duty), slm(counts))
             }
-            FaultReason::Frozen { counts, ticks } => {
-                ufmt::uwrite!(
-                    f,
-                    "sensor=frozen flow={} n={}",
-                    slm(counts),
-                    u32::from(ticks)
-                )
+            FaultReason::Frozen { counts } => {
+                ufmt::uwrite!(f, "sensor=frozen flow={}", slm(counts))
             }
             FaultReason::NoFlow {
                 duty,

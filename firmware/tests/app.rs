@@ -591,7 +591,6 @@ fn frozen_sensor_during_the_blocking_search_stops_the_pump() {
     let limit = u64::from(Config::default().frozen_ticks);
     assert!(stop <= (limit + 1) * TICK_US, "stopped after {stop} µs");
     assert!(fault.starts_with("FAULT sensor=frozen flow="), "{fault}");
-    assert!(fault.ends_with(&format!(" n={limit}")), "{fault}");
 }
 
 /// A pump that gives no flow any more (the plant's reading drops to 0 at once) while the

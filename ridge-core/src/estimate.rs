@@ -32,6 +32,9 @@ impl<T: Real> Fit<T> {
     }
 
     /// The fitted ARX model (θ, φ and offset in physical units).
+    ///
+    /// Never inlined: the ATmega2560's search frame is smaller without its copy (−24 B).
+    #[inline(never)]
     pub fn model(&self) -> ArxModel<T> {
         ArxModel::from_layout(&self.layout, &self.w)
     }

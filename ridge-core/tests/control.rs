@@ -499,9 +499,16 @@ fn limits() -> ModelLimits<f64> {
 #[test]
 fn refusals() {
     let m = |th: &[f64], ph: &[f64], d: u8| ArxModel::new(th, ph, d, Offset::None, 0.0).unwrap();
-    // The pumps pass.
+    // The pumps pass, with their static gain Σφ / (1 − Σθ).
     for (name, pm) in plants().into_iter().take(3) {
-        assert_eq!(check_model(&pm, &limits()), Ok(()), "{name}");
+        let gain = pm.phi().iter().sum::<f64>() / (1.0 - pm.theta().iter().sum::<f64>());
+        match check_model(&pm, &limits()) {
+            Ok(g) => assert!(
+                (g - gain).abs() <= 1e-9 * gain.abs(),
+                "{name}: {g} vs {gain}"
+            ),
+            Err(e) => panic!("{name}: {e:?}"),
+        }
     }
     // Unstable (pole at 1.1), marginal (pole at 0.999), integrating.
     assert_eq!(

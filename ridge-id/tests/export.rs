@@ -135,9 +135,11 @@ fn eeprom_after(hex: &str) -> Vec<u8> {
 /// the `LOADED` model and fit, or the first other event.
 fn boot(stored: &[u8]) -> Result<(ridge_core::ArxModel<f32>, f32), String> {
     let mut sm = SelfIdentification::new(&DEFAULT_CONFIG, Some(stored));
-    // A steady 20 slm (2400 counts) until the state machine has settled and loads the model.
-    for _ in 0..2000 {
-        if let Some(e) = sm.tick(Ok(2400)).event {
+    // About 20 slm (2400 counts, dithered by one count as a real sensor's noise would: an
+    // exactly constant reading is a frozen sensor) until the state machine has settled and
+    // loads the model.
+    for k in 0..2000 {
+        if let Some(e) = sm.tick(Ok(2400 + k % 2)).event {
             return match e {
                 Event::Loaded { model, fit } => Ok((model, fit)),
                 other => Err(format!("{other:?}")),

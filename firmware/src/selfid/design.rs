@@ -31,9 +31,14 @@ impl SelfIdentification {
         };
         let c = &self.cfg.control;
         pet();
-        if let Err(fault) = check_model(&model, &c.model) {
-            return Some(self.fault_detected(FaultReason::Control(ControlRefusal::Model(fault))));
-        }
+        let gain = match check_model(&model, &c.model) {
+            Ok(gain) => gain,
+            Err(fault) => {
+                return Some(
+                    self.fault_detected(FaultReason::Control(ControlRefusal::Model(fault))),
+                )
+            }
+        };
         let spec = Spec {
             tau: c.tau,
             observer: c.observer,
@@ -55,7 +60,7 @@ impl SelfIdentification {
                 let preview = run.preview();
                 self.phase = Phase::Run(run);
                 // The no-flow check expects the model's steady state from now on.
-                self.guard.expect_model(model.static_gain());
+                self.guard.expect_model(gain);
                 Some(Event::Control {
                     tau: d.tau,
                     alpha: d.alpha,

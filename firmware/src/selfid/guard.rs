@@ -100,13 +100,17 @@ impl Guard {
     /// From now on expects the model's steady state through the operating point at every duty:
     /// `flow + gain · (u − duty)` (counts, `gain` the static gain in slm per unit duty, the
     /// operating point as last given to
-    /// [`expect_operating_point`](Self::expect_operating_point)). A gain that is not positive
-    /// and finite leaves the expectation as it was.
+    /// [`expect_operating_point`](Self::expect_operating_point)). A gain whose slope in
+    /// counts per duty step rounds to nothing or saturates (not positive, below 0.17 or
+    /// above 10 666 slm per unit duty, NaN, ±∞) leaves the expectation as it was.
     pub fn expect_model(&mut self, gain: f32) {
         if let Some(e) = &mut self.expect {
-            // Written so that NaN fails; `as` saturates.
-            if gain > 0.0 && gain < f32::INFINITY {
-                e.slope = (gain * SLOPE_Q8_PER_GAIN + 0.5) as i16;
+            // `as` saturates and maps NaN to 0: a gain that is not positive gives ≤ 0, an
+            // infinite or too large one i16::MAX; both are refused (integer compares: no
+            // float comparison calls on the ATmega2560).
+            let slope = (gain * SLOPE_Q8_PER_GAIN + 0.5) as i16;
+            if slope > 0 && slope < i16::MAX {
+                e.slope = slope;
                 e.below = true;
             }
         }
@@ -183,10 +187,7 @@ impl Guard {
             self.repeats = self.repeats.saturating_add(1);
             // `repeats` equal pairs: `repeats + 1` identical readings.
             if self.repeats.saturating_add(1) >= self.frozen_ticks {
-                return Err(FaultReason::Frozen {
-                    counts: c,
-                    ticks: self.repeats.saturating_add(1),
-                });
+                return Err(FaultReason::Frozen { counts: c });
             }
         } else {
             self.repeats = 0;

@@ -34,11 +34,12 @@ pub enum ModelFault<T> {
 }
 
 /// Checks `model` against `limits`: finite coefficients, every pole of `A` within
-/// `stable_radius` (Schur–Cohn test), static gain within `gain_min..=gain_max`.
+/// `stable_radius` (Schur–Cohn test), static gain within `gain_min..=gain_max`. Returns that
+/// static gain `B(1) / A(1)` (output units per input unit), which the caller may need too.
 pub fn check_model<T: Real>(
     model: &ArxModel<T>,
     limits: &ModelLimits<T>,
-) -> Result<(), ModelFault<T>> {
+) -> Result<T, ModelFault<T>> {
     let theta = model.theta();
     let n = theta.len().min(P_MAX) + 1;
     let mut a = [T::ZERO; P_MAX + 1];
@@ -57,5 +58,5 @@ pub fn check_model<T: Real>(
     if !(gain >= limits.gain_min && gain <= limits.gain_max) {
         return Err(ModelFault::Gain { gain });
     }
-    Ok(())
+    Ok(gain)
 }
