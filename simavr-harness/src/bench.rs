@@ -32,6 +32,7 @@ use std::collections::HashMap;
 use std::path::PathBuf;
 use std::rc::Rc;
 
+use crate::bus::{self, BusState, SdaHold};
 use crate::machine::{Halt, IrqEvent, Machine, UartByte};
 use crate::pwm::{self, Channel};
 use crate::report::{Line, LineSplitter};
@@ -322,6 +323,8 @@ pub enum Action {
     Sensor(Fault),
     /// Block or free the rotor.
     Stall(bool),
+    /// The sensor holds SDA low from the firmware's next STOP request on (see [`bus`]).
+    HoldSda(SdaHold),
 }
 
 /// The closed-loop bench: the simulated MCU running the firmware, its UART transcript, the
@@ -332,6 +335,8 @@ pub struct Bench {
     pub machine: Machine,
     /// The simulated sensor's shared state.
     pub sensor: Rc<RefCell<SensorState>>,
+    /// The I2C lines at the pin level (pull-ups, SDA held low, what the lines did).
+    pub bus: Rc<RefCell<BusState>>,
     /// The blower (sub-stepped at 0.5 ms).
     pub pump: Pump,
     /// The test lung, if any (stepped with the blower).
@@ -386,6 +391,7 @@ impl Bench {
             }),
             clock,
         )?;
+        let bus = bus::attach(&mut machine)?;
         let mut p = cfg.pump.clone();
         p.ts_s /= SUBSTEPS as f64;
         p.delay_samples *= SUBSTEPS;
@@ -413,6 +419,7 @@ impl Bench {
             uart: machine.uart0(),
             machine,
             sensor,
+            bus,
             pump,
             lung: cfg.lung.clone().map(Lung::new),
             channel: cfg.pwm,
@@ -465,6 +472,7 @@ impl Bench {
         match action {
             Action::Sensor(f) => self.sensor.borrow_mut().fault = f,
             Action::Stall(s) => self.pump.set_stalled(s),
+            Action::HoldSda(h) => self.bus.borrow_mut().arm(h),
         }
     }
 

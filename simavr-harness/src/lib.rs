@@ -6,6 +6,8 @@
 //! - [`machine`]: safe wrapper over simavr (`simavr-ffi`, the simavr that `avr-tester` 0.6
 //!   builds from source with its TWI fixes): cycle counter, data space, EEPROM, IRQ hooks.
 //! - [`sensor`]: the SFM3300 as an `avr_tester::TwiSlave`, with fault injection.
+//! - [`bus`]: the I2C lines at the pin level: pull-ups, a sensor holding SDA low, the clock
+//!   pulses and START/STOP conditions the firmware makes.
 //! - [`pwm`]: duty from the 16-bit timer registers.
 //! - [`bench`](mod@bench): the bench ([`bench::Bench`]): the simulated MCU wired to the simulated plant,
 //!   closed loop, with the timing meter. (The plant alone, stepped once per sample without an
@@ -21,6 +23,7 @@
 //!   `avr-stack` prints).
 
 pub mod bench;
+pub mod bus;
 pub mod firmware;
 pub mod machine;
 pub mod pwm;

@@ -195,6 +195,121 @@ unsafe extern "C" fn on_twi(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c
     }
 }
 
+/// What an intercepted I/O register write does (see [`Machine::intercept_write`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IoWrite {
+    /// Hand the write to the peripheral that owns the register, as without the interception.
+    Pass,
+    /// The register takes this value; the peripheral never sees the write.
+    Store(u8),
+}
+
+/// An intercepted register write: `(cycle, register value before, value written)`.
+type WriteFn = Box<dyn FnMut(u64, u8, u8) -> IoWrite>;
+
+struct WriteHook {
+    avr: *mut ffi::avr_t,
+    base: Rc<Cell<u64>>,
+    /// The handler that owned the register before (the peripheral's, or simavr's muxer).
+    original: ffi::avr_io_write_t,
+    original_param: *mut c_void,
+    f: WriteFn,
+}
+
+unsafe extern "C" fn on_io_write(avr: *mut ffi::avr_t, addr: u16, v: u8, param: *mut c_void) {
+    // SAFETY: `param` is the `WriteHook` installed by `Machine::intercept_write`; simavr calls
+    // it from the core's register write on this thread.
+    let hook = unsafe { &mut *(param as *mut WriteHook) };
+    // SAFETY: `addr` is an I/O register address below `ramend` (checked at installation).
+    let old = unsafe { *(*avr).data.add(addr.into()) };
+    // SAFETY: plain field read of the live core that is calling us.
+    let cycle = hook.base.get() + unsafe { (*hook.avr).cycle };
+    match (hook.f)(cycle, old, v) {
+        IoWrite::Pass => match hook.original {
+            // SAFETY: the handler and its parameter as simavr registered them.
+            Some(c) => unsafe { c(avr, addr, v, hook.original_param) },
+            // SAFETY: as above.
+            None => unsafe { *(*avr).data.add(addr.into()) = v },
+        },
+        // SAFETY: as above.
+        IoWrite::Store(x) => unsafe { *(*avr).data.add(addr.into()) = x },
+    }
+}
+
+/// A pin-level callback: `(cycle, new level)`.
+type PinFn = Box<dyn FnMut(u64, bool)>;
+
+unsafe extern "C" fn on_pin_level(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
+    // SAFETY: `param` is a `Hook<PinFn>` registered in `Machine::on_pin_change`. simavr does
+    // not re-enter a hook that is running (`hook->busy`), so the borrow is not shared.
+    let hook = unsafe { &*(param as *const Hook<PinFn>) };
+    let cycle = hook.cycle();
+    (hook.sink.borrow_mut())(cycle, value != 0);
+}
+
+/// Drives the input side of one port's pins from outside the MCU, as pull-up resistors and
+/// open-drain devices on the board do (see [`Machine::external_pins`]). Clones share the levels.
+/// Does nothing once its [`Machine`] is dropped.
+#[derive(Clone)]
+pub struct ExternalPins {
+    avr: *mut ffi::avr_t,
+    alive: Rc<Cell<bool>>,
+    port: char,
+    irqs: [*mut ffi::avr_irq_t; 8],
+    /// (mask, value) given to simavr so far.
+    levels: Rc<Cell<(u8, u8)>>,
+}
+
+impl std::fmt::Debug for ExternalPins {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (mask, value) = self.levels.get();
+        f.debug_struct("ExternalPins")
+            .field("port", &self.port)
+            .field("mask", &mask)
+            .field("value", &value)
+            .finish()
+    }
+}
+
+impl ExternalPins {
+    /// From now on, the pins in `mask` read `value`'s bits (1 = high) whenever the MCU does not
+    /// drive them (DDR bit 0), whatever its PORT bit (internal pull-up) says; takes effect at
+    /// once on the pins that are inputs now. Other pins keep what they had. Can be called from
+    /// inside the machine's callbacks ([`Machine::on_pin_change`], [`Machine::intercept_write`]).
+    pub fn set(&self, mask: u8, value: u8) {
+        if !self.alive.get() {
+            return;
+        }
+        let (m, v) = self.levels.get();
+        let (m, v) = (m | mask, (v & !mask) | (value & mask));
+        self.levels.set((m, v));
+        // SAFETY: live core (`alive`); both ioctls take the structs bindgen generated for them.
+        unsafe {
+            let mut ext: ffi::avr_ioport_external_t = std::mem::zeroed();
+            ext.set_name(self.port as u8 as _);
+            ext.set_mask(m.into());
+            ext.set_value(v.into());
+            ffi::avr_ioctl(
+                self.avr,
+                ioctl(b'i', b'o', b'p', self.port as u8),
+                (&mut ext as *mut ffi::avr_ioport_external_t).cast(),
+            );
+            let mut state: ffi::avr_ioport_state_t = std::mem::zeroed();
+            ffi::avr_ioctl(
+                self.avr,
+                ioctl(b'i', b'o', b's', self.port as u8),
+                (&mut state as *mut ffi::avr_ioport_state_t).cast(),
+            );
+            let ddr = state.ddr() as u8;
+            for bit in 0..8 {
+                if mask & !ddr & (1 << bit) != 0 {
+                    ffi::avr_raise_irq(self.irqs[bit], u32::from((value >> bit) & 1));
+                }
+            }
+        }
+    }
+}
+
 /// simavr's raw run loop calls `avr->sleep` while the core sleeps, which paces the host to real
 /// time (`usleep`). The harness wants simulated time only.
 unsafe extern "C" fn no_sleep(_avr: *mut ffi::avr_t, _how_long: ffi::avr_cycle_count_t) {}
@@ -223,6 +338,8 @@ pub struct Machine {
     /// Owned callback states (freed on drop).
     frees: Vec<Box<dyn FnOnce()>>,
     pins: HashMap<(char, u8), Rc<RefCell<Vec<PinEdge>>>>,
+    /// False once the core is freed (checked by [`ExternalPins`]).
+    alive: Rc<Cell<bool>>,
 }
 
 impl std::fmt::Debug for Machine {
@@ -287,6 +404,7 @@ impl Machine {
                 sleep_cycles: 0,
                 frees: Vec::new(),
                 pins: HashMap::new(),
+                alive: Rc::new(Cell::new(true)),
             };
             m.hook_uart('0')?;
             Ok(m)
@@ -395,6 +513,85 @@ impl Machine {
         }
         self.pins.insert((port, bit), sink.clone());
         sink
+    }
+
+    /// Calls `f(cycle, level)` at every level change of pin `port``bit` (e.g. `('D', 0)`) from
+    /// now on, whoever makes it: the MCU (output, or the pull-up it selects) or
+    /// [`ExternalPins`]. `f` may itself drive pins through an [`ExternalPins`].
+    pub fn on_pin_change(
+        &mut self,
+        port: char,
+        bit: u8,
+        f: impl FnMut(u64, bool) + 'static,
+    ) -> Result<(), String> {
+        let avr = self.raw();
+        // SAFETY: as in `attach_twi`.
+        unsafe {
+            let irq = ffi::avr_io_getirq(avr, ioctl(b'i', b'o', b'g', port as u8), bit.into());
+            if irq.is_null() || bit > 7 {
+                return Err(format!("no pin P{port}{bit}"));
+            }
+            let f: PinFn = Box::new(f);
+            let hook = self.leak(Hook {
+                avr,
+                base: self.base.clone(),
+                sink: Rc::new(RefCell::new(f)),
+            });
+            ffi::avr_irq_register_notify(irq, Some(on_pin_level), hook.cast());
+        }
+        Ok(())
+    }
+
+    /// A handle that drives port `port`'s pins from outside (pull-ups, a device holding a line
+    /// low); see [`ExternalPins::set`].
+    pub fn external_pins(&mut self, port: char) -> Result<ExternalPins, String> {
+        let avr = self.raw();
+        let mut irqs = [std::ptr::null_mut(); 8];
+        for (bit, irq) in irqs.iter_mut().enumerate() {
+            // SAFETY: IRQ look-up on a valid core.
+            *irq =
+                unsafe { ffi::avr_io_getirq(avr, ioctl(b'i', b'o', b'g', port as u8), bit as _) };
+            if irq.is_null() {
+                return Err(format!("no port {port}"));
+            }
+        }
+        Ok(ExternalPins {
+            avr,
+            alive: self.alive.clone(),
+            port,
+            irqs,
+            levels: Rc::new(Cell::new((0, 0))),
+        })
+    }
+
+    /// Puts `f` in front of the peripheral that handles writes to I/O register `addr` (data
+    /// space address, e.g. `0xBC` = TWCR): every write the firmware makes calls
+    /// `f(cycle, value before, value written)`, and [`IoWrite`] says whether the peripheral
+    /// sees it. Reads are untouched.
+    pub fn intercept_write(
+        &mut self,
+        addr: u16,
+        f: impl FnMut(u64, u8, u8) -> IoWrite + 'static,
+    ) -> Result<(), String> {
+        let io = usize::from(addr)
+            .checked_sub(32)
+            .filter(|&io| io < ffi::MAX_IOs as usize && addr <= self.ramend())
+            .ok_or_else(|| format!("{addr:#x} is not an I/O register"))?;
+        let avr = self.raw();
+        // SAFETY: `io` is within `avr->io`; the hook outlives the core's use of it.
+        unsafe {
+            let slot = &mut (*avr).io[io].w;
+            let hook = self.leak(WriteHook {
+                avr,
+                base: self.base.clone(),
+                original: slot.c,
+                original_param: slot.param,
+                f: Box::new(f),
+            });
+            slot.c = Some(on_io_write);
+            slot.param = hook.cast();
+        }
+        Ok(())
     }
 
     /// Records entries into and returns from interrupt vector `vector` (e.g. 17 =
@@ -645,6 +842,7 @@ impl Machine {
 
 impl Drop for Machine {
     fn drop(&mut self) {
+        self.alive.set(false);
         // SAFETY: terminate, then free the core allocated by `avr_make_mcu_by_name`, then the
         // callback states it pointed to.
         unsafe {

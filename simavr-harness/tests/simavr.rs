@@ -21,7 +21,8 @@ use pump_sim::sfm3300::flow_to_raw;
 use pump_sim::PumpParams;
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::selfid::Config;
-use simavr_harness::bench::{Action, Bench, BenchConfig};
+use simavr_harness::bench::{Action, Bench, BenchConfig, RunEnd};
+use simavr_harness::bus::{BusEvent, BusState, SdaHold};
 use simavr_harness::firmware;
 use simavr_harness::sensor::Fault;
 use simavr_harness::session::{self, Outcome, SessionConfig, TICK_CYCLES};
@@ -369,7 +370,7 @@ fn inject(actions: &[(f64, Action)], within_s: f64) -> (Bench, Option<usize>) {
     let until = actions.iter().map(|(t, _)| *t).fold(0.0, f64::max) + within_s;
     let end = bench.run_until(until, |l| l.text.starts_with("FAULT"));
     let idx = match end {
-        simavr_harness::bench::RunEnd::Line(i) => Some(i),
+        RunEnd::Line(i) => Some(i),
         _ => None,
     };
     if idx.is_some() {
@@ -522,6 +523,184 @@ fn fault_sensor_absent_during_the_search_stops_pump_before_it_ends() {
     );
 }
 
+/// Standard-mode I2C clock phases (NXP UM10204, table 10), cycles at 16 MHz: SCL low ≥ 4.7 µs.
+const I2C_LOW_MIN: u64 = 76;
+/// ... and SCL high ≥ 4.0 µs.
+const I2C_HIGH_MIN: u64 = 64;
+/// SDA stuck low for good: the pump is off (duty 0 on the pin) and the FAULT line has started
+/// within this long after SDA went low (docs/boards.md, Faults: five 10 ms ticks, the last
+/// read's 2.5 ms timeout and the tick's work).
+const SDA_STUCK_BOUND_S: f64 = 0.055;
+
+/// Every SCL phase in cycles `from..to` that the bus model saw is as long as standard-mode I2C
+/// asks (a high phase longer than 1 ms is the idle bus between two recoveries, not a phase).
+fn check_clock(bus: &BusState, from: u64, to: u64, what: &str) {
+    let edges: Vec<(u64, bool)> = bus
+        .events
+        .iter()
+        .filter_map(|e| match *e {
+            BusEvent::Scl(c, high) if (from..to).contains(&c) => Some((c, high)),
+            _ => None,
+        })
+        .collect();
+    for w in edges.windows(2) {
+        let ((c0, high), (c1, _)) = (w[0], w[1]);
+        let len = c1 - c0;
+        if high {
+            assert!(
+                len >= I2C_HIGH_MIN || len > 16_000,
+                "{what}: SCL high for {len} cycles at {c0}"
+            );
+        } else {
+            assert!(
+                len >= I2C_LOW_MIN,
+                "{what}: SCL low for {len} cycles at {c0}"
+            );
+        }
+    }
+}
+
+/// I2C bus stuck low (issue 12 item 4), a sensor that lets go: after its next frame it keeps
+/// SDA low (the harness's bus model: PD1 reads low, a START the TWI is asked for never
+/// completes) until it has seen `k` clocks, as a slave stuck in a byte does. For k = 1, 5 and 9
+/// (the most such a slave needs) in one run in the excitation, on the harness's own view of
+/// the pins and of the slave: exactly k clock pulses, each phase as long as standard-mode I2C
+/// asks, a STOP condition after the release, one failed START request and nothing reaching the
+/// slave until the STOP, frames served again at every tick from the next one, no FAULT, the
+/// pump running throughout.
+#[test]
+fn sda_held_low_by_the_sensor_is_clocked_free() {
+    let mut bench = Bench::new(BenchConfig::new(elf())).expect("bench");
+    bench.run_until(AT, |_| false);
+    for k in [1u8, 5, 9] {
+        let armed = bench.machine.cycle();
+        bench.apply(Action::HoldSda(SdaHold::ReleaseAfter(k)));
+        bench.run_for(0.3);
+        let end = bench.machine.cycle();
+        let bus = bench.bus.borrow();
+        let what = format!("released after {k} clocks");
+        let within = |c: &u64| (armed..end).contains(c);
+        let holds = bus.cycles(|e| matches!(e, BusEvent::Hold(c) if within(c)));
+        let releases = bus.cycles(|e| matches!(e, BusEvent::Release(c) if within(c)));
+        assert!(
+            holds.len() == 1 && releases.len() == 1,
+            "{what}: holds {holds:?}, releases {releases:?}"
+        );
+        let (hold, release) = (holds[0], releases[0]);
+        let pulses = bus.scl_pulses(hold, end);
+        assert_eq!(pulses, usize::from(k), "{what}: clock pulses");
+        assert!(pulses <= 9, "{what}: {pulses} clock pulses");
+        check_clock(&bus, hold, end, &what);
+        let blocked = bus.cycles(|e| matches!(e, BusEvent::BlockedStart(c) if within(c)));
+        assert_eq!(blocked.len(), 1, "{what}: START requests on the held bus");
+        let stops = bus.cycles(|e| matches!(e, BusEvent::Stop(c) if within(c)));
+        assert!(
+            stops.len() == 1 && stops[0] > release,
+            "{what}: STOP conditions {stops:?}, release at {release}"
+        );
+        let stop = stops[0];
+        let served: Vec<u64> = bench
+            .sensor
+            .borrow()
+            .served()
+            .iter()
+            .map(|&(c, _)| c)
+            .filter(|c| (hold..end).contains(c))
+            .collect();
+        assert!(
+            served
+                .first()
+                .is_some_and(|&c| c > stop && c < stop + TICK_CYCLES + 16_000),
+            "{what}: first frame after the hold at {:?}, STOP at {stop}",
+            served.first()
+        );
+        let ticks = (end - stop) / TICK_CYCLES;
+        assert!(
+            served.len() as u64 >= ticks - 1,
+            "{what}: {} frames served in the {ticks} ticks after the STOP",
+            served.len()
+        );
+    }
+    let texts: Vec<&str> = bench.lines.iter().map(|l| l.text.as_str()).collect();
+    assert!(
+        !texts.iter().any(|t| t.starts_with("FAULT")),
+        "a fault: {texts:?}"
+    );
+    let since = bench.cycles(AT);
+    assert!(
+        bench.duty_at(since).is_some_and(|d| d.fraction > 0.0)
+            && bench
+                .duty_log
+                .iter()
+                .filter(|d| d.cycle >= since)
+                .all(|d| d.fraction > 0.0),
+        "the pump stopped: {:?}",
+        bench.duty_log
+    );
+}
+
+/// I2C bus stuck low for good (issue 12 item 4): the sensor never lets go of SDA. Every read
+/// times out and is followed by 9 clock pulses that free nothing (no STOP condition can
+/// happen); the fifth failed read in a row is the fault, `FAULT sensor=bus n=5`, with the pump
+/// off (duty 0 on the pin) and the line started within [`SDA_STUCK_BOUND_S`] of SDA going low,
+/// and the pump kept off.
+#[test]
+fn sda_held_low_for_good_stops_the_pump_within_its_bound() {
+    let mut bench = Bench::new(BenchConfig::new(elf())).expect("bench");
+    bench.schedule(AT, Action::HoldSda(SdaHold::Forever));
+    let end = bench.run_until(AT + 1.0, |l| l.text.starts_with("FAULT"));
+    let texts: Vec<&str> = bench.lines.iter().map(|l| l.text.as_str()).collect();
+    let RunEnd::Line(idx) = end else {
+        panic!("no FAULT line within 1 s: {texts:?}");
+    };
+    bench.run_for(0.03);
+    assert_eq!(bench.lines[idx].text, "FAULT sensor=bus n=5");
+    assert_stopped(&bench, idx, "SDA held low");
+    let bus = bench.bus.borrow();
+    let hold = bus.cycles(|e| matches!(e, BusEvent::Hold(_)));
+    assert_eq!(hold.len(), 1, "holds");
+    let hold = hold[0];
+    let line = bench.line_starts[idx];
+    let off = bench
+        .duty_log
+        .iter()
+        .find(|d| d.cycle > hold && d.fraction == 0.0)
+        .map_or(u64::MAX, |d| d.cycle);
+    let bound = bench.cycles(SDA_STUCK_BOUND_S);
+    assert!(
+        off - hold <= bound && line - hold <= bound,
+        "pump off {} ms and FAULT line {} ms after SDA went low (bound {} ms)",
+        (off - hold) as f64 / 16e3,
+        (line - hold) as f64 / 16e3,
+        SDA_STUCK_BOUND_S * 1e3
+    );
+    // One failed read per tick, each followed by the full 9 clocks; the fifth in a row faults.
+    let blocked = bus.cycles(|e| matches!(e, BusEvent::BlockedStart(c) if *c < line));
+    assert_eq!(
+        blocked.len(),
+        usize::from(Config::default().sensor_fault_limit),
+        "failed reads before the FAULT line: {blocked:?}"
+    );
+    for (i, &b) in blocked.iter().enumerate() {
+        let next = blocked.get(i + 1).copied().unwrap_or(line);
+        assert_eq!(
+            bus.scl_pulses(b, next),
+            9,
+            "clock pulses after failed read {i}"
+        );
+    }
+    check_clock(&bus, hold, line, "SDA held for good");
+    let after = |c: &u64| *c > hold;
+    assert!(
+        bus.cycles(|e| matches!(e, BusEvent::Release(c) | BusEvent::Stop(c) if after(c)))
+            .is_empty(),
+        "SDA rose while held: {:?}",
+        bus.events
+    );
+    // The pin itself: PIND (0x29) reads SDA (bit 1) low and SCL (bit 0) high.
+    assert_eq!(bench.machine.data(0x29) & 0b11, 0b01, "PIND");
+}
+
 /// The same SFM3300 model works as an `avr_tester::TwiSlave` under avr-tester itself: the
 /// firmware boots, starts the sensor and reads it (`SENSOR ready`), with UART read through
 /// avr-tester.
@@ -580,7 +759,7 @@ fn a_save_cut_at_any_point_keeps_the_other_slot() {
     let mut bench = Bench::new(cfg.clone()).expect("bench");
     let end = bench.run_until(150.0, |l| l.text.starts_with("ACCEPT"));
     assert!(
-        matches!(end, simavr_harness::bench::RunEnd::Line(_)),
+        matches!(end, RunEnd::Line(_)),
         "no ACCEPT: {:?}",
         bench.lines.iter().map(|l| &l.text).collect::<Vec<_>>()
     );
