@@ -147,6 +147,8 @@ impl<T: Real> Normal<T> {
     ///
     /// Errors: [`Error::InvalidStructure`] outside the maxima, [`Error::TooShort`] when
     /// the record has fewer than `m + n + 1` samples (`m` seed samples, `n` parameters).
+    // Out of line: smaller ATmega2560 image (measured by trying each function).
+    #[inline(never)]
     pub fn system(&self, structure: Structure, offset: Offset) -> Result<System<'_, T>> {
         structure.check()?;
         let layout = Layout::new(structure, offset);

@@ -357,6 +357,8 @@ impl SelfIdentification {
     /// Kept out of [`tick`](Self::tick) because it costs about 1 ms on the ATmega2560 (three
     /// square roots, divisions, moving the model into run mode), which would push that tick's
     /// PWM write past its 1.6 ms budget.
+    // Out of line: smaller ATmega2560 image (measured by trying each function).
+    #[inline(never)]
     pub fn judge(&mut self) -> Option<Event> {
         if self.needs_judgement() {
             Some(self.end_validation())
@@ -494,6 +496,8 @@ impl SelfIdentification {
         self.fault_tick()
     }
 
+    // Out of line: smaller ATmega2560 image (measured by trying each function).
+    #[inline(never)]
     fn enter_fault(&mut self, reason: FaultReason) {
         self.phase = Phase::Fault;
         self.duty = 0;
@@ -722,6 +726,8 @@ impl SelfIdentification {
     }
 
     /// The validation record is complete: accept (run mode) or reject.
+    // Out of line: smaller ATmega2560 image (measured by trying each function).
+    #[inline(never)]
     fn end_validation(&mut self) -> Event {
         let Phase::Validate { eval, model, .. } = &self.phase else {
             return self.reject(RejectReason::NonFinite);
