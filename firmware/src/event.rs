@@ -20,7 +20,7 @@
 //! | [`Event::Alarm`] | `ALARM track err=5.125 s=0.50` / `ALARM track clear` |
 //! | [`Event::Residual`] | `RES rms=0.812 mean=-0.013 flow=50.125 n=100` |
 //! | [`Event::Drift`] | `DRIFT rms=3.200 mean=-2.997 flow=35.400 s=3 reid=0` |
-//! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125`, `FAULT sensor=frozen flow=19.058`, `FAULT noflow duty=30.00 flow=0.125 expect=19.058`, `FAULT control margin=0.412 tries=5` |
+//! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125`, `FAULT sensor=frozen flow=19.058`, `FAULT noflow duty=30.00 flow=0.125 expect=19.058`, `FAULT control margin=0.412 tries=5`, `FAULT resets watchdog=2 brownout=1` |
 
 use crate::excitation::Record;
 use ridge_core::control::{DesignError, ModelFault};
@@ -148,6 +148,15 @@ pub enum FaultReason {
         counts: i16,
         /// Flow expected at `duty`, 1/120 slm.
         expected: i16,
+    },
+    /// The board reset itself [`resets::LIMIT`](crate::resets::LIMIT) times (watchdog,
+    /// brown-out) without a clean minute in between: a reset loop, reported at boot (see
+    /// [`crate::resets`]). Line: `FAULT resets watchdog=2 brownout=1`.
+    ResetLoop {
+        /// Watchdog resets counted (panics included).
+        watchdog: u8,
+        /// Brown-out resets counted.
+        brownout: u8,
     },
     /// Every identification attempt was rejected. Line: `FAULT unidentified attempts=3`.
     Unidentified {
@@ -586,6 +595,12 @@ impl uDisplay for FaultReason {
                 percent(duty),
                 slm(counts),
                 slm(expected)
+            ),
+            FaultReason::ResetLoop { watchdog, brownout } => ufmt::uwrite!(
+                f,
+                "resets watchdog={} brownout={}",
+                u32::from(watchdog),
+                u32::from(brownout)
             ),
             FaultReason::Unidentified { attempts } => {
                 ufmt::uwrite!(f, "unidentified attempts={}", u32::from(attempts))

@@ -13,6 +13,7 @@
 //! | [`pump`] | blower PWM output with limits and a ramp limit (embedded-hal PWM) |
 //! | [`persist`] | the stored model record (magic, version, CRC-32) |
 //! | [`slots`] | two slots for that record: a write cut at any byte keeps the previous model |
+//! | [`resets`] | reset loops: watchdog and brown-out resets counted across boots |
 //! | [`event`], [`report`] | report lines and their fixed-point formatting (ufmt) |
 //! | [`command`], [`console`] | the operator's console: command lines, their answers, the CSV log |
 //! | [`units`] | the rig's units: duty scale, SFM3300 encoding, loop rate, [`units::SCALE`] |
@@ -30,6 +31,7 @@ pub mod monitor;
 pub mod persist;
 pub mod pump;
 pub mod report;
+pub mod resets;
 // The one module with `unsafe`: a lock-free SPSC byte queue for UART interrupts.
 #[allow(unsafe_code)]
 pub mod ring;

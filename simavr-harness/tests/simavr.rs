@@ -1057,3 +1057,151 @@ fn tracks_sluggish_blower_stiff_lung() {
     // 5.3 % in docs/control.md): a regression bound, not the target.
     assert_tracks("sluggish blower, stiff lung", &sc, 10.0, 6.0);
 }
+
+/// MCUSR, data-space address (ATmega2560 datasheet, register summary: I/O 0x34).
+const MCUSR: u16 = 0x54;
+/// MCUSR's watchdog reset flag (WDRF, bit 3) and power-on reset flag (PORF, bit 0).
+const WDRF: u8 = 1 << 3;
+const PORF: u8 = 1 << 0;
+
+/// Resets the core the way simavr's watchdog does on a timeout (sets WDRF, then resets; the
+/// flags survive the reset) or, with `PORF`, as a power-on. Returns the index of the first
+/// line after the reset.
+fn reset_with(bench: &mut Bench, flag: u8) -> usize {
+    bench.machine.poke(MCUSR, flag);
+    bench.machine.reset();
+    bench.lines.len()
+}
+
+/// Watchdog resets: one in the middle of the blocking structure search restarts the pump
+/// safely (a new boot, the identification from the start, no fault); the third in a row keeps
+/// the pump off with `FAULT resets watchdog=3 brownout=0`, in the same boot, and the count
+/// stays in EEPROM; a power-on clears it and the pump identifies again.
+#[test]
+fn watchdog_resets_restart_safely_and_a_reset_loop_keeps_the_pump_off() {
+    use ridge_pump_firmware::resets::{Resets, COUNT_OFFSET};
+
+    let mut bench = Bench::new(BenchConfig::new(elf())).expect("bench");
+    // Into the search: the only stretch with kilobytes of stack in use.
+    let ramend = bench.machine.ramend();
+    let mut in_search = false;
+    while bench.time_s() < 90.0 {
+        bench.run_for(0.005);
+        if bench.machine.sp() < ramend - 1500 {
+            in_search = true;
+            break;
+        }
+    }
+    assert!(in_search, "no search within 90 s");
+    assert!(
+        !bench.lines.iter().any(|l| l.text.starts_with("SEARCH ")),
+        "the search had already ended"
+    );
+    let count =
+        |bench: &Bench| Resets::from_byte(bench.machine.eeprom()[usize::from(COUNT_OFFSET)]);
+
+    // First watchdog reset, mid-search: a clean restart.
+    let from = reset_with(&mut bench, WDRF);
+    bench.run_until(bench.time_s() + 12.0, |l| l.text.starts_with("EXCITE"));
+    let after: Vec<&str> = bench.lines[from..]
+        .iter()
+        .map(|l| l.text.as_str())
+        .collect();
+    assert!(
+        after
+            .first()
+            .is_some_and(|l| l.starts_with("BOOT board=atmega2560 reset=8 ")),
+        "{after:?}"
+    );
+    assert!(after.iter().any(|l| l.starts_with("EXCITE")), "{after:?}");
+    assert!(!after.iter().any(|l| l.starts_with("FAULT")), "{after:?}");
+    assert_eq!(
+        count(&bench),
+        Resets {
+            watchdog: 1,
+            brownout: 0
+        }
+    );
+
+    // Second and third, a second after each boot: the third is a loop.
+    reset_with(&mut bench, WDRF);
+    bench.run_for(1.0);
+    let third_at = bench.machine.cycle();
+    let from = reset_with(&mut bench, WDRF);
+    bench.run_for(5.0);
+    let after: Vec<&str> = bench.lines[from..]
+        .iter()
+        .map(|l| l.text.as_str())
+        .collect();
+    assert!(
+        after
+            .iter()
+            .any(|l| *l == "FAULT resets watchdog=3 brownout=0"),
+        "{after:?}"
+    );
+    assert!(!after.iter().any(|l| l.starts_with("EXCITE")), "{after:?}");
+    let driven: Vec<f64> = bench
+        .duty_log
+        .iter()
+        .filter(|d| d.cycle > third_at)
+        .map(|d| d.fraction)
+        .collect();
+    assert!(
+        driven.iter().all(|&f| f == 0.0),
+        "pump driven in a reset loop: {driven:?}"
+    );
+    assert_eq!(
+        count(&bench),
+        Resets {
+            watchdog: 3,
+            brownout: 0
+        }
+    );
+
+    // A power-on clears the count: the pump identifies again.
+    let from = reset_with(&mut bench, PORF);
+    bench.run_until(bench.time_s() + 12.0, |l| l.text.starts_with("EXCITE"));
+    let after: Vec<&str> = bench.lines[from..]
+        .iter()
+        .map(|l| l.text.as_str())
+        .collect();
+    assert!(after.iter().any(|l| l.starts_with("EXCITE")), "{after:?}");
+    assert!(!after.iter().any(|l| l.starts_with("FAULT")), "{after:?}");
+    assert_eq!(count(&bench), Resets::default());
+}
+
+/// A watchdog reset followed by a clean minute: the count is cleared in EEPROM, so that
+/// resets far apart never add up to a loop.
+#[test]
+fn a_clean_minute_clears_the_reset_count() {
+    use ridge_pump_firmware::resets::{Resets, CLEAN_TICKS, COUNT_OFFSET};
+
+    let mut cfg = BenchConfig::new(elf());
+    // Two watchdog resets already counted.
+    let two = Resets {
+        watchdog: 2,
+        brownout: 0,
+    };
+    cfg.eeprom = vec![(COUNT_OFFSET, vec![two.to_byte()])];
+    let mut bench = Bench::new(cfg).expect("bench");
+    let count =
+        |bench: &Bench| Resets::from_byte(bench.machine.eeprom()[usize::from(COUNT_OFFSET)]);
+    // simavr powers on with PORF: a power-on clears the count at boot.
+    bench.run_for(0.5);
+    assert_eq!(count(&bench), Resets::default());
+    // A watchdog reset now counts one; still counted just before the clean minute ends ...
+    reset_with(&mut bench, WDRF);
+    let clean_s = f64::from(CLEAN_TICKS) * 0.01;
+    bench.run_for(clean_s - 1.0);
+    assert_eq!(
+        count(&bench),
+        Resets {
+            watchdog: 1,
+            brownout: 0
+        }
+    );
+    // ... and cleared after it (the search's ticks do not count, hence the margin).
+    bench.run_for(15.0);
+    assert_eq!(count(&bench), Resets::default());
+    assert!(!bench.lines.iter().any(|l| l.text.starts_with("FAULT")));
+}

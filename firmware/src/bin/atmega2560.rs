@@ -28,7 +28,9 @@ mod image {
     use core::mem::MaybeUninit;
     use core::ptr::addr_of_mut;
     use ridge_pump_firmware::app::{App, Board};
+    use ridge_pump_firmware::event::FaultReason;
     use ridge_pump_firmware::pump::Pump;
+    use ridge_pump_firmware::resets::{self, Resets};
     use ridge_pump_firmware::selfid::{SelfIdentification, DEFAULT_CONFIG};
     use ridge_pump_firmware::sfm3300::Sfm3300;
     use ridge_pump_firmware::slots::{self, Plan, SLOT_LEN, STORE_LEN};
@@ -49,6 +51,11 @@ mod image {
         plan: Plan,
         /// A save in progress: whether it forgets (writes the all-0xFF tombstone).
         forgetting: Option<bool>,
+        /// The reset count of this boot (`resets`), cleared in EEPROM after
+        /// [`resets::CLEAN_TICKS`] unless it is a reset loop.
+        resets: Resets,
+        /// Ticks left until the count is cleared (0: done).
+        clean: u16,
     }
 
     impl Board for Mega {
@@ -68,6 +75,19 @@ mod image {
                 .save(slots::target_offset(plan), record, plan.seq);
         }
         fn poll_store(&mut self) -> Option<bool> {
+            // A clean run: the resets before it were no loop (a loop keeps its count, and the
+            // pump off, until a power-on or reset-pin reset).
+            if self.clean > 0 {
+                self.clean -= 1;
+                if self.clean == 0
+                    && !self.resets.is_loop()
+                    && !self
+                        .eeprom
+                        .put(resets::COUNT_OFFSET, Resets::default().to_byte())
+                {
+                    self.clean = 1; // a slot save is in progress: next tick
+                }
+            }
             let done = self.eeprom.poll();
             if done == Some(true) {
                 if let Some(forgot) = self.forgetting.take() {
@@ -117,7 +137,17 @@ mod image {
         let store: [u8; STORE_LEN] = eeprom.load();
         let plan = slots::plan(&store);
         let stored = slots::record(&store, &plan);
-        let sid = SelfIdentification::new(&DEFAULT_CONFIG, stored);
+        let mut sid = SelfIdentification::new(&DEFAULT_CONFIG, stored);
+        // Reset loops (`resets`): count this boot's watchdog / brown-out reset; the third in a
+        // row starts in the fault state. The EEPROM is idle at boot, so the write starts.
+        let resets = Resets::from_byte(eeprom.byte(resets::COUNT_OFFSET)).after_boot(reset_cause);
+        eeprom.put(resets::COUNT_OFFSET, resets.to_byte());
+        let boot_fault = resets.is_loop().then(|| {
+            sid.fault_detected(FaultReason::ResetLoop {
+                watchdog: resets.watchdog,
+                brownout: resets.brownout,
+            })
+        });
 
         let ticker = timer::Ticker::new(dp.TC3);
         // SAFETY: all interrupt handlers (Timer3 compare, USART0 UDRE) only use state that is
@@ -132,6 +162,9 @@ mod image {
             if stored.is_some() { "stored" } else { "none" }
         )
         .ok();
+        if let Some(event) = boot_fault {
+            uwriteln!(out, "{}", event).ok();
+        }
         let app = app.write(App::new(sensor, pump, out, sid, I2C_HZ));
         let board = board.write(Mega {
             ticker,
@@ -139,6 +172,8 @@ mod image {
             eeprom,
             plan,
             forgetting: None,
+            resets,
+            clean: resets::CLEAN_TICKS,
         });
         (app, board)
     }
