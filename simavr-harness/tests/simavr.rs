@@ -1134,9 +1134,7 @@ fn watchdog_resets_restart_safely_and_a_reset_loop_keeps_the_pump_off() {
         .map(|l| l.text.as_str())
         .collect();
     assert!(
-        after
-            .iter()
-            .any(|l| *l == "FAULT resets watchdog=3 brownout=0"),
+        after.contains(&"FAULT resets watchdog=3 brownout=0"),
         "{after:?}"
     );
     assert!(!after.iter().any(|l| l.starts_with("EXCITE")), "{after:?}");
