@@ -303,10 +303,12 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         None => Input::open_pair(&opts.input, opts.validate.as_deref())?,
     };
     let shift = segment.as_ref().and_then(|s| s.operating_point);
-    let est = segment::read_shifted(&est_in, initial, shift)?;
+    // Statistics of the lags the grid's candidates use only (exactly theirs).
+    let gram = || ridge_core_host::MeasuredGram::for_grid(initial, &grid);
+    let est = segment::read_shifted(&est_in, gram(), shift)?;
     let val = val_in
         .as_ref()
-        .map(|v| segment::read_shifted(v, initial, shift))
+        .map(|v| segment::read_shifted(v, gram(), shift))
         .transpose()?;
     check_rows(&est, &grid, opts.offset)?;
     let est_normal = est.normal()?;
