@@ -500,10 +500,49 @@ fn decimal_prefix(s: &[u8]) -> (Option<f64>, usize) {
     (Some(if negative { -v } else { v }), i)
 }
 
+/// The number at the start of `bytes` when it is `-?d+(.d*)?([eE][+-]?d+)?` with a finite
+/// value — [`decimal_prefix`]'s when it has one, else `str::parse`'s (what [`number`] gives
+/// the same text) — and the bytes it takes; `None` for another form or a value out of range.
+#[inline(always)]
+fn number_prefix(bytes: &[u8]) -> (Option<f64>, usize) {
+    let (v, mut used) = decimal_prefix(bytes);
+    if used == 0 {
+        return (None, 0);
+    }
+    let mut exponent = false;
+    if let Some(b'e' | b'E') = bytes.get(used) {
+        let mut j = used + 1;
+        if let Some(b'+' | b'-') = bytes.get(j) {
+            j += 1;
+        }
+        let digits = bytes[j.min(bytes.len())..]
+            .iter()
+            .take_while(|b| b.is_ascii_digit())
+            .count();
+        if digits == 0 {
+            return (None, used);
+        }
+        used = j + digits;
+        exponent = true;
+    }
+    match v {
+        Some(v) if !exponent => (Some(v), used),
+        _ => (parsed(&bytes[..used]), used),
+    }
+}
+
+/// `str::parse` of ASCII `text` when finite (out of line: the common cells do not need it).
+#[inline(never)]
+fn parsed(text: &[u8]) -> Option<f64> {
+    let text = std::str::from_utf8(text).ok()?;
+    text.parse::<f64>().ok().filter(|v| v.is_finite())
+}
+
 /// The sample of the line at the start of `bytes` and the bytes it takes with its line end,
 /// when it is the common row that [`Lines::step`] would read to this very sample: ended by
 /// `\n`, not starting with `#` or a blank, no double quote or non-ASCII byte, as many
-/// cells as the header, the `u` and `y` cells plain decimals between blanks; else `None`
+/// cells as the header, the `u` and `y` cells numbers without a sign `+`, a leading point,
+/// `inf` or `NaN` ([`number_prefix`]) between blanks; else `None`
 /// (then [`Lines::step`] reads it). One pass over the bytes.
 #[inline(always)]
 fn quick_row(bytes: &[u8], h: &Header) -> Option<(f64, f64, usize)> {
@@ -526,7 +565,7 @@ fn quick_row(bytes: &[u8], h: &Header) -> Option<(f64, f64, usize)> {
                 while bytes.get(i).is_some_and(|&b| blank(b) && b != b'\n') {
                     i += 1;
                 }
-                let (v, used) = decimal_prefix(&bytes[i..]);
+                let (v, used) = number_prefix(&bytes[i..]);
                 values[k] = v?;
                 i += used;
                 while bytes.get(i).is_some_and(|&b| blank(b) && b != b'\n') {
