@@ -27,8 +27,9 @@
 //! `LOG.csv line 17: column y: "abc" is not a number`; a cell or a header is quoted with at
 //! most [`QUOTE_CHARS`] characters.
 
-// Measured (`scripts/bench-speed`: `ridge-id identify --input LOG --json`, release build,
-// 10^6 rows, 23 MB, two passes, user CPU of the whole run on a shared 2-core machine): 0.24 s
+// Measured (`scripts/bench-speed` with a random-step log: `ridge-id identify --input LOG
+// --json`, release build, 10^6 rows, 23 MB, two passes, user CPU of the whole run on a
+// shared 2-core machine): 0.24 s
 // with every row through the `csv` crate (ridge-id at opt-level 3); 0.18 s with the line
 // reader splitting cells and `number`; 0.10 s with `quick_row` (one pass over a common row's
 // bytes, its numbers read on the way) together with grid-sized statistics
@@ -864,21 +865,6 @@ impl<R: Read> Read for Source<R> {
             ));
         }
         Ok(n)
-    }
-}
-
-impl Reference<File> {
-    /// Opens `path` and reads its header (as [`CsvRecord::open`]).
-    ///
-    /// Errors: as [`CsvRecord::open`].
-    pub fn open(path: impl AsRef<Path>) -> Result<Self, IdError> {
-        let path = path.as_ref();
-        let file = File::open(path).map_err(|source| IdError::Io {
-            path: path.to_path_buf(),
-            line: None,
-            source,
-        })?;
-        Self::from_reader(file, path)
     }
 }
 
