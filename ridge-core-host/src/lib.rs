@@ -13,7 +13,9 @@
 //! source files (`#[path]`, nothing copied) with the constants below. Only the identification
 //! modules are included: the controller design stays ridge-core's (the firmware's orders).
 //! Costs of the larger maxima: the statistics keep 13 output and 24 input lags (73 products a
-//! sample instead of 37) and `Gram::normal` forms a 38 × 38 lag Gram instead of 20 × 20.
+//! sample instead of 37) and `Gram::normal` forms a 38 × 38 lag Gram instead of 20 × 20;
+//! `MeasuredGram::for_grid` (what ridge-id uses) keeps only the lags of the grid searched,
+//! 37 products a sample on the default 6/6/6 grid.
 //!
 //! The API is ridge-core's; see its documentation.
 

@@ -113,6 +113,80 @@ proptest! {
     }
 }
 
+fn sub_grid() -> impl Strategy<Value = Grid> {
+    let range = |lo: u8| {
+        (lo..=6u8, lo..=6u8).prop_map(|(a, b)| ridge_core::OrderRange::new(a.min(b), a.max(b)))
+    };
+    (range(1), range(1), range(0)).prop_map(|(p, q, d)| Grid { p, q, d })
+}
+
+/// The statistics of `for_grid` against those of `new` on the same samples: every entry of
+/// every structure of `grid` bit for bit, and a structure using a lag outside it not fitted.
+fn same_on_grid<A: ridge_core::Accumulator>(
+    full: &MeasuredGram<A>,
+    window: &MeasuredGram<A>,
+    grid: &Grid,
+) -> Result<(), TestCaseError> {
+    let (full, window) = match (
+        full.normal::<f64>(Scale::UNIT),
+        window.normal::<f64>(Scale::UNIT),
+    ) {
+        (Ok(f), Ok(w)) => (f, w),
+        (f, w) => {
+            prop_assert_eq!(f.err(), w.err());
+            return Ok(());
+        }
+    };
+    for s in grid.iter() {
+        for offset in [Offset::None, Offset::Intercept] {
+            let (f, w) = match (full.system(s, offset), window.system(s, offset)) {
+                (Ok(f), Ok(w)) => (f, w),
+                (f, w) => {
+                    prop_assert_eq!(f.err(), w.err());
+                    continue;
+                }
+            };
+            for i in 0..=f.params() {
+                for j in 0..=f.params() {
+                    prop_assert_eq!(f.augmented(i, j).to_bits(), w.augmented(i, j).to_bits());
+                }
+            }
+        }
+    }
+    if grid.p.max < 6 {
+        let s = ridge_core::Structure::new(grid.p.max + 1, grid.q.max, grid.d.max).unwrap();
+        if let Ok(sys) = window.system(s, Offset::None) {
+            prop_assert_eq!(sys.factor(0.0).err(), Some(Error::NotPositiveDefinite));
+        }
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// `MeasuredGram::for_grid` (only the grid's lags) gives the statistics of `new` for
+    /// every structure of the grid, exactly.
+    #[test]
+    fn grid_statistics_are_the_full_statistics_on_the_grid(
+        data in prop::collection::vec((-3000i32..3000, -30000i32..30000), 14..90),
+        grid in sub_grid(),
+    ) {
+        let m = grid.longest_lag() as u32;
+        let (mut fi, mut wi) = (MeasuredGram::<i64>::new(m), MeasuredGram::<i64>::for_grid(m, &grid));
+        let (mut ff, mut wf) = (MeasuredGram::<f64>::new(m), MeasuredGram::<f64>::for_grid(m, &grid));
+        for &(u, y) in &data {
+            fi.push(u, y).unwrap();
+            wi.push(u, y).unwrap();
+            let (u, y) = (f64::from(u) * 1e-3, f64::from(y) * 0.01 + 20.0);
+            ff.push(u, y).unwrap();
+            wf.push(u, y).unwrap();
+        }
+        same_on_grid(&fi, &wi, &grid)?;
+        same_on_grid(&ff, &wf, &grid)?;
+    }
+}
+
 #[test]
 fn no_initial_samples_is_the_zero_history_gram() {
     let mut rng = common::Rng::new(3);

@@ -114,18 +114,23 @@ pub fn read_record(path: impl AsRef<Path>) -> Result<RecordStats, IdError> {
 /// initial conditions, [`MeasuredGram`]).
 pub fn read_record_with(path: impl AsRef<Path>, initial: u32) -> Result<RecordStats, IdError> {
     let path = path.as_ref();
-    read_samples(path, CsvRecord::open(path)?, initial)
+    read_samples(path, CsvRecord::open(path)?, MeasuredGram::new(initial))
 }
 
 /// [`read_record_with`] of a stream of samples (e.g. an [`crate::input::Input`]'s) named
-/// `path` in messages.
-pub fn read_samples<I>(path: &Path, samples: I, initial: u32) -> Result<RecordStats, IdError>
+/// `path` in messages, into the empty statistics `gram` (e.g. [`MeasuredGram::for_grid`]:
+/// only the lags a search uses).
+pub fn read_samples<I>(
+    path: &Path,
+    samples: I,
+    gram: MeasuredGram<f64>,
+) -> Result<RecordStats, IdError>
 where
     I: IntoIterator<Item = Result<Sample, IdError>>,
 {
     let mut stats = RecordStats {
         path: path.to_path_buf(),
-        gram: MeasuredGram::new(initial),
+        gram,
         lines: (0, 0),
         u_range: (f64::INFINITY, f64::NEG_INFINITY),
         y_range: (f64::INFINITY, f64::NEG_INFINITY),

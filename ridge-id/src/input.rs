@@ -14,7 +14,7 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use ridge_core_host::ArxModel;
+use ridge_core_host::{ArxModel, MeasuredGram};
 
 use crate::csv::{CsvRecord, Sample};
 use crate::error::IdError;
@@ -180,10 +180,10 @@ pub fn check_output(path: &Path) -> Result<(), IdError> {
     Ok(())
 }
 
-/// [`crate::read_record_with`] of an [`Input`]: its statistics in one pass, the first
-/// `initial` samples filling the lag history only.
-pub fn read_input(input: &Input, initial: u32) -> Result<RecordStats, IdError> {
-    read_samples(input.name(), input.samples()?, initial)
+/// [`crate::read_record_with`] of an [`Input`]: its statistics in one pass into the empty
+/// `gram` (its first [`MeasuredGram::initial`] samples filling the lag history only).
+pub fn read_input(input: &Input, gram: MeasuredGram<f64>) -> Result<RecordStats, IdError> {
+    read_samples(input.name(), input.samples()?, gram)
 }
 
 /// [`crate::evaluate_file`] of an [`Input`]: the scores of `model` in one pass.

@@ -303,10 +303,12 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         None => Input::open_pair(&opts.input, opts.validate.as_deref())?,
     };
     let shift = segment.as_ref().and_then(|s| s.operating_point);
-    let est = segment::read_shifted(&est_in, initial, shift)?;
+    // Statistics of the lags the grid's candidates use only (exactly theirs).
+    let gram = || ridge_core_host::MeasuredGram::for_grid(initial, &grid);
+    let est = segment::read_shifted(&est_in, gram(), shift)?;
     let val = val_in
         .as_ref()
-        .map(|v| segment::read_shifted(v, initial, shift))
+        .map(|v| segment::read_shifted(v, gram(), shift))
         .transpose()?;
     check_rows(&est, &grid, opts.offset)?;
     let est_normal = est.normal()?;
@@ -379,8 +381,8 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
 
     // --select free-run and --refine oe (src/refine.rs): they change the model, whose RSS and
     // score are then computed from the statistics like the RLS model's.
-    let val_data = match (&opts.validate, opts.select, opts.refine) {
-        (Some(p), Select::FreeRun, _) | (Some(p), _, Refine::Oe) => Some(refine::load(p)?),
+    let val_data = match (&val_in, opts.select, opts.refine) {
+        (Some(v), Select::FreeRun, _) | (Some(v), _, Refine::Oe) => Some(refine::load(v)?),
         _ => None,
     };
     let mut tuned = model;
@@ -397,7 +399,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
     }
     let refinement = match opts.refine {
         Refine::Oe => {
-            let (m, r) = refine::refine(tuned, &opts.input, val_data.as_deref())?;
+            let (m, r) = refine::refine(tuned, &est_in, val_data.as_deref())?;
             tuned = m;
             Some(r)
         }
@@ -411,7 +413,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
             n.rss(&tuned)
                 .map_err(|e| IdError::file(path, format!("cannot score the model: {e}")))
         };
-        let new_rss = rss_of(&est_normal, &opts.input)?;
+        let new_rss = rss_of(&est_normal, est_in.name())?;
         let (score_rss, score_samples) = match (&val_normal, &val) {
             (Some(vn), Some(v)) => (rss_of(vn, &v.path)?, vn.samples()),
             _ => (new_rss, est_normal.samples()),

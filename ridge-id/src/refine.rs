@@ -12,18 +12,16 @@
 //!
 //! Both hold the record in memory (16 bytes a sample): they run only when asked for.
 
-use std::path::Path;
-
 use ridge_core_host::{ArxModel, Evaluation, Offset};
 
-use crate::csv::CsvRecord;
 use crate::error::IdError;
+use crate::input::Input;
 
-/// `(u, y)` of a whole record.
-pub fn load(path: &Path) -> Result<Vec<(f64, f64)>, IdError> {
-    CsvRecord::open(path)?
-        .map(|s| s.map(|s| (s.u, s.y)))
-        .collect()
+/// `(u, y)` of a whole record: the run's [`Input`], so that standard input, a pipe or a FIFO
+/// (read once, into memory) and a `--phase` segment are the samples the run identified on,
+/// not a file opened again.
+pub fn load(input: &Input) -> Result<Vec<(f64, f64)>, IdError> {
+    input.samples()?.map(|s| s.map(|s| (s.u, s.y))).collect()
 }
 
 /// Free-run RMSE of `model` on `data` (seeded with its first `m` measured outputs, scored on
@@ -331,7 +329,7 @@ pub struct Refinement {
 /// Applies [`Refine::Oe`] to `model` (estimation record `input`, validation record `val`).
 pub fn refine(
     model: ArxModel<f64>,
-    input: &Path,
+    input: &Input,
     val: Option<&[(f64, f64)]>,
 ) -> Result<(ArxModel<f64>, Refinement), IdError> {
     let est = load(input)?;

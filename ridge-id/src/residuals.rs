@@ -53,9 +53,12 @@ pub struct ResidualStats {
     /// The first input, subtracted from every input: `u′` does not change, and the sums do
     /// not cancel when the input has a large mean.
     u_ref: f64,
-    /// Newest first: `e_hist[k] = e_{t−k}` after a push.
-    e_hist: [f64; LAGS + 1],
-    u_hist: [f64; LAGS + 1],
+    /// The last `LAGS + 1` residuals and inputs, each stored twice
+    /// (`hist[pos + j] = hist[pos + j + LAGS + 1]`), so that `hist[pos..pos + LAGS + 1]` is
+    /// newest first: `e_{t−k}` at `pos + k` after a push (no shift of 26 values a sample).
+    e_hist: [f64; 2 * (LAGS + 1)],
+    u_hist: [f64; 2 * (LAGS + 1)],
+    pos: usize,
     see: f64,
     su: f64,
     suu: f64,
@@ -78,8 +81,9 @@ impl ResidualStats {
         ResidualStats {
             n: 0,
             u_ref: 0.0,
-            e_hist: [0.0; LAGS + 1],
-            u_hist: [0.0; LAGS + 1],
+            e_hist: [0.0; 2 * (LAGS + 1)],
+            u_hist: [0.0; 2 * (LAGS + 1)],
+            pos: 0,
             see: 0.0,
             su: 0.0,
             suu: 0.0,
@@ -95,16 +99,20 @@ impl ResidualStats {
             self.u_ref = u;
         }
         let u = u - self.u_ref;
-        self.e_hist.copy_within(0..LAGS, 1);
-        self.u_hist.copy_within(0..LAGS, 1);
-        self.e_hist[0] = e;
-        self.u_hist[0] = u;
+        const W: usize = LAGS + 1;
+        self.pos = self.pos.checked_sub(1).unwrap_or(W - 1);
+        let p = self.pos;
+        self.e_hist[p] = e;
+        self.e_hist[p + W] = e;
+        self.u_hist[p] = u;
+        self.u_hist[p + W] = u;
         self.n += 1;
+        let (e_hist, u_hist) = (&self.e_hist[p..p + W], &self.u_hist[p..p + W]);
         // Lags up to n − 1 have a pair.
-        let pairs = (self.n as usize).min(LAGS + 1);
+        let pairs = (self.n as usize).min(W);
         for k in 0..pairs {
-            self.ee[k] += e * self.e_hist[k];
-            self.eu[k] += e * self.u_hist[k];
+            self.ee[k] += e * e_hist[k];
+            self.eu[k] += e * u_hist[k];
             self.e_pairs[k] += e;
         }
         self.su += u;

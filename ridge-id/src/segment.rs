@@ -40,7 +40,7 @@ use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use ridge_core_host::{ArxModel, Offset};
+use ridge_core_host::{ArxModel, MeasuredGram, Offset};
 use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, SAMPLE_RATE_HZ};
 use serde::Serialize;
 
@@ -722,17 +722,17 @@ impl Segment {
 }
 
 /// The statistics of `input` with the operating point `shift = (u0, y0)` subtracted from
-/// every sample (none: [`read_input`]); the reported ranges are those of the absolute
-/// samples.
+/// every sample (none: [`read_input`]), into the empty `gram`; the reported ranges are those
+/// of the absolute samples.
 ///
 /// Errors: as [`read_input`].
 pub fn read_shifted(
     input: &Input,
-    initial: u32,
+    gram: MeasuredGram<f64>,
     shift: Option<(f64, f64)>,
 ) -> Result<RecordStats, IdError> {
     let Some((u0, y0)) = shift else {
-        return read_input(input, initial);
+        return read_input(input, gram);
     };
     let mut stats = read_samples(
         input.name(),
@@ -743,7 +743,7 @@ pub fn read_shifted(
                 ..s
             })
         }),
-        initial,
+        gram,
     )?;
     stats.u_range = (stats.u_range.0 + u0, stats.u_range.1 + u0);
     stats.y_range = (stats.y_range.0 + y0, stats.y_range.1 + y0);

@@ -2,7 +2,9 @@
 //! `cargo test` (and so in CI) in seconds: never a panic, never a hang, every error one
 //! short line.
 //!
-//! - the CSV reader on arbitrary bytes and on CSV-like token soup;
+//! - the CSV reader on arbitrary bytes and on CSV-like token soup, and its plain-line reading
+//!   against the `csv` crate's ([`Reference`]): the same samples, lines and errors, with the
+//!   input arriving in arbitrary pieces and failing after some;
 //! - ridge-core's statistics, structure search (every estimator and criterion) and RLS on
 //!   arbitrary finite data (magnitudes from 1e-300 to 1e300, constant runs, few rows);
 //! - the whole `ridge_id::run` pipeline on arbitrary finite records with arbitrary valid
@@ -22,7 +24,7 @@ use ridge_core_host::{
     AdaptiveLasso, Criterion, Evaluation, FloatGram, Grid, Method, MethodKind, Offset, OrderRange,
     Ridge, RidgeM, Rls, Scale, Search, Structure,
 };
-use ridge_id::csv::CsvRecord;
+use ridge_id::csv::{CsvRecord, Reference};
 use ridge_id::warnings::WarningKind;
 use ridge_id::{run, IdError, Options};
 
@@ -114,6 +116,153 @@ proptest! {
     fn csv_reader_on_csv_like_tokens(tokens in prop::collection::vec(token(), 0..120)) {
         read(&tokens.concat());
     }
+}
+
+proptest! {
+    #![proptest_config(config(3_000))]
+
+    #[test]
+    fn csv_reader_reads_arbitrary_bytes_as_the_csv_crate(
+        text in prop::collection::vec(any::<u8>(), 0..600),
+        pieces in pieces(),
+    ) {
+        same_as_reference(&text, &pieces);
+    }
+
+    #[test]
+    fn csv_reader_reads_token_soup_as_the_csv_crate(
+        tokens in prop::collection::vec(token(), 0..120),
+        pieces in pieces(),
+    ) {
+        same_as_reference(&tokens.concat(), &pieces);
+    }
+
+    #[test]
+    fn csv_reader_reads_logs_as_the_csv_crate(text in log_text(), pieces in pieces()) {
+        same_as_reference(&text, &pieces);
+    }
+}
+
+/// How an input arrives: the sizes of successive reads (cycled), and whether a read fails
+/// after the given number of reads.
+type Pieces = (Vec<usize>, Option<usize>);
+
+fn pieces() -> impl Strategy<Value = Pieces> {
+    (
+        prop_oneof![
+            Just(vec![usize::MAX]),
+            prop::collection::vec(1usize..40, 1..6),
+        ],
+        prop_oneof![3 => Just(None), 1 => (0usize..30).prop_map(Some)],
+    )
+}
+
+/// `text` read in `pieces`.
+struct Pieced<'a> {
+    text: &'a [u8],
+    sizes: &'a [usize],
+    reads: usize,
+    fail_after: Option<usize>,
+}
+
+impl std::io::Read for Pieced<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if self.fail_after == Some(self.reads) {
+            return Err(std::io::Error::other("unplugged"));
+        }
+        let size = self.sizes[self.reads % self.sizes.len()];
+        self.reads += 1;
+        let n = size.min(buf.len()).min(self.text.len());
+        buf[..n].copy_from_slice(&self.text[..n]);
+        self.text = &self.text[n..];
+        Ok(n)
+    }
+}
+
+/// Everything a reader says about an input: the header's line or error, then each sample
+/// (line, bits of u and y) or the error, and the last line read.
+fn transcript<I>(opened: Result<I, IdError>, lines: impl Fn(&I) -> (u64, u64)) -> Vec<String>
+where
+    I: Iterator<Item = Result<ridge_id::csv::Sample, IdError>>,
+{
+    let mut out = Vec::new();
+    match opened {
+        Err(e) => out.push(format!("header error: {e}")),
+        Ok(mut r) => {
+            out.push(format!("header line {}", lines(&r).0));
+            for s in r.by_ref() {
+                out.push(match s {
+                    Ok(s) => format!("{} {:x} {:x}", s.line, s.u.to_bits(), s.y.to_bits()),
+                    Err(e) => format!("error: {e}"),
+                });
+            }
+            out.push(format!("last line {}", lines(&r).1));
+        }
+    }
+    out
+}
+
+fn same_as_reference(text: &[u8], (sizes, fail_after): &Pieces) {
+    let input = || Pieced {
+        text,
+        sizes,
+        reads: 0,
+        fail_after: *fail_after,
+    };
+    let ours = transcript(CsvRecord::from_reader(input(), "F.csv"), |r| {
+        (r.header_line(), r.line())
+    });
+    let csv = transcript(Reference::from_reader(input(), "F.csv"), |r| {
+        (r.header_line(), r.line())
+    });
+    assert_eq!(ours, csv, "input {:?}", String::from_utf8_lossy(text));
+}
+
+/// One of `texts`, owned.
+fn one_of(texts: &[&'static str]) -> impl Strategy<Value = String> + Clone {
+    prop::sample::select(texts.to_vec()).prop_map(String::from)
+}
+
+/// A log as written by a program or a person: a header, rows of numbers, and now and then a
+/// comment, a blank or empty line, a quoted cell, a `\r`, a wrong cell count, a non-ASCII
+/// byte or a long line.
+fn log_text() -> impl Strategy<Value = Vec<u8>> {
+    let number = prop_oneof![
+        4 => (-1e4f64..1e4).prop_map(|v| format!("{v:.4}")),
+        2 => any::<f64>().prop_map(|v| v.to_string()),
+        1 => (-99_999i64..99_999).prop_map(|v| v.to_string()),
+        1 => any::<f64>().prop_map(|v| format!("{v:e}")),
+        1 => (-1e6f64..1e6).prop_map(|v| format!("{v:E}")),
+        8 => one_of(&[
+            "1e-3", "1e400", "-2.5E+3", "3e", "123456789012345678901234567890", " 2.5 ",
+            "\"3\"", "x", "",
+        ]),
+    ];
+    let line = prop_oneof![
+        12 => (number.clone(), number.clone(), number).prop_map(|(a, b, c)| format!("{a},{b},{c}\n")),
+        9 => one_of(&[
+            "\n", "  \t\n", "# note \"q\n", "  # note\n", "1,2,3\r\n", "1,2\n",
+            "\"a\nb\",1,2\n", "1,\u{e9},2\n", "\u{feff}t,u,y\n",
+        ]),
+        1 => (1usize..70_000).prop_map(|n| format!("1,2,{}\n", "5".repeat(n))),
+    ];
+    let header = one_of(&[
+        "t,u,y\n",
+        "\u{feff}t,u,y\n",
+        "# log\n\nt , \"u\" ,y\n",
+        "u;y\n",
+        "",
+    ]);
+    (header, prop::collection::vec(line, 0..40), any::<bool>()).prop_map(|(h, lines, cut)| {
+        let mut text = h.into_bytes();
+        for l in lines {
+            text.extend_from_slice(l.as_bytes());
+        }
+        if cut && text.last() == Some(&b'\n') {
+            text.pop();
+        }
+        text
+    })
 }
 
 /// A finite value of any magnitude, or a level from a small set (constant runs, repeats).

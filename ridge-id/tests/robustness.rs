@@ -182,6 +182,62 @@ fn fifo_and_stdin_read_once_and_equal_the_regular_file() {
     );
 }
 
+/// `--refine oe` and `--select free-run` read the run's records, not their paths again:
+/// with standard input as the estimation record, the validation record or both, the report
+/// is the one of the same records given as regular files.
+#[cfg(unix)]
+#[test]
+fn refine_and_free_run_selection_read_standard_input_as_the_file() {
+    let est = known("refine-est.csv", 1200, 5, 1.0);
+    let val = known("refine-val.csv", 800, 6, 1.0);
+    let (e, v) = (est.to_str().unwrap(), val.to_str().unwrap());
+    let cases: [(&[&str], &[&str], &Path); 4] = [
+        (
+            &["--input", "-", "--validate", v],
+            &["--input", e, "--validate", v],
+            &est,
+        ),
+        (
+            &["--input", e, "--validate", "-"],
+            &["--input", e, "--validate", v],
+            &val,
+        ),
+        (
+            &["--input", "-", "--validate", "-"],
+            &["--input", e, "--validate", e],
+            &est,
+        ),
+        (&["--input", "-"], &["--input", e], &est),
+    ];
+    for options in [
+        &["--refine", "oe"][..],
+        &["--select", "free-run"],
+        &["--refine", "oe", "--select", "free-run"],
+    ] {
+        for (piped, files, stdin) in cases {
+            if !piped.contains(&"--validate") && options.contains(&"free-run") {
+                continue; // needs a validation record (a usage error either way)
+            }
+            fn args<'a>(records: &[&'a str], options: &[&'a str]) -> Vec<&'a str> {
+                [records, options, &["--json"]].concat()
+            }
+            let mut child = spawn(&args(piped, options), Stdio::piped());
+            child
+                .stdin
+                .take()
+                .unwrap()
+                .write_all(&fs::read(stdin).unwrap())
+                .unwrap();
+            let got = finish(child, Duration::from_secs(60), "stdin");
+            let want = json(&ridge_id(&args(files, options)));
+            assert_eq!(json(&got), want, "{piped:?} {options:?}");
+            if options.contains(&"oe") {
+                assert!(want["refine"].is_object(), "{want}");
+            }
+        }
+    }
+}
+
 /// Peak resident set (KiB) of a child, polled from /proc until it exits.
 #[cfg(target_os = "linux")]
 fn peak_kib(mut child: Child) -> (Output, u64) {
