@@ -1,6 +1,8 @@
 //! The `ridge-id` binary end to end: JSON shape, bad input (one line naming file, line and
 //! problem, never a panic), recovery of a known ARX plant, a 10⁶-row log in flat memory.
 
+mod common;
+
 use std::fs;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -35,24 +37,7 @@ fn ridge_id(args: &[&str]) -> Output {
 
 /// A deterministic random-step input: levels in [-1, 1] held 3..=20 samples.
 fn steps(n: usize, seed: u64) -> Vec<f64> {
-    let mut s = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    let mut next = || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 33) as f64 / (1u64 << 31) as f64
-    };
-    let mut u = Vec::with_capacity(n);
-    while u.len() < n {
-        let level = 2.0 * next() - 1.0;
-        let hold = 3 + (next() * 18.0) as usize;
-        for _ in 0..hold.min(n - u.len()) {
-            u.push(level);
-        }
-    }
-    u
+    common::steps(n, common::lcg(seed), -1.0, 2.0, 3, 18.0)
 }
 
 /// The known plant of these tests: (p, q, d) = (2, 2, 2).

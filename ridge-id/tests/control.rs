@@ -5,6 +5,8 @@
 //! its roots (nalgebra's companion-matrix eigenvalues, computed here), the controller run on
 //! the *true* plant (not the identified model), and the refusals (exit status 3, a reason).
 
+mod common;
+
 use std::fs;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -55,22 +57,7 @@ const BLOWER: Plant = Plant {
 
 /// A deterministic random-step input: levels in [0.2, 0.8] held 3..=40 samples.
 fn steps(n: usize, seed: u64) -> Vec<f64> {
-    let mut s = seed;
-    let mut next = || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 33) as f64 / (1u64 << 31) as f64
-    };
-    let mut u = Vec::with_capacity(n);
-    while u.len() < n {
-        let level = 0.2 + 0.6 * next();
-        let hold = 3 + (next() * 38.0) as usize;
-        for _ in 0..hold.min(n - u.len()) {
-            u.push(level);
-        }
-    }
-    u
+    common::steps(n, seed, 0.2, 0.6, 3, 38.0)
 }
 
 fn log(name: &str, plant: Plant, n: usize, noise: f64, seed: u64) -> PathBuf {

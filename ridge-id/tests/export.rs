@@ -6,6 +6,8 @@
 //! call it), the `ihex` crate and a small hand-written Intel HEX parser (checksums), the board
 //! sources for the addresses.
 
+mod common;
+
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -31,22 +33,7 @@ fn dir(name: &str) -> PathBuf {
 
 /// Duty steps in 0.2..0.6 (a fraction, as the pump's log), held 5..=60 samples.
 fn duty_steps(n: usize, seed: u64) -> Vec<f64> {
-    let mut s = seed ^ 0x9E37_79B9_7F4A_7C15;
-    let mut next = || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 33) as f64 / (1u64 << 31) as f64
-    };
-    let mut u = Vec::with_capacity(n);
-    while u.len() < n {
-        let level = 0.2 + 0.4 * next();
-        let hold = 5 + (next() * 56.0) as usize;
-        for _ in 0..hold.min(n - u.len()) {
-            u.push(level);
-        }
-    }
-    u
+    common::steps(n, seed ^ 0x9E37_79B9_7F4A_7C15, 0.2, 0.4, 5, 56.0)
 }
 
 /// A pump-like plant (slm per unit duty): poles 0.8 and 0.5, static gain 5 / 0.1 = 50 slm,

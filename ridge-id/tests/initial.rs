@@ -2,6 +2,8 @@
 //! from a non-zero operating point is recovered exactly with the default options, and the
 //! statistics equal an explicit regression over rows `M+1..N`.
 
+mod common;
+
 use std::fs;
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
@@ -16,20 +18,8 @@ const PHI: [f64; 2] = [1.0, 0.5];
 const DELAY: usize = 2;
 
 /// Deterministic steps in [-1, 1], held 3..=20 samples.
-fn steps(n: usize, mut s: u64) -> Vec<f64> {
-    let mut next = || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 33) as f64 / (1u64 << 31) as f64
-    };
-    let mut u = Vec::with_capacity(n);
-    while u.len() < n {
-        let level = 2.0 * next() - 1.0;
-        let hold = 3 + (next() * 18.0) as usize;
-        u.extend(std::iter::repeat_n(level, hold.min(n - u.len())));
-    }
-    u
+fn steps(n: usize, seed: u64) -> Vec<f64> {
+    common::steps(n, seed, -1.0, 2.0, 3, 18.0)
 }
 
 /// A log of the plant in equilibrium at `u0` (y0 = 7.5 u0) before the record starts, then
