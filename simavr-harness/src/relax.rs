@@ -17,10 +17,8 @@
 //! (progmem constants, disassembled as nonsense instructions) is compared as bytes.
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::Path;
-use std::process::Command;
 
-use crate::stack::{label, target_address};
+use crate::stack::{fields, label, target_address};
 
 /// Functions whose operands legitimately change with the size of `.text`.
 const MOVES_WITH_TEXT: &[&str] = &["__do_copy_data"];
@@ -51,22 +49,13 @@ fn parse(disassembly: &str) -> Functions {
             continue;
         }
         let Some(name) = &current else { continue };
-        let mut parts = line.split('\t');
-        let Some(addr) = parts
-            .next()
-            .map(str::trim)
-            .and_then(|a| a.strip_suffix(':'))
-        else {
+        let Some((addr, bytes, mnemonic, operands)) = fields(line) else {
             continue;
         };
         let Ok(addr) = u32::from_str_radix(addr, 16) else {
             continue;
         };
-        let bytes = parts.next().unwrap_or("").trim();
-        let Some(mnemonic) = parts.next().map(str::trim) else {
-            continue;
-        };
-        let operands = parts.next().unwrap_or("").trim().to_string();
+        let operands = operands.to_string();
         let mnemonic = match mnemonic {
             "rcall" => "call",
             "rjmp" => "jmp",
@@ -227,23 +216,6 @@ pub fn compare(plain: &str, relaxed: &str) -> Vec<String> {
         problems.push(format!("{name}: new after relaxation"));
     }
     problems
-}
-
-/// `avr-objdump -d` of `elf`.
-pub fn disassemble(elf: &Path) -> Result<String, String> {
-    let out = Command::new("avr-objdump")
-        .arg("-d")
-        .arg(elf)
-        .output()
-        .map_err(|e| format!("avr-objdump: {e} (apt install binutils-avr)"))?;
-    if !out.status.success() {
-        return Err(format!(
-            "avr-objdump -d {}: {}",
-            elf.display(),
-            String::from_utf8_lossy(&out.stderr)
-        ));
-    }
-    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
 #[cfg(test)]

@@ -166,6 +166,11 @@ pub fn analyze(disassembly: &str) -> StackAnalysis {
 
 /// Runs `avr-objdump -d` on `elf` and analyses it.
 pub fn analyze_elf(elf: &Path) -> Result<StackAnalysis, String> {
+    Ok(analyze(&disassemble(elf)?))
+}
+
+/// `avr-objdump -d` of `elf`.
+pub fn disassemble(elf: &Path) -> Result<String, String> {
     let out = Command::new("avr-objdump")
         .arg("-d")
         .arg(elf)
@@ -178,7 +183,7 @@ pub fn analyze_elf(elf: &Path) -> Result<StackAnalysis, String> {
             String::from_utf8_lossy(&out.stderr)
         ));
     }
-    Ok(analyze(&String::from_utf8_lossy(&out.stdout)))
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
 fn deepest(
@@ -233,18 +238,22 @@ pub(crate) fn label(line: &str) -> Option<&str> {
     rest.strip_suffix(">:")
 }
 
-/// An instruction line, `<address>:<TAB><bytes><TAB><mnemonic><TAB><operands>[<TAB>; comment]`,
-/// e.g. `13a: … call 0x7c2a ; 0x7c2a <f>` → `("call", "0x7c2a")`.
-fn instruction(line: &str) -> Option<(&str, &str)> {
+/// An instruction line's fields, `<address>:<TAB><bytes><TAB><mnemonic><TAB><operands>[<TAB>;
+/// comment]`: `(address, bytes, mnemonic, operands)`, trimmed, the address without its `:`.
+/// E.g. `13a: 0e 94 15 3e call 0x7c2a ; 0x7c2a <f>` → `("13a", "0e 94 15 3e", "call",
+/// "0x7c2a")`.
+pub(crate) fn fields(line: &str) -> Option<(&str, &str, &str, &str)> {
     let mut parts = line.split('\t');
-    let addr = parts.next()?.trim();
-    if !addr.ends_with(':') {
-        return None;
-    }
-    let _bytes = parts.next()?;
+    let addr = parts.next()?.trim().strip_suffix(':')?;
+    let bytes = parts.next()?.trim();
     let mnemonic = parts.next()?.trim();
     let operands = parts.next().unwrap_or("").trim();
-    Some((mnemonic, operands))
+    Some((addr, bytes, mnemonic, operands))
+}
+
+/// An instruction line's mnemonic and operands (see [`fields`]), e.g. `("call", "0x7c2a")`.
+fn instruction(line: &str) -> Option<(&str, &str)> {
+    fields(line).map(|(_, _, mnemonic, operands)| (mnemonic, operands))
 }
 
 /// The function a branch lands in: the `<name>` or `<name+0x12>` comment; `""` for

@@ -5,7 +5,8 @@
 //! Usage: `avr-relax-check PLAIN_ELF RELAXED_ELF`; exits 1 listing the functions that differ,
 //! 2 when an ELF cannot be disassembled.
 
-use simavr_harness::relax::{compare, disassemble};
+use simavr_harness::relax::compare;
+use simavr_harness::stack::disassemble;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
