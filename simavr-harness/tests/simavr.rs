@@ -1073,13 +1073,19 @@ fn reset_with(bench: &mut Bench, flag: u8) -> usize {
     bench.lines.len()
 }
 
+/// The reset count in the simulated EEPROM.
+fn reset_count(bench: &Bench) -> ridge_pump_firmware::resets::Resets {
+    use ridge_pump_firmware::resets::{Resets, COUNT_OFFSET};
+    Resets::from_byte(bench.machine.eeprom()[usize::from(COUNT_OFFSET)])
+}
+
 /// Watchdog resets: one in the middle of the blocking structure search restarts the pump
 /// safely (a new boot, the identification from the start, no fault); the third in a row keeps
 /// the pump off with `FAULT resets watchdog=3 brownout=0`, in the same boot, and the count
 /// stays in EEPROM; a power-on clears it and the pump identifies again.
 #[test]
 fn watchdog_resets_restart_safely_and_a_reset_loop_keeps_the_pump_off() {
-    use ridge_pump_firmware::resets::{Resets, COUNT_OFFSET};
+    use ridge_pump_firmware::resets::Resets;
 
     let mut bench = Bench::new(BenchConfig::new(elf())).expect("bench");
     // Into the search: the only stretch with kilobytes of stack in use.
@@ -1097,8 +1103,6 @@ fn watchdog_resets_restart_safely_and_a_reset_loop_keeps_the_pump_off() {
         !bench.lines.iter().any(|l| l.text.starts_with("SEARCH ")),
         "the search had already ended"
     );
-    let count =
-        |bench: &Bench| Resets::from_byte(bench.machine.eeprom()[usize::from(COUNT_OFFSET)]);
 
     // First watchdog reset, mid-search: a clean restart.
     let from = reset_with(&mut bench, WDRF);
@@ -1116,7 +1120,7 @@ fn watchdog_resets_restart_safely_and_a_reset_loop_keeps_the_pump_off() {
     assert!(after.iter().any(|l| l.starts_with("EXCITE")), "{after:?}");
     assert!(!after.iter().any(|l| l.starts_with("FAULT")), "{after:?}");
     assert_eq!(
-        count(&bench),
+        reset_count(&bench),
         Resets {
             watchdog: 1,
             brownout: 0
@@ -1149,7 +1153,7 @@ fn watchdog_resets_restart_safely_and_a_reset_loop_keeps_the_pump_off() {
         "pump driven in a reset loop: {driven:?}"
     );
     assert_eq!(
-        count(&bench),
+        reset_count(&bench),
         Resets {
             watchdog: 3,
             brownout: 0
@@ -1165,7 +1169,7 @@ fn watchdog_resets_restart_safely_and_a_reset_loop_keeps_the_pump_off() {
         .collect();
     assert!(after.iter().any(|l| l.starts_with("EXCITE")), "{after:?}");
     assert!(!after.iter().any(|l| l.starts_with("FAULT")), "{after:?}");
-    assert_eq!(count(&bench), Resets::default());
+    assert_eq!(reset_count(&bench), Resets::default());
 }
 
 /// A watchdog reset followed by a clean minute: the count is cleared in EEPROM, so that
@@ -1182,17 +1186,15 @@ fn a_clean_minute_clears_the_reset_count() {
     };
     cfg.eeprom = vec![(COUNT_OFFSET, vec![two.to_byte()])];
     let mut bench = Bench::new(cfg).expect("bench");
-    let count =
-        |bench: &Bench| Resets::from_byte(bench.machine.eeprom()[usize::from(COUNT_OFFSET)]);
     // simavr powers on with PORF: a power-on clears the count at boot.
     bench.run_for(0.5);
-    assert_eq!(count(&bench), Resets::default());
+    assert_eq!(reset_count(&bench), Resets::default());
     // A watchdog reset now counts one; still counted just before the clean minute ends ...
     reset_with(&mut bench, WDRF);
     let clean_s = f64::from(CLEAN_TICKS) * 0.01;
     bench.run_for(clean_s - 1.0);
     assert_eq!(
-        count(&bench),
+        reset_count(&bench),
         Resets {
             watchdog: 1,
             brownout: 0
@@ -1200,6 +1202,6 @@ fn a_clean_minute_clears_the_reset_count() {
     );
     // ... and cleared after it (the search's ticks do not count, hence the margin).
     bench.run_for(15.0);
-    assert_eq!(count(&bench), Resets::default());
+    assert_eq!(reset_count(&bench), Resets::default());
     assert!(!bench.lines.iter().any(|l| l.text.starts_with("FAULT")));
 }
