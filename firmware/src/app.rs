@@ -48,7 +48,7 @@ use crate::console::{LogRow, ModelLine, RstLine, Status, LOG_HEADER, LOG_ROW_MAX
 use crate::event::{Event, FaultReason, SensorFault};
 use crate::persist::RECORD_LEN;
 use crate::pump::Pump;
-use crate::selfid::{Guard, SelfIdentification, State};
+use crate::selfid::{Config, Guard, SelfIdentification, Settings, State};
 use crate::setpoint::{Breath, DEMO_BREATH};
 use crate::sfm3300::Sfm3300;
 use embedded_hal::i2c::I2c;
@@ -166,11 +166,11 @@ impl Console {
 }
 
 /// Loop state: peripherals, the state machine and counters.
-pub struct App<I, P, W> {
+pub struct App<I, P, W, S: Settings = &'static Config> {
     sensor: Sfm3300<I>,
     pump: Pump<P>,
     out: W,
-    sid: SelfIdentification,
+    sid: SelfIdentification<S>,
     late: u16,
     lost: u16,
     reported: (u16, u16),
@@ -179,14 +179,14 @@ pub struct App<I, P, W> {
     search_lines: Option<(Job, u16, u16)>,
 }
 
-impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
+impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
     /// Puts the parts together; nothing is sent yet. `i2c_hz` is the sensor bus clock (Hz),
     /// which sets the read attempts per sample ([`read_attempts`]).
     pub fn new(
         mut sensor: Sfm3300<I>,
         pump: Pump<P>,
         out: W,
-        sid: SelfIdentification,
+        sid: SelfIdentification<S>,
         i2c_hz: u32,
     ) -> Self {
         sensor.set_read_attempts(read_attempts(i2c_hz));
@@ -204,7 +204,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite> App<I, P, W> {
     }
 
     /// The state machine (for status lines and host tests).
-    pub fn selfid(&self) -> &SelfIdentification {
+    pub fn selfid(&self) -> &SelfIdentification<S> {
         &self.sid
     }
 
@@ -617,7 +617,7 @@ struct Watch<'a, I, P, B> {
 impl<'a, I: I2c, P: SetDutyCycle, B: Board> Watch<'a, I, P, B> {
     /// The guard of `sid` at the pump's applied duty, counters at zero.
     fn new(
-        sid: &SelfIdentification,
+        sid: &SelfIdentification<impl Settings>,
         sensor: &'a mut Sfm3300<I>,
         pump: &'a mut Pump<P>,
         board: &'a mut B,

@@ -9,7 +9,9 @@ use ridge_pump_firmware::event::{
 };
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
-use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, Tick, DEFAULT_CONFIG};
+use ridge_pump_firmware::selfid::{
+    Config, Defaults, SelfIdentification, Settings, State, Tick, DEFAULT_CONFIG,
+};
 use ridge_pump_firmware::setpoint::{Program, DEMO_HOLD_TICKS};
 use ridge_pump_firmware::units::SCALE;
 
@@ -1106,4 +1108,68 @@ fn host_search_on_the_same_record_agrees() {
     assert_eq!(m64.structure(), m32.structure());
     assert!((m64.theta()[0] - f64::from(m32.theta()[0])).abs() < 1e-4);
     assert!((m64.phi()[0] - f64::from(m32.phi()[0])).abs() < 1e-3 * m64.phi()[0].abs());
+}
+
+/// Every tick of `sm` on the reference plant as the board loop runs it (tick, judgement,
+/// search, design): `duty event` per tick, for `ticks` ticks.
+fn trace<S: Settings>(mut sm: SelfIdentification<S>, ticks: usize) -> Vec<String> {
+    let mut plant = Plant::reference();
+    let mut duty = 0;
+    let mut out = Vec::with_capacity(ticks);
+    for _ in 0..ticks {
+        let t = sm.tick(Ok(plant.step(duty)));
+        duty = t.duty;
+        let mut row = format!("{duty}");
+        let mut events = vec![t.event];
+        events.push(sm.judge());
+        if sm.needs_search() {
+            events.push(sm.search(|| {}));
+        }
+        events.push(sm.design(|| {}));
+        for e in events.into_iter().flatten() {
+            row.push(' ');
+            row.push_str(&line(&e));
+        }
+        if sm.fault().is_some() {
+            duty = 0;
+        }
+        out.push(row);
+    }
+    out
+}
+
+/// The board images' compile-time settings ([`Defaults`]) behave exactly as the run-time
+/// `&DEFAULT_CONFIG` the host tests use: the same duty and the same report lines at every tick,
+/// from power-up through identification, design and 30 s of run mode, and from a stored
+/// record. (On the ATmega2560 the folded settings are what the simavr tests run.)
+#[test]
+fn defaults_behave_as_the_default_config() {
+    let ticks = 10_000;
+    let runtime = trace(SelfIdentification::new(&DEFAULT_CONFIG, None), ticks);
+    let fixed = trace(SelfIdentification::new(Defaults, None), ticks);
+    let ctrl = runtime.iter().position(|r| r.contains(" CTRL "));
+    assert!(
+        ctrl.is_some_and(|k| k + 3_000 < ticks),
+        "no 30 s of run mode: {:?}",
+        runtime
+            .iter()
+            .filter(|r| r.contains(' '))
+            .collect::<Vec<_>>()
+    );
+    for (k, (a, b)) in runtime.iter().zip(&fixed).enumerate() {
+        assert_eq!(a, b, "tick {k}");
+    }
+
+    let model = ArxModel::new(&[0.9f32], &[10.0], 3, Offset::Intercept, -1.0).unwrap();
+    let record = persist::encode(&model, 90.0);
+    let runtime = trace(
+        SelfIdentification::new(&DEFAULT_CONFIG, Some(&record)),
+        1_000,
+    );
+    let fixed = trace(SelfIdentification::new(Defaults, Some(&record)), 1_000);
+    assert!(
+        runtime.iter().any(|r| r.contains(" LOADED ")),
+        "{runtime:?}"
+    );
+    assert_eq!(runtime, fixed);
 }

@@ -319,6 +319,9 @@ impl<T: Real> Search<T> {
     /// Fits a prepared candidate and scores it. All factor storage comes from the caller
     /// (`ls`: the least-squares factor from [`prepare`](Self::prepare); `scratch`:
     /// overwritten), so that the search's deepest stack frame holds no factor of its own.
+    /// Never inlined: inside the caller's frame its locals would add to the deepest stack
+    /// (ATmega2560: +236 B once the board's settings are compile-time constants).
+    #[inline(never)]
     fn score(
         &self,
         system: &System<'_, T>,

@@ -31,7 +31,7 @@ mod image {
     use ridge_pump_firmware::event::FaultReason;
     use ridge_pump_firmware::pump::Pump;
     use ridge_pump_firmware::resets::{self, Resets};
-    use ridge_pump_firmware::selfid::{SelfIdentification, DEFAULT_CONFIG};
+    use ridge_pump_firmware::selfid::{Defaults, SelfIdentification};
     use ridge_pump_firmware::sfm3300::Sfm3300;
     use ridge_pump_firmware::slots::{self, Plan, SLOT_LEN, STORE_LEN};
     use ufmt::uwriteln;
@@ -101,7 +101,7 @@ mod image {
         }
     }
 
-    type MegaApp = App<twi::Twi, pwm::Pwm4A, usart::Usart0>;
+    type MegaApp = App<twi::Twi, pwm::Pwm4A, usart::Usart0, Defaults>;
 
     /// The loop state and the board parts live in statics, not in `main`'s frame: `main` never
     /// returns, so every local of it (and every copy made while moving the ~0.7 KB state
@@ -137,7 +137,7 @@ mod image {
         let store: [u8; STORE_LEN] = eeprom.load();
         let plan = slots::plan(&store);
         let stored = slots::record(&store, &plan);
-        let mut sid = SelfIdentification::new(&DEFAULT_CONFIG, stored);
+        let mut sid = SelfIdentification::new(Defaults, stored);
         // Reset loops (`resets`): count this boot's watchdog / brown-out reset; the third in a
         // row starts in the fault state. The EEPROM is idle at boot, so the write starts.
         let resets = Resets::from_byte(eeprom.byte(resets::COUNT_OFFSET)).after_boot(reset_cause);

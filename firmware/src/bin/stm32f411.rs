@@ -24,7 +24,7 @@ mod image {
     use ridge_pump_firmware::app::{App, Board};
     use ridge_pump_firmware::persist::RECORD_LEN;
     use ridge_pump_firmware::pump::Pump;
-    use ridge_pump_firmware::selfid::{SelfIdentification, DEFAULT_CONFIG};
+    use ridge_pump_firmware::selfid::{Defaults, SelfIdentification};
     use ridge_pump_firmware::sfm3300::Sfm3300;
     use stm32f4xx_hal::i2c::{I2c, Mode};
     use stm32f4xx_hal::pac;
@@ -98,7 +98,7 @@ mod image {
 
         let store = FlashStore::<RECORD_LEN>::new(dp.FLASH);
         let stored = store.load();
-        let sid = SelfIdentification::new(&DEFAULT_CONFIG, stored.as_ref().map(|r| &r[..]));
+        let sid = SelfIdentification::new(Defaults, stored.as_ref().map(|r| &r[..]));
 
         let ticker = Ticker::new(dp.TIM5.counter(&mut rcc));
         let mut watchdog = IndependentWatchdog::new(dp.IWDG);

@@ -153,9 +153,40 @@ impl Default for Config {
     }
 }
 
-/// The default settings as a `static`: what the board images run with. (A static costs its
-/// bytes of data; building the settings at run time cost the ATmega2560 1 KB of code.)
+/// The default settings as a `static`: what the board images run with ([`Defaults`]). (A
+/// static costs its bytes of data; building the settings at run time cost the ATmega2560 1 KB
+/// of code.)
 pub static DEFAULT_CONFIG: Config = Config::DEFAULT;
+
+/// Where a state machine's settings come from: a [`Config`] chosen at run time
+/// (`&'static Config`: tests, host tools, the simulator) or one fixed at compile time
+/// ([`Defaults`]: the board images).
+///
+/// Why two: settings known at compile time let the compiler fold each one into the code that
+/// reads it and drop the paths they rule out (the ramp and PRBS excitations, the speed knob
+/// given by hand, ...). On the ATmega2560 that is 2.5 KB of flash; the state machine's
+/// behaviour is the same (`firmware/tests/selfid.rs`, `defaults_behave_as_the_default_config`).
+pub trait Settings: Copy + 'static {
+    /// The settings.
+    fn config(self) -> &'static Config;
+}
+
+impl Settings for &'static Config {
+    fn config(self) -> &'static Config {
+        self
+    }
+}
+
+/// [`DEFAULT_CONFIG`], fixed at compile time (see [`Settings`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Defaults;
+
+impl Settings for Defaults {
+    #[inline(always)]
+    fn config(self) -> &'static Config {
+        &DEFAULT_CONFIG
+    }
+}
 
 impl Config {
     /// The defaults (see each field).

@@ -8,12 +8,12 @@ use crate::event::{ControlRefusal, Event, FaultReason};
 use crate::units::TS_S;
 
 use super::run::RunMode;
-use super::{Phase, SelfIdentification};
+use super::{Phase, SelfIdentification, Settings};
 
 /// Each retry of a refused design is this much slower (`τ` and the observer pole).
 pub const SLOWDOWN: f32 = 1.5;
 
-impl SelfIdentification {
+impl<S: Settings> SelfIdentification<S> {
     /// `true` while the controller design is due: the board should call
     /// [`design`](Self::design) from its main loop.
     pub fn needs_design(&self) -> bool {
@@ -29,7 +29,7 @@ impl SelfIdentification {
         let Phase::Design { model } = self.phase else {
             return None;
         };
-        let c = &self.cfg.control;
+        let c = &self.settings.config().control;
         pet();
         let gain = match check_model(&model, &c.model) {
             Ok(gain) => gain,
@@ -50,7 +50,7 @@ impl SelfIdentification {
         match result {
             Ok(d) => {
                 let run = RunMode::new(
-                    self.cfg,
+                    self.settings.config(),
                     model,
                     &d,
                     self.program,

@@ -82,7 +82,7 @@ mod recording;
 mod run;
 mod search;
 
-pub use config::{Config, ControlConfig, DEFAULT_CONFIG, LOSS_SHIFT};
+pub use config::{Config, ControlConfig, Defaults, Settings, DEFAULT_CONFIG, LOSS_SHIFT};
 pub use guard::Guard;
 pub use recording::{absolute_model, SETTLE_MEAN_TICKS};
 pub use search::{SearchJob, SearchOutcome};
@@ -208,10 +208,10 @@ fn settle(left: u16, then: Then) -> Phase {
 /// The self-identification state machine; all state, fixed size, no heap
 /// (see the [module docs](self)).
 #[derive(Debug, Clone)]
-pub struct SelfIdentification {
+pub struct SelfIdentification<S: Settings = &'static Config> {
     /// The settings (static: on the ATmega2560 a static costs data, a by-value copy built at
-    /// run time cost 1 KB of code).
-    cfg: &'static Config,
+    /// run time cost 1 KB of code; see [`Settings`] for the compile-time choice).
+    settings: S,
     phase: Phase,
     /// Duty returned by the last tick: applied during the interval that ends with the next
     /// reading.
@@ -241,8 +241,8 @@ pub struct SelfIdentification {
 #[cfg(target_arch = "avr")]
 const _: () = assert!(core::mem::size_of::<SelfIdentification>() <= 4000);
 
-impl SelfIdentification {
-    /// A state machine with settings `config`. `stored` is the persisted record read from
+impl<S: Settings> SelfIdentification<S> {
+    /// A state machine with settings `settings` (a `&'static Config`, or [`Defaults`]). `stored` is the persisted record read from
     /// EEPROM/flash (see [`crate::persist`]) or `None`. A valid record skips identification:
     /// after settling, the controller is designed for that model ([`Event::Loaded`]) and the
     /// pump runs. A record that is invalid, or valid but with a model that fails the checks an
@@ -250,7 +250,8 @@ impl SelfIdentification {
     /// least [`Config::min_fit`]), is reported once ([`Event::StoredRejected`], on the first
     /// tick) and a new model is identified.
     #[inline(never)]
-    pub fn new(config: &'static Config, stored: Option<&[u8]>) -> Self {
+    pub fn new(settings: S, stored: Option<&[u8]>) -> Self {
+        let config = settings.config();
         let checked = stored.map(|bytes| {
             let (m, fit) = persist::decode(bytes).map_err(StoredReason::Record)?;
             ridge_core::control::check_model(&m, &config.control.model)
@@ -269,7 +270,7 @@ impl SelfIdentification {
             None => (None, 0.0, None),
         };
         SelfIdentification {
-            cfg: config,
+            settings,
             phase: Phase::Wait,
             duty: 0,
             last_counts: 0,
@@ -412,7 +413,7 @@ impl SelfIdentification {
         // Still waiting for the sensor: the identification starts after it, as at boot.
         if !matches!(self.phase, Phase::Wait) {
             // The base duty takes effect with the next tick's return value.
-            self.phase = settle(self.cfg.settle_ticks, Then::Excite);
+            self.phase = settle(self.settings.config().settle_ticks, Then::Excite);
         }
     }
 
@@ -446,7 +447,7 @@ impl SelfIdentification {
 
     /// The settings.
     pub fn config(&self) -> &'static Config {
-        self.cfg
+        self.settings.config()
     }
 
     /// The duty returned by the last tick, 1/10 000 of full scale.
@@ -508,13 +509,13 @@ impl SelfIdentification {
 
     /// Refuses the current attempt: next attempt, or the fault state after the last one.
     fn reject(&mut self, reason: RejectReason) -> Event {
-        let attempts = self.cfg.attempts.max(1);
+        let attempts = self.settings.config().attempts.max(1);
         let attempt = self.attempt;
         if attempt >= attempts {
             self.enter_fault(FaultReason::Unidentified { attempts });
         } else {
-            self.phase = settle(self.cfg.settle_ticks, Then::Excite);
-            self.duty = self.cfg.base_duty;
+            self.phase = settle(self.settings.config().settle_ticks, Then::Excite);
+            self.duty = self.settings.config().base_duty;
         }
         Event::Rejected {
             reason,
@@ -534,15 +535,15 @@ impl SelfIdentification {
                 } else {
                     Then::Excite
                 };
-                self.phase = settle(self.cfg.settle_ticks, then);
-                self.duty = self.cfg.base_duty;
+                self.phase = settle(self.settings.config().settle_ticks, then);
+                self.duty = self.settings.config().base_duty;
                 self.settle_step(reading)
             }
             Phase::Settle { .. } => self.settle_step(reading),
             Phase::Excite { gen, rec } => {
                 if reading.is_none() {
                     rec.gaps = rec.gaps.saturating_add(1);
-                    if rec.gaps > self.cfg.max_gaps {
+                    if rec.gaps > self.settings.config().max_gaps {
                         let gaps = rec.gaps;
                         return Some(self.reject(RejectReason::SensorGaps { gaps }));
                     }
@@ -567,7 +568,7 @@ impl SelfIdentification {
                 }
             }
             Phase::SearchReady { .. } | Phase::Searching => {
-                self.duty = self.cfg.base_duty;
+                self.duty = self.settings.config().base_duty;
                 None
             }
             Phase::Validate {
@@ -580,12 +581,12 @@ impl SelfIdentification {
             } => {
                 if *complete {
                     // Waiting for `judge`: hold the base duty, score nothing.
-                    self.duty = self.cfg.base_duty;
+                    self.duty = self.settings.config().base_duty;
                     return None;
                 }
                 if !*started {
                     *started = true;
-                    let record = self.cfg.validation;
+                    let record = self.settings.config().validation;
                     let samples = gen.len_samples();
                     return match gen.next_duty() {
                         Some(d) => {
@@ -594,14 +595,14 @@ impl SelfIdentification {
                         }
                         None => {
                             *complete = true;
-                            self.duty = self.cfg.base_duty;
+                            self.duty = self.settings.config().base_duty;
                             Some(Event::Validate { record, samples })
                         }
                     };
                 }
                 if reading.is_none() {
                     *gaps = gaps.saturating_add(1);
-                    if *gaps > self.cfg.max_gaps {
+                    if *gaps > self.settings.config().max_gaps {
                         let gaps = *gaps;
                         return Some(self.reject(RejectReason::SensorGaps { gaps }));
                     }
@@ -619,13 +620,13 @@ impl SelfIdentification {
                         // Scoring (square roots, the model's move into run mode) is left to
                         // `judge`, outside the tick, so that the tick stays short.
                         *complete = true;
-                        self.duty = self.cfg.base_duty;
+                        self.duty = self.settings.config().base_duty;
                         None
                     }
                 }
             }
             Phase::Design { .. } => {
-                self.duty = self.cfg.base_duty;
+                self.duty = self.settings.config().base_duty;
                 None
             }
             Phase::Run(run) => {
@@ -635,7 +636,7 @@ impl SelfIdentification {
                     self.drift = true;
                     if reidentify {
                         self.request_reidentification();
-                        self.duty = self.cfg.base_duty;
+                        self.duty = self.settings.config().base_duty;
                     }
                 }
                 event
@@ -652,7 +653,7 @@ impl SelfIdentification {
         let Phase::Settle { left, then, sum, n } = &mut self.phase else {
             return None;
         };
-        self.duty = self.cfg.base_duty;
+        self.duty = self.settings.config().base_duty;
         if *left <= SETTLE_MEAN_TICKS && reading.is_some() {
             *sum = sum.saturating_add(i32::from(self.last_counts));
             *n = n.saturating_add(1);
@@ -669,13 +670,13 @@ impl SelfIdentification {
         } else {
             self.last_counts
         };
-        let u0 = self.cfg.base_duty;
+        let u0 = self.settings.config().base_duty;
         // The operating point is what the no-flow check expects from now on.
         self.guard.expect_operating_point(u0, y0);
         match (*then, self.model) {
             (Then::Load, Some(model)) => {
                 self.phase = Phase::Design { model };
-                self.duty = self.cfg.base_duty;
+                self.duty = self.settings.config().base_duty;
                 Some(Event::Loaded {
                     model,
                     fit: self.fit,
@@ -683,12 +684,12 @@ impl SelfIdentification {
             }
             (Then::Design, Some(model)) => {
                 self.phase = Phase::Design { model };
-                self.duty = self.cfg.base_duty;
+                self.duty = self.settings.config().base_duty;
                 None
             }
             _ => {
                 self.attempt = self.attempt.saturating_add(1);
-                let mut gen = self.cfg.excitation.generator();
+                let mut gen = self.settings.config().excitation.generator();
                 let samples = gen.len_samples();
                 match gen.next_duty() {
                     Some(d) => {
@@ -698,12 +699,12 @@ impl SelfIdentification {
                         };
                         self.duty = d;
                         Some(Event::Excite {
-                            record: self.cfg.excitation,
+                            record: self.settings.config().excitation,
                             samples,
                             u0,
                             y0,
                             attempt: self.attempt,
-                            attempts: self.cfg.attempts.max(1),
+                            attempts: self.settings.config().attempts.max(1),
                         })
                     }
                     None => {
@@ -722,7 +723,7 @@ impl SelfIdentification {
         if let Phase::Excite { rec, .. } = core::mem::replace(&mut self.phase, Phase::Searching) {
             self.phase = Phase::SearchReady { rec };
         }
-        self.duty = self.cfg.base_duty;
+        self.duty = self.settings.config().base_duty;
     }
 
     /// The validation record is complete: accept (run mode) or reject.
@@ -739,18 +740,18 @@ impl SelfIdentification {
             }
             _ => return self.reject(RejectReason::NonFinite),
         };
-        if free.fit < self.cfg.min_fit {
+        if free.fit < self.settings.config().min_fit {
             return self.reject(RejectReason::Fit {
                 fit: free.fit,
-                min: self.cfg.min_fit,
+                min: self.settings.config().min_fit,
             });
         }
         self.model = Some(model);
         self.fit = free.fit;
         self.drift = false;
         // Settle at the base duty, then design: control starts from the settled operating point.
-        self.phase = settle(self.cfg.settle_ticks, Then::Design);
-        self.duty = self.cfg.base_duty;
+        self.phase = settle(self.settings.config().settle_ticks, Then::Design);
+        self.duty = self.settings.config().base_duty;
         Event::Accepted {
             fit: free.fit,
             rmse: free.rmse,

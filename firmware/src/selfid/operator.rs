@@ -6,9 +6,9 @@ use ridge_core::control::Controller;
 use crate::setpoint::{Breath, BreathWave, Program};
 use crate::units::SLM_PER_COUNT;
 
-use super::{Guard, Phase, SelfIdentification};
+use super::{Guard, Phase, SelfIdentification, Settings};
 
-impl SelfIdentification {
+impl<S: Settings> SelfIdentification<S> {
     /// Stops the pump: the duty is 0 from now on (the caller stops the PWM in the same tick)
     /// until [`start`](Self::start). A record or search in progress is dropped; the model in
     /// use is kept. A latched fault stays latched (and reported as such).
@@ -30,7 +30,7 @@ impl SelfIdentification {
         }
         self.phase = Phase::Wait;
         self.duty = 0;
-        self.guard = Guard::new(self.cfg);
+        self.guard = Guard::new(self.settings.config());
         self.fault = None;
         self.fault_announced = false;
         self.attempt = 0;
@@ -71,7 +71,7 @@ impl SelfIdentification {
     }
 
     fn check_flow(&self, slm: f32) -> Result<(), &'static str> {
-        let max = f32::from(self.cfg.flow_limit) * SLM_PER_COUNT;
+        let max = f32::from(self.settings.config().flow_limit) * SLM_PER_COUNT;
         // Written so that NaN fails.
         if slm >= 0.0 && slm <= max {
             Ok(())

@@ -9,7 +9,7 @@ use crate::event::{Event, RejectReason, SearchStats};
 use crate::units::SCALE;
 
 use super::recording::{absolute_model, Recording};
-use super::{Phase, SelfIdentification};
+use super::{Phase, SelfIdentification, Settings};
 
 /// A structure search taken out of the state machine ([`SelfIdentification::take_search`]),
 /// to run in the main loop while the timer interrupt keeps calling
@@ -99,7 +99,7 @@ fn evaluate(
     ))
 }
 
-impl SelfIdentification {
+impl<S: Settings> SelfIdentification<S> {
     /// `true` while the structure search is due: the board should call
     /// [`search`](Self::search) (or [`take_search`](Self::take_search)) from its main loop.
     pub fn needs_search(&self) -> bool {
@@ -118,7 +118,12 @@ impl SelfIdentification {
         let Phase::SearchReady { rec } = &self.phase else {
             return None;
         };
-        let result = evaluate(rec, &self.cfg.search, self.cfg.min_response, &mut pet);
+        let result = evaluate(
+            rec,
+            &self.settings.config().search,
+            self.settings.config().min_response,
+            &mut pet,
+        );
         self.phase = Phase::Searching;
         self.finish_search(SearchOutcome {
             result,
@@ -136,8 +141,8 @@ impl SelfIdentification {
         match core::mem::replace(&mut self.phase, Phase::Searching) {
             Phase::SearchReady { rec } => Some(SearchJob {
                 rec,
-                search: self.cfg.search,
-                min_response: self.cfg.min_response,
+                search: self.settings.config().search,
+                min_response: self.settings.config().min_response,
                 generation: self.generation,
             }),
             other => {
@@ -157,7 +162,7 @@ impl SelfIdentification {
         match outcome.result {
             Ok((model, stats)) => {
                 self.phase = Phase::Validate {
-                    gen: self.cfg.validation.generator(),
+                    gen: self.settings.config().validation.generator(),
                     eval: Evaluation::new(model),
                     model,
                     gaps: 0,
