@@ -117,7 +117,12 @@ impl uDisplay for Status {
             Some(r) => uDisplay::fmt(&Fixed::new(r, 3), f)?,
             None => f.write_str("none")?,
         }
-        ufmt::uwrite!(f, " log={} fault=", u8::from(self.log))?;
+        // A str, not `u8::from(log)`: ufmt's u8 formatting costs the ATmega2560 232 B.
+        f.write_str(if self.log {
+            " log=1 fault="
+        } else {
+            " log=0 fault="
+        })?;
         match &self.fault {
             Some(reason) => uDisplay::fmt(reason, f),
             None => f.write_str("none"),

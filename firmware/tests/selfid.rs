@@ -291,6 +291,39 @@ fn the_record_is_the_exact_statistics_of_applied_duty_and_next_reading() {
     assert_eq!(duties, preset);
 }
 
+/// Settings with ramp and PRBS records (run-time settings keep every generator; the board
+/// images' compile-time settings cut the kinds they do not use): each record drives exactly
+/// its preset's duties, in order.
+#[test]
+fn ramp_and_prbs_records_drive_their_presets() {
+    let cfg = Config {
+        excitation: Record::ARamp,
+        validation: Record::Prbs,
+        ..Config::default()
+    };
+    let mut rig = Rig::new(cfg, None, Plant::reference());
+    rig.run_until(20_000, |r| r.events.len() >= 4);
+    // The validation record starts one tick after the state does: the tick that ends the
+    // search still applied the base duty.
+    for (state, skip, record) in [
+        (State::Excite, 0, Record::ARamp),
+        (State::Validate, 1, Record::Prbs),
+    ] {
+        let duties: Vec<u16> = rig
+            .log
+            .iter()
+            .filter(|l| l.2 == state)
+            .skip(skip)
+            .map(|l| l.0)
+            .collect();
+        // The first attempt's records (the run stops at its judgement).
+        let preset: Vec<u16> = record.generator().collect();
+        assert!(duties.len() >= preset.len(), "{state:?}: {:?}", rig.events);
+        let first = preset.iter().zip(&duties).position(|(p, d)| p != d);
+        assert_eq!(first, None, "{state:?}: first differing duty");
+    }
+}
+
 #[test]
 fn search_is_only_run_when_due() {
     let mut sm = SelfIdentification::new(&DEFAULT_CONFIG, None);

@@ -91,6 +91,7 @@ use ridge_core::excitation::Excitation;
 use ridge_core::{ArxModel, Evaluation, IntGram};
 
 use crate::event::{Event, FaultReason, RejectReason, SensorFault, StoredReason};
+use crate::excitation::Record;
 use crate::persist::{self, RECORD_LEN};
 use crate::setpoint::Program;
 use crate::units::{FRACTION_PER_DUTY, SLM_PER_COUNT};
@@ -556,7 +557,7 @@ impl<S: Settings> SelfIdentification<S> {
                 let y64 = i64::from(y);
                 rec.sum_y = rec.sum_y.saturating_add(y64);
                 rec.sum_y2 = rec.sum_y2.saturating_add(y64 * y64);
-                match gen.next_duty() {
+                match next_level(gen, self.settings.config()) {
                     Some(d) => {
                         self.duty = d;
                         None
@@ -588,7 +589,7 @@ impl<S: Settings> SelfIdentification<S> {
                     *started = true;
                     let record = self.settings.config().validation;
                     let samples = gen.len_samples();
-                    return match gen.next_duty() {
+                    return match next_level(gen, self.settings.config()) {
                         Some(d) => {
                             self.duty = d;
                             Some(Event::Validate { record, samples })
@@ -611,7 +612,7 @@ impl<S: Settings> SelfIdentification<S> {
                     f32::from(applied) * FRACTION_PER_DUTY,
                     f32::from(y) * SLM_PER_COUNT,
                 );
-                match gen.next_duty() {
+                match next_level(gen, self.settings.config()) {
                     Some(d) => {
                         self.duty = d;
                         None
@@ -691,7 +692,7 @@ impl<S: Settings> SelfIdentification<S> {
                 self.attempt = self.attempt.saturating_add(1);
                 let mut gen = self.settings.config().excitation.generator();
                 let samples = gen.len_samples();
-                match gen.next_duty() {
+                match next_level(&mut gen, self.settings.config()) {
                     Some(d) => {
                         self.phase = Phase::Excite {
                             gen,
@@ -758,5 +759,27 @@ impl<S: Settings> SelfIdentification<S> {
             one_step: one.rmse,
             samples: free.n,
         }
+    }
+}
+
+/// The next duty of `gen`, a generator of one of `cfg`'s two records, or `None` at its end.
+///
+/// The match arms of the generator kinds neither record uses are cut: with compile-time
+/// settings ([`Defaults`]: multistep records only) the compiler then drops the ramp and PRBS
+/// generators from the image (ATmega2560: −970 B). A generator of a cut kind cannot be built
+/// here (both records come from `cfg`); it would read as a finished record.
+fn next_level(gen: &mut Excitation, cfg: &Config) -> Option<u16> {
+    let uses = |kind: fn(&Record) -> bool| kind(&cfg.excitation) || kind(&cfg.validation);
+    match gen {
+        Excitation::Multistep(g)
+            if uses(|r| matches!(r, Record::AMultistep | Record::BMultistep)) =>
+        {
+            g.next_duty()
+        }
+        Excitation::Ramp(g) if uses(|r| matches!(r, Record::ARamp | Record::BRamp)) => {
+            g.next_duty()
+        }
+        Excitation::Prbs(g) if uses(|r| matches!(r, Record::Prbs)) => g.next_duty(),
+        _ => None,
     }
 }
