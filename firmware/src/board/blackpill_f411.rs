@@ -81,7 +81,8 @@ impl<T> Uart<T> {
 
     fn write_byte(&mut self, byte: u8) {
         while !TX.push(byte) {
-            if cortex_m::register::primask::read().is_inactive() {
+            // `Primask::Active`: PRIMASK clear, interrupts taken.
+            if cortex_m::register::primask::read().is_active() {
                 continue; // the interrupt drains the queue
             }
             // Interrupts are masked: nobody else drains the queue.
