@@ -88,7 +88,8 @@ static RX: Ring<256> = Ring::new();
 /// byte received before the loss. Until then the interrupt drops every byte, so the gap lies
 /// in the line the main loop is assembling when it learns of the loss, and that line is
 /// refused (`ERR overrun`); lines received whole before the loss are still executed.
-static RX_LOST: AtomicBool = AtomicBool::new(false);
+/// `pub(crate)` for the QEMU test image, which waits for a loss (read only).
+pub(crate) static RX_LOST: AtomicBool = AtomicBool::new(false);
 
 /// The next received byte, if any (main loop only). `None` at a loss, until
 /// [`receive_overrun`] has reported it.
