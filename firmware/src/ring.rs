@@ -71,6 +71,11 @@ impl<const N: usize> Ring<N> {
         usize::from(tail.wrapping_sub(head).wrapping_sub(1) & Self::MASK)
     }
 
+    /// Whether the queue holds no byte. Consumer side only.
+    pub fn is_empty(&self) -> bool {
+        self.tail.load(Ordering::Relaxed) == self.head.load(Ordering::Acquire)
+    }
+
     /// Removes the oldest byte. Consumer side only (one context, e.g. the TX interrupt).
     pub fn pop(&self) -> Option<u8> {
         let tail = self.tail.load(Ordering::Relaxed);

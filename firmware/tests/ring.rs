@@ -23,8 +23,9 @@ fn holds_n_minus_one_bytes_in_order() {
     assert_eq!(q.pop(), None);
 }
 
-/// Any interleaving of pushes and pops behaves like a bounded FIFO, across many wrap-arounds
-/// of the indices (including the 256-slot queue, whose `u8` indices wrap themselves).
+/// Any interleaving of pushes and pops behaves like a bounded FIFO (`is_empty` included), across
+/// many wrap-arounds of the indices (including the 256-slot queue, whose `u8` indices wrap
+/// themselves).
 #[test]
 fn matches_a_bounded_fifo_model() {
     fn check<const N: usize>(q: &Ring<N>) {
@@ -55,6 +56,7 @@ fn matches_a_bounded_fifo_model() {
                 assert_eq!(got, model.pop_front(), "pop at {i}");
                 empty += usize::from(got.is_none());
             }
+            assert_eq!(q.is_empty(), model.is_empty(), "is_empty at {i}");
         }
         assert!(
             full > 0 && empty > 0,

@@ -21,7 +21,7 @@ fn main() {
 mod image {
     use super::board::blackpill_f411::{self as bp, FlashStore, Ticker, Uart, WATCHDOG_MS};
     use cortex_m_rt::entry;
-    use ridge_pump_firmware::app::{App, Board};
+    use ridge_pump_firmware::app::{App, Board, Console};
     use ridge_pump_firmware::persist::RECORD_LEN;
     use ridge_pump_firmware::pump::Pump;
     use ridge_pump_firmware::selfid::{Defaults, SelfIdentification};
@@ -41,6 +41,7 @@ mod image {
         ticker: Ticker,
         watchdog: IndependentWatchdog,
         store: FlashStore<RECORD_LEN>,
+        console: Console,
     }
 
     impl Board for BlackPill {
@@ -59,6 +60,18 @@ mod image {
         }
         fn stack(&self) -> Option<(u16, u16)> {
             None
+        }
+        fn receive(&mut self) -> Option<u8> {
+            bp::receive()
+        }
+        fn receive_overrun(&mut self) -> bool {
+            bp::receive_overrun()
+        }
+        fn tx_room(&self) -> usize {
+            bp::tx_room()
+        }
+        fn console(&mut self) -> Option<&mut Console> {
+            Some(&mut self.console)
         }
     }
 
@@ -84,9 +97,14 @@ mod image {
             Err(e) => match e {},
         };
 
-        let tx: stm32f4xx_hal::serial::Tx<pac::USART1, u8> =
-            dp.USART1.tx(gpioa.pa9, 115_200.bps(), &mut rcc).unwrap(); // ok: fixed config, valid at 100 MHz; a panic stops the pump
-        let mut out = Uart::new(tx);
+        // RX with the internal pull-up: an unconnected PA10 idles high instead of floating
+        // into framing errors.
+        let rx = gpioa.pa10.internal_pull_up(true);
+        let serial: stm32f4xx_hal::serial::Serial<pac::USART1, u8> = dp
+            .USART1
+            .serial((gpioa.pa9, rx), 115_200.bps(), &mut rcc)
+            .unwrap(); // ok: fixed config, valid at 100 MHz; a panic stops the pump
+        let mut out = Uart::new(serial);
 
         let i2c = I2c::new(
             dp.I2C1,
@@ -121,6 +139,7 @@ mod image {
             ticker,
             watchdog,
             store,
+            console: Console::new(),
         };
         app.run(&mut board)
     }

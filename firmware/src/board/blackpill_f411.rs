@@ -4,7 +4,7 @@
 //! |---|---|---|
 //! | SFM3300 | I2C1, 100 kHz | PB6 SCL, PB7 SDA (5 V tolerant; external pull-ups) |
 //! | pump PWM | TIM3 CH1, 20 kHz | PA6 |
-//! | reports | USART1 TX 115200 8N1 (TXE interrupt + queue) | PA9 (RX PA10 unused) |
+//! | reports, console | USART1 115200 8N1 (one interrupt: TXE + queue, RXNE + queue) | PA9 TX, PA10 RX |
 //! | tick | TIM5, free-running 10 kHz counter, polled | — |
 //! | watchdog | IWDG, 0.5 s | — |
 //! | record | flash sector 7 (0x0806_0000, 128 KB), append-only slots | — |
@@ -13,6 +13,7 @@
 //! while the CPU is stalled by a flash erase, so lost ticks are counted exactly.
 
 use core::convert::Infallible;
+use core::sync::atomic::{AtomicBool, Ordering};
 
 use stm32f4xx_hal::flash::FlashExt;
 use stm32f4xx_hal::pac::{self, interrupt, FLASH, TIM5, USART1};
@@ -62,26 +63,85 @@ impl Ticker {
     }
 }
 
+// USART_SR bits (RM0383 §19.6.1). FE and NF come with the byte in DR (it is damaged); ORE
+// says a byte after it was lost. All three are cleared by a read of SR followed by a read of
+// DR (§19.3.3, "Overrun error", "Noise error", "Framing error").
+const SR_FE: u16 = 1 << 1;
+const SR_NF: u16 = 1 << 2;
+const SR_ORE: u16 = 1 << 3;
+const SR_RXNE: u16 = 1 << 5;
+const SR_TXE: u16 = 1 << 7;
+// USART_CR1 bits (RM0383 §19.6.4). RXNEIE raises the interrupt for RXNE and for ORE (§19.4).
+const CR1_RXNEIE: u16 = 1 << 5;
+const CR1_TXEIE: u16 = 1 << 7;
+
 /// Transmit queue, drained by the USART1 interrupt.
 static TX: Ring<256> = Ring::new();
 
-/// USART1 transmitter (`ufmt::uWrite`) over a queue. The HAL's `Tx` has configured the
-/// peripheral (baud, pins) and is kept so nothing else can take it.
+/// Receive queue, filled by the USART1 interrupt, read by the main loop ([`receive`]). 255
+/// bytes: 22 ms at 115200 baud without a read; the loop reads at every pass (one command
+/// line per pass), not during the ticking search.
+static RX: Ring<256> = Ring::new();
+
+/// Set by the USART1 interrupt when a received byte is lost (queue full, or an overrun,
+/// noise or framing error); cleared by [`receive_overrun`] once the main loop has read every
+/// byte received before the loss. Until then the interrupt drops every byte, so the gap lies
+/// in the line the main loop is assembling when it learns of the loss, and that line is
+/// refused (`ERR overrun`); lines received whole before the loss are still executed.
+/// `pub(crate)` for the QEMU test image, which waits for a loss (read only).
+pub(crate) static RX_LOST: AtomicBool = AtomicBool::new(false);
+
+/// The next received byte, if any (main loop only). `None` at a loss, until
+/// [`receive_overrun`] has reported it.
+pub fn receive() -> Option<u8> {
+    RX.pop()
+}
+
+/// Whether received bytes were lost at this point of the byte stream (main loop only): `true`
+/// once, when a loss is pending and the bytes received before it have all been read.
+pub fn receive_overrun() -> bool {
+    if RX_LOST.load(Ordering::Acquire) && RX.is_empty() {
+        // The interrupt pushes nothing while the flag is set: the queue stays empty.
+        RX_LOST.store(false, Ordering::Release);
+        true
+    } else {
+        false
+    }
+}
+
+/// Free bytes in the transmit queue (main loop only).
+pub fn tx_room() -> usize {
+    TX.room()
+}
+
+/// USART1 transmitter (`ufmt::uWrite`) over a queue, and receiver into a queue. The HAL's
+/// `Serial` has configured the peripheral (baud, TE and RE, pins) and is kept so nothing else
+/// can take it.
 pub struct Uart<T> {
-    _tx: T,
+    _serial: T,
 }
 
 impl<T> Uart<T> {
-    /// Takes the configured transmitter and unmasks the USART1 interrupt.
-    pub fn new(tx: T) -> Self {
-        // SAFETY: the handler only uses the queue and USART1's DR/CR1.TXEIE.
+    /// Takes the configured USART, discards what the receiver holds (a byte or an error from
+    /// before the RX pin was connected), enables the receive interrupt and unmasks USART1.
+    pub fn new(serial: T) -> Self {
+        // SAFETY: USART1 is configured and its interrupt still masked: nothing else accesses
+        // it; SR then DR clears RXNE and the error flags (§19.3.3).
+        let usart = unsafe { &*USART1::ptr() };
+        let _ = usart.sr().read();
+        let _ = usart.dr().read();
+        usart
+            .cr1()
+            .modify(|r, w| unsafe { w.bits(r.bits() | CR1_RXNEIE) });
+        // SAFETY: the handler only uses the queues, RX_LOST and USART1's SR/DR/CR1.TXEIE.
         unsafe { cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1) };
-        Uart { _tx: tx }
+        Uart { _serial: serial }
     }
 
     fn write_byte(&mut self, byte: u8) {
         while !TX.push(byte) {
-            if cortex_m::register::primask::read().is_inactive() {
+            // `Primask::Active`: PRIMASK clear, interrupts taken.
+            if cortex_m::register::primask::read().is_active() {
                 continue; // the interrupt drains the queue
             }
             // Interrupts are masked: nobody else drains the queue.
@@ -120,11 +180,30 @@ pub fn send_polled(byte: u8) {
     }
 }
 
+/// USART1: transmit and receive share this handler. Receive first (a byte waits in DR only
+/// until the next one arrives, 87 µs at 115200 baud), then at most one byte to transmit if
+/// TXEIE is on.
 #[interrupt]
 fn USART1() {
-    // SAFETY: the main loop only sets TXEIE, inside a critical section.
+    // SAFETY: the main loop only sets TXEIE (inside a critical section; RXNEIE once, in
+    // `Uart::new`, before the interrupt is unmasked) and touches SR/DR only through
+    // `send_polled` with interrupts masked.
     let usart = unsafe { &*USART1::ptr() };
-    if usart.sr().read().txe().bit_is_set() {
+    let sr = usart.sr().read().bits();
+    if sr & (SR_RXNE | SR_ORE) != 0 {
+        // Reading DR after SR takes the byte and clears RXNE, ORE, NF and FE (§19.3.3). With
+        // ORE and no RXNE there is nothing new in DR, but the read is still needed to clear
+        // ORE, which would otherwise raise the interrupt again at once. With ORE and RXNE the
+        // byte in DR is valid and older than the lost one.
+        let byte = usart.dr().read().bits() as u8;
+        let valid = sr & (SR_RXNE | SR_NF | SR_FE) == SR_RXNE;
+        let kept = valid && !RX_LOST.load(Ordering::Relaxed) && RX.push(byte);
+        if !kept || sr & SR_ORE != 0 {
+            RX_LOST.store(true, Ordering::Release);
+        }
+    }
+    let txeie = usart.cr1().read().bits() & CR1_TXEIE != 0;
+    if txeie && sr & SR_TXE != 0 {
         match TX.pop() {
             Some(byte) => {
                 usart.dr().write(|w| unsafe { w.bits(u16::from(byte)) });
