@@ -136,13 +136,9 @@ mod image {
         let dp = pac::Peripherals::take().unwrap(); // ok: first and only call, at boot
         let mut rcc = dp.RCC.constrain();
         let gpioa = dp.GPIOA.split(&mut rcc);
-        // The same USART1 setup as the `stm32f411` image.
-        let rx = gpioa.pa10.internal_pull_up(true);
-        let serial: stm32f4xx_hal::serial::Serial<pac::USART1, u8> = dp
-            .USART1
-            .serial((gpioa.pa9, rx), 115_200.bps(), &mut rcc)
-            .unwrap(); // ok: fixed config; a panic prints PANIC
-        let mut out = Kicked(Uart::new(serial));
+        // The `stm32f411` image's own USART1 setup.
+        let uart = bp::console_uart(dp.USART1, gpioa.pa9, gpioa.pa10, &mut rcc).unwrap(); // ok: fixed config; a panic prints PANIC
+        let mut out = Kicked(uart);
         let mut ticker = Ticker::new(dp.TIM5.counter(&mut rcc));
 
         uwriteln!(out, "BOOT board=stm32f411-qemu").ok();

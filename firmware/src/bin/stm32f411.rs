@@ -19,7 +19,7 @@ fn main() {
 
 #[cfg(all(target_arch = "arm", target_os = "none"))]
 mod image {
-    use super::board::blackpill_f411::{self as bp, FlashStore, Ticker, Uart, WATCHDOG_MS};
+    use super::board::blackpill_f411::{self as bp, FlashStore, Ticker, WATCHDOG_MS};
     use cortex_m_rt::entry;
     use ridge_pump_firmware::app::{App, Board, Console};
     use ridge_pump_firmware::persist::RECORD_LEN;
@@ -97,14 +97,7 @@ mod image {
             Err(e) => match e {},
         };
 
-        // RX with the internal pull-up: an unconnected PA10 idles high instead of floating
-        // into framing errors.
-        let rx = gpioa.pa10.internal_pull_up(true);
-        let serial: stm32f4xx_hal::serial::Serial<pac::USART1, u8> = dp
-            .USART1
-            .serial((gpioa.pa9, rx), 115_200.bps(), &mut rcc)
-            .unwrap(); // ok: fixed config, valid at 100 MHz; a panic stops the pump
-        let mut out = Uart::new(serial);
+        let mut out = bp::console_uart(dp.USART1, gpioa.pa9, gpioa.pa10, &mut rcc).unwrap(); // ok: fixed config, valid at 100 MHz; a panic stops the pump
 
         let i2c = I2c::new(
             dp.I2C1,

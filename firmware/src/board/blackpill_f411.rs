@@ -16,7 +16,12 @@ use core::convert::Infallible;
 use core::sync::atomic::{AtomicBool, Ordering};
 
 use stm32f4xx_hal::flash::FlashExt;
+use stm32f4xx_hal::gpio::{PA10, PA9};
 use stm32f4xx_hal::pac::{self, interrupt, FLASH, TIM5, USART1};
+use stm32f4xx_hal::prelude::*;
+use stm32f4xx_hal::rcc::Rcc;
+use stm32f4xx_hal::serial::config::InvalidConfig;
+use stm32f4xx_hal::serial::Serial;
 use stm32f4xx_hal::timer::Counter;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
@@ -112,6 +117,23 @@ pub fn receive_overrun() -> bool {
 /// Free bytes in the transmit queue (main loop only).
 pub fn tx_room() -> usize {
     TX.room()
+}
+
+/// Console baud rate (8N1).
+pub const BAUD: u32 = 115_200;
+
+/// The console's USART1 as a [`Uart`]: [`BAUD`] 8N1 on PA9 (TX) and PA10 (RX, with the
+/// internal pull-up: an unconnected PA10 idles high instead of floating into framing errors).
+/// Fails only if `rcc`'s clocks cannot reach the baud rate.
+pub fn console_uart(
+    usart: USART1,
+    tx: PA9,
+    rx: PA10,
+    rcc: &mut Rcc,
+) -> Result<Uart<Serial<USART1, u8>>, InvalidConfig> {
+    let rx = rx.internal_pull_up(true);
+    let serial = usart.serial((tx, rx), BAUD.bps(), rcc)?;
+    Ok(Uart::new(serial))
 }
 
 /// USART1 transmitter (`ufmt::uWrite`) over a queue, and receiver into a queue. The HAL's
