@@ -495,55 +495,19 @@ fn late_passes_and_lost_ticks_are_counted_and_reported() {
 /// before the search returns; the fault is reported after the search and latched.
 #[test]
 fn sensor_fault_during_the_blocking_search_stops_the_pump_at_once() {
-    let w = world(Plant::reference());
-    let uart = Uart::default();
-    let mut board = FakeBoard::<false>::new(&w);
-    let mut app = app(&w, &uart);
-    app.start(&mut board);
-    run_until(&mut app, &mut board, 8_000, search_is_next);
-    let t0 = {
-        let mut w = w.borrow_mut();
-        w.sensor_dead = true;
-        w.clock
-    };
-    app.step(&mut board); // the tick, then the search
-    let w_ = w.borrow();
-    let stop = w_
-        .pwm_log
-        .iter()
-        .find(|(t, c)| *t >= t0 && *c == 0)
-        .expect("the pump was stopped");
+    let (stop, searched, fault) = fault_during_the_blocking_search(|w| w.sensor_dead = true);
     let limit = u64::from(Config::default().sensor_fault_limit);
     // Stopped within the fault limit's ticks (plus one for the boundary in progress) ...
-    assert!(
-        stop.0 - t0 <= (limit + 1) * TICK_US,
-        "stopped after {} µs",
-        stop.0 - t0
-    );
+    assert!(stop <= (limit + 1) * TICK_US, "stopped after {stop} µs");
     // ... while the search went on for much longer.
-    assert!(
-        w_.clock - t0 > 3 * (limit + 1) * TICK_US,
-        "search {} µs",
-        w_.clock - t0
-    );
-    drop(w_);
-    let lines = uart.lines();
-    let fault = lines
-        .iter()
-        .find(|l| l.starts_with("FAULT"))
-        .expect("FAULT line");
+    assert!(searched > 3 * (limit + 1) * TICK_US, "search {searched} µs");
     assert!(fault.starts_with("FAULT sensor"), "{fault}");
-    assert_eq!(app.selfid().state(), State::Fault);
-    for _ in 0..20 {
-        app.step(&mut board);
-    }
-    assert_eq!(w.borrow().pwm, 0);
-    assert_eq!(count(&uart.lines(), "FAULT"), 1, "reported once");
 }
 
 /// Runs to the blocking search, injects `fault` into the plant at its start and returns the
-/// simulated time from the injection to the pump's stop (µs), and the `FAULT` line.
-fn fault_during_the_blocking_search(fault: impl FnOnce(&mut World)) -> (u64, String) {
+/// simulated times from the injection to the pump's stop and to the search's end (µs), and the
+/// `FAULT` line; checks that the fault is latched and reported once.
+fn fault_during_the_blocking_search(fault: impl FnOnce(&mut World)) -> (u64, u64, String) {
     let w = world(Plant::reference());
     let uart = Uart::default();
     let mut board = FakeBoard::<false>::new(&w);
@@ -563,10 +527,8 @@ fn fault_during_the_blocking_search(fault: impl FnOnce(&mut World)) -> (u64, Str
         .find(|(t, c)| *t >= t0 && *c == 0)
         .map(|(t, _)| t - t0)
         .expect("the pump was stopped");
-    assert!(
-        w.borrow().clock - t0 > stop,
-        "stopped before the search returned"
-    );
+    let searched = w.borrow().clock - t0;
+    assert!(searched > stop, "stopped before the search returned");
     let lines = uart.lines();
     let fault = lines
         .iter()
@@ -579,7 +541,7 @@ fn fault_during_the_blocking_search(fault: impl FnOnce(&mut World)) -> (u64, Str
     }
     assert_eq!(w.borrow().pwm, 0);
     assert_eq!(count(&uart.lines(), "FAULT"), 1, "reported once");
-    (stop, fault)
+    (stop, searched, fault)
 }
 
 /// A sensor that freezes at its current reading while the blocking search runs: the watch's
@@ -587,7 +549,7 @@ fn fault_during_the_blocking_search(fault: impl FnOnce(&mut World)) -> (u64, Str
 /// boundary in progress), before the search returns.
 #[test]
 fn frozen_sensor_during_the_blocking_search_stops_the_pump() {
-    let (stop, fault) = fault_during_the_blocking_search(|w| w.plant.stuck = Some(w.reading));
+    let (stop, _, fault) = fault_during_the_blocking_search(|w| w.plant.stuck = Some(w.reading));
     let limit = u64::from(Config::default().frozen_ticks);
     assert!(stop <= (limit + 1) * TICK_US, "stopped after {stop} µs");
     assert!(fault.starts_with("FAULT sensor=frozen flow="), "{fault}");
@@ -599,7 +561,7 @@ fn frozen_sensor_during_the_blocking_search_stops_the_pump() {
 /// ticks below a quarter of it.
 #[test]
 fn lost_flow_during_the_blocking_search_stops_the_pump() {
-    let (stop, fault) = fault_during_the_blocking_search(|w| w.plant.stuck = Some(0));
+    let (stop, _, fault) = fault_during_the_blocking_search(|w| w.plant.stuck = Some(0));
     let limit = u64::from(Config::default().loss_ticks);
     assert!(stop <= (limit + 1) * TICK_US, "stopped after {stop} µs");
     assert!(stop >= limit * TICK_US, "stopped after {stop} µs");
