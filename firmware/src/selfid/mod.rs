@@ -87,11 +87,12 @@ pub use guard::Guard;
 pub use recording::{absolute_model, SETTLE_MEAN_TICKS};
 pub use search::{SearchJob, SearchOutcome};
 
+use core::mem::discriminant;
+
 use ridge_core::excitation::Excitation;
 use ridge_core::{ArxModel, Evaluation, IntGram};
 
 use crate::event::{Event, FaultReason, RejectReason, SensorFault, StoredReason};
-use crate::excitation::Record;
 use crate::persist::{self, RECORD_LEN};
 use crate::setpoint::Program;
 use crate::units::{FRACTION_PER_DUTY, SLM_PER_COUNT};
@@ -769,17 +770,14 @@ impl<S: Settings> SelfIdentification<S> {
 /// generators from the image (ATmega2560: −970 B). A generator of a cut kind cannot be built
 /// here (both records come from `cfg`); it would read as a finished record.
 fn next_level(gen: &mut Excitation, cfg: &Config) -> Option<u16> {
-    let uses = |kind: fn(&Record) -> bool| kind(&cfg.excitation) || kind(&cfg.validation);
+    // The record → generator mapping is `Record::generator`'s: compare the kinds it gives.
+    let kind = discriminant(&*gen);
+    let used = kind == discriminant(&cfg.excitation.generator())
+        || kind == discriminant(&cfg.validation.generator());
     match gen {
-        Excitation::Multistep(g)
-            if uses(|r| matches!(r, Record::AMultistep | Record::BMultistep)) =>
-        {
-            g.next_duty()
-        }
-        Excitation::Ramp(g) if uses(|r| matches!(r, Record::ARamp | Record::BRamp)) => {
-            g.next_duty()
-        }
-        Excitation::Prbs(g) if uses(|r| matches!(r, Record::Prbs)) => g.next_duty(),
+        Excitation::Multistep(g) if used => g.next_duty(),
+        Excitation::Ramp(g) if used => g.next_duty(),
+        Excitation::Prbs(g) if used => g.next_duty(),
         _ => None,
     }
 }
