@@ -256,6 +256,11 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
             self.judge(board);
         }
         if self.sid.needs_search() {
+            // A blocking search's normal equations are built first, in a frame of their own
+            // that is gone before the search's is built (ATmega2560 stack).
+            if !B::TICK_DURING_SEARCH {
+                self.sid.prepare_search();
+            }
             let end = self.search(board);
             self.after_search(board, end);
         }
@@ -470,7 +475,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
             // copy of the tick's fault checks reads the sensor at every tick boundary. A fault
             // stops the pump at once; the state machine takes it over after the search.
             let mut watch = Watch::new(&self.sid, &mut self.sensor, &mut self.pump, board);
-            let event = self.sid.search(|| watch.pet());
+            let event = self.sid.run_search(|| watch.pet());
             self.sid.resume_guard(&watch.guard);
             (ticks, lost, fault) = (watch.ticks, watch.lost, watch.fault);
             event

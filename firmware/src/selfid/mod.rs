@@ -90,7 +90,7 @@ pub use search::{SearchJob, SearchOutcome};
 use core::mem::discriminant;
 
 use ridge_core::excitation::Excitation;
-use ridge_core::{ArxModel, Evaluation, IntGram};
+use ridge_core::{ArxModel, Evaluation, IntGram, Normal};
 
 use crate::event::{Event, FaultReason, RejectReason, SensorFault, StoredReason};
 use crate::persist::{self, RECORD_LEN};
@@ -179,6 +179,16 @@ enum Phase {
         rec: Recording,
     },
     Searching,
+    /// The blocking search's normal equations, built from the record in its place
+    /// ([`SelfIdentification::prepare_search`]), and the record's operating point.
+    SearchNormal {
+        normal: Normal<f32>,
+        u0: u16,
+        y0: i16,
+    },
+    /// [`SelfIdentification::prepare_search`] refused the record (reported by
+    /// [`SelfIdentification::run_search`]).
+    SearchRefused(RejectReason),
     Validate {
         gen: Excitation,
         eval: Evaluation<f32>,
@@ -376,7 +386,10 @@ impl<S: Settings> SelfIdentification<S> {
             Phase::Wait => State::WaitSensor,
             Phase::Settle { .. } => State::Settle,
             Phase::Excite { .. } => State::Excite,
-            Phase::SearchReady { .. } | Phase::Searching => State::Search,
+            Phase::SearchReady { .. }
+            | Phase::Searching
+            | Phase::SearchNormal { .. }
+            | Phase::SearchRefused(_) => State::Search,
             Phase::Validate { .. } => State::Validate,
             Phase::Design { .. } => State::Design,
             Phase::Run(_) => State::Run,
@@ -569,7 +582,10 @@ impl<S: Settings> SelfIdentification<S> {
                     }
                 }
             }
-            Phase::SearchReady { .. } | Phase::Searching => {
+            Phase::SearchReady { .. }
+            | Phase::Searching
+            | Phase::SearchNormal { .. }
+            | Phase::SearchRefused(_) => {
                 self.duty = self.settings.config().base_duty;
                 None
             }

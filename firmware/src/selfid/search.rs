@@ -71,8 +71,7 @@ fn evaluate(
     if rms < min_response || rms.is_nan() {
         return Err(RejectReason::NotExcited { rms });
     }
-    // Filled in place: `Gram::normal` would return the 840-byte statistics by value and
-    // cost a second copy on the ATmega2560's stack.
+    // Filled in place: `Gram::normal` would return the 848-byte statistics by value.
     let mut normal = Normal::<f32>::empty();
     rec.gram
         .normal_into(&SCALE, &mut normal)
@@ -81,11 +80,23 @@ fn evaluate(
             e => RejectReason::Search(e),
         })?;
     pet();
+    select(&normal, rec.u0, rec.y0, search, pet)
+}
+
+/// The pruned search on `normal` (deviations from the operating point `u0`, `y0`) and the
+/// conversion to the absolute model, petting the watchdog as it goes and after.
+fn select(
+    normal: &Normal<f32>,
+    u0: u16,
+    y0: i16,
+    search: &Search<f32>,
+    pet: &mut impl FnMut(),
+) -> Result<(ArxModel<f32>, SearchStats), RejectReason> {
     let found = search
-        .run_with_progress(&normal, None, pet)
+        .run_with_progress(normal, None, pet)
         .map_err(RejectReason::Search)?;
     pet();
-    let model = absolute_model(&found.fit.model(), rec.u0, rec.y0).map_err(RejectReason::Search)?;
+    let model = absolute_model(&found.fit.model(), u0, y0).map_err(RejectReason::Search)?;
     Ok((
         model,
         SearchStats {
@@ -113,17 +124,65 @@ impl<S: Settings> SelfIdentification<S> {
     ///
     /// No tick can run meanwhile: the pump keeps the base duty and faults are not detected
     /// until the search returns. Use [`take_search`](Self::take_search) to keep ticking.
+    ///
+    /// The same as [`prepare_search`](Self::prepare_search) followed by
+    /// [`run_search`](Self::run_search), which a board with little RAM calls from two stack
+    /// frames of its own.
     pub fn search(&mut self, mut pet: impl FnMut()) -> Option<Event> {
-        // Runs on the statistics in place (no copy of the record on the stack).
-        let Phase::SearchReady { rec } = &self.phase else {
-            return None;
+        pet();
+        self.prepare_search();
+        self.run_search(pet)
+    }
+
+    /// First half of the blocking [`search`](Self::search): the excitation check and the
+    /// normal equations, built from the estimation record in its place in the state machine
+    /// (848 B on the ATmega2560 that are then not on the search's stack). Then
+    /// [`run_search`](Self::run_search) is due, which also reports a refused record. Does
+    /// nothing when no search is due. Never inlined: the record is copied into this frame,
+    /// which must be gone before the search's frame is built.
+    #[inline(never)]
+    pub fn prepare_search(&mut self) {
+        if !matches!(self.phase, Phase::SearchReady { .. }) {
+            return;
+        }
+        let Phase::SearchReady { rec } = core::mem::replace(&mut self.phase, Phase::Searching)
+        else {
+            return;
         };
-        let result = evaluate(
-            rec,
-            &self.settings.config().search,
-            self.settings.config().min_response,
-            &mut pet,
-        );
+        let rms = rec.response_rms();
+        if rms < self.settings.config().min_response || rms.is_nan() {
+            self.phase = Phase::SearchRefused(RejectReason::NotExcited { rms });
+            return;
+        }
+        self.phase = Phase::SearchNormal {
+            normal: Normal::empty(),
+            u0: rec.u0,
+            y0: rec.y0,
+        };
+        if let Phase::SearchNormal { normal, .. } = &mut self.phase {
+            if let Err(e) = rec.gram.normal_into(&SCALE, normal) {
+                self.phase = Phase::SearchRefused(match e {
+                    ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
+                    e => RejectReason::Search(e),
+                });
+            }
+        }
+    }
+
+    /// Second half of the blocking [`search`](Self::search), after
+    /// [`prepare_search`](Self::prepare_search): the pruned structure search on the prepared
+    /// normal equations and the conversion to the absolute model, calling `pet` as
+    /// [`search`](Self::search) does. Returns [`search`](Self::search)'s event; `None` when
+    /// nothing was prepared.
+    pub fn run_search(&mut self, mut pet: impl FnMut()) -> Option<Event> {
+        let result = match &self.phase {
+            Phase::SearchNormal { normal, u0, y0 } => {
+                pet();
+                select(normal, *u0, *y0, &self.settings.config().search, &mut pet)
+            }
+            Phase::SearchRefused(reason) => Err(*reason),
+            _ => return None,
+        };
         self.phase = Phase::Searching;
         self.finish_search(SearchOutcome {
             result,
