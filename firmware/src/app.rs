@@ -401,8 +401,9 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
                 return;
             }
             Ok(Command::Forget) => {
-                // An erased record (all 0xFF) reads back as no record.
-                board.save(&[0xFF; RECORD_LEN]);
+                // An erased record (all 0xFF) reads back as no record. Filled at run time: a
+                // constant array would be kept in the ATmega2560's RAM.
+                board.save(&[core::hint::black_box(0xFF); RECORD_LEN]);
                 Ok("forget")
             }
             Ok(Command::Log(on)) => {

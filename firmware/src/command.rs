@@ -14,8 +14,8 @@
 //! | `LOG on` / `LOG off` | starts / stops the CSV log (`OK log`, then the header) |
 //!
 //! Keywords and keys are case-insensitive; fields are separated by spaces. Numbers are decimals
-//! with an optional sign and at most [`MAX_DECIMALS`] fractional digits (`25`, `-0.5`,
-//! `12.125`). A line that does not parse answers `ERR <why>` (see [`CommandError::name`]) and
+//! with an optional sign, at most [`MAX_INTEGER_DIGITS`] digits before the point and at most
+//! [`MAX_DECIMALS`] after it (`25`, `-0.5`, `12.125`). A line that does not parse answers `ERR <why>` (see [`CommandError::name`]) and
 //! changes nothing; so does a command the state machine refuses (a value out of range, `REID`
 //! in the fault state).
 
@@ -28,11 +28,11 @@ pub const MAX_LINE: usize = 80;
 /// Most fractional digits a number may have.
 pub const MAX_DECIMALS: u8 = 3;
 
-/// A parsed number: thousandths of the unit (`12.125` → `12_125`), |value| ≤ 10⁶ units.
-pub type Milli = i32;
+/// Most digits a number may have before the point (so |value| < 10⁶ units).
+pub const MAX_INTEGER_DIGITS: u8 = 6;
 
-/// Largest magnitude of a number, thousandths (10⁶ units).
-const MAX_MILLI: Milli = 1_000_000_000;
+/// A parsed number: thousandths of the unit (`12.125` → `12_125`), |value| < 10⁶ units.
+pub type Milli = i32;
 
 /// A breath profile as typed: every value in thousandths of its unit, `None` where the key was
 /// left out.
@@ -214,53 +214,40 @@ fn key_value(field: &[u8]) -> Result<(&[u8], &[u8]), CommandError> {
     Ok((key, value))
 }
 
-/// `[-|+]digits[.digits]` with at least one digit, at most [`MAX_DECIMALS`] after the point,
-/// |value| ≤ 10⁶, as thousandths.
+/// `[-|+]digits[.digits]` with at least one digit, at most [`MAX_INTEGER_DIGITS`] before the
+/// point and [`MAX_DECIMALS`] after it, as thousandths. The digit limits keep every value
+/// below 10⁹ < 2³¹ without overflow checks (i32 products are library calls on the ATmega2560).
 fn number(text: &[u8]) -> Result<Milli, CommandError> {
     let (negative, digits) = match text.split_first() {
         Some((b'-', rest)) => (true, rest),
         Some((b'+', rest)) => (false, rest),
         _ => (false, text),
     };
-    // i32 throughout (i64 multiplications are library calls on the ATmega2560): every
-    // product is checked against MAX_MILLI / 10 first, so none exceeds 10⁹ + 9 < 2³¹.
     let mut value: Milli = 0;
-    let mut decimals: Option<u8> = None;
-    let mut any = false;
+    let (mut integer, mut decimals, mut point) = (0u8, 0u8, false);
     for &b in digits {
-        match b {
-            b'0'..=b'9' => {
-                if let Some(n) = decimals.as_mut() {
-                    if *n == MAX_DECIMALS {
-                        return Err(CommandError::BadNumber);
-                    }
-                    *n += 1;
-                }
-                value = times_ten(value)? + Milli::from(b - b'0');
-                if value > MAX_MILLI {
-                    return Err(CommandError::BadNumber);
-                }
-                any = true;
-            }
-            b'.' if decimals.is_none() => decimals = Some(0),
-            _ => return Err(CommandError::BadNumber),
+        if b == b'.' && !point {
+            point = true;
+            continue;
         }
+        let digit = b.wrapping_sub(b'0');
+        if digit > 9 {
+            return Err(CommandError::BadNumber);
+        }
+        let count = if point { &mut decimals } else { &mut integer };
+        *count += 1;
+        if integer > MAX_INTEGER_DIGITS || decimals > MAX_DECIMALS {
+            return Err(CommandError::BadNumber);
+        }
+        value = value * 10 + Milli::from(digit);
     }
-    if !any {
+    if integer + decimals == 0 {
         return Err(CommandError::BadNumber);
     }
-    for _ in decimals.unwrap_or(0)..MAX_DECIMALS {
-        value = times_ten(value)?;
+    for _ in decimals..MAX_DECIMALS {
+        value *= 10;
     }
     Ok(if negative { -value } else { value })
-}
-
-/// `10 · value` for `0 ≤ value`, refused above [`MAX_MILLI`].
-fn times_ten(value: Milli) -> Result<Milli, CommandError> {
-    if value > MAX_MILLI / 10 {
-        return Err(CommandError::BadNumber);
-    }
-    Ok(value * 10)
 }
 
 /// Assembles received bytes into lines: [`push`](Line::push) one byte at a time; a `\n` or
