@@ -28,7 +28,7 @@
 
 use ridge_core::ArxModel;
 use ridge_pump_firmware::event::{Event, LINE_MAX};
-use ridge_pump_firmware::selfid::{SelfIdentification, State, DEFAULT_CONFIG};
+use ridge_pump_firmware::selfid::{Config, SelfIdentification, State};
 use ridge_pump_firmware::setpoint::{self, Program, DEMO_BREATH, DEMO_HOLD_TICKS, DEMO_STEPS};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
 use ridge_pump_firmware::units::DUTY_FULL_SCALE;
@@ -94,6 +94,17 @@ pub fn steps_ticks() -> u32 {
 pub fn run_ticks() -> u32 {
     DEMO_HOLD_TICKS + steps_ticks() + BREATHS * breath_ticks()
 }
+
+/// The settings the experiment runs the firmware with: [`DEFAULT_CONFIG`](ridge_pump_firmware::selfid::DEFAULT_CONFIG) with the
+/// frozen-sensor check off (`frozen_ticks` 0). The noise-free replay's sensor
+/// ([`noise_free_sensor`]) reads the same word tick after tick once the loop has settled, which
+/// the check would take for a frozen sensor (`FAULT sensor=frozen`) and leave run mode; with
+/// the sensor's noise (σ ≥ 7 counts at 2 slm) 50 equal readings in a row do not happen, so the
+/// noisy runs are those of the default settings.
+pub static EXPERIMENT_CONFIG: Config = Config {
+    frozen_ticks: 0,
+    ..Config::DEFAULT
+};
 
 /// Ticks allowed for the identification and design before run mode (200 s).
 pub const IDENTIFY_MAX_TICKS: u32 = 20_000;
@@ -272,10 +283,19 @@ pub fn identify(
     plant: &PlantArgs,
     seed: u64,
 ) -> Result<(Rig, SelfIdentification, Switchover), ExperimentError> {
+    identify_with(plant, seed, &EXPERIMENT_CONFIG)
+}
+
+/// [`identify`] with the firmware's settings `config` instead of [`EXPERIMENT_CONFIG`].
+pub fn identify_with(
+    plant: &PlantArgs,
+    seed: u64,
+    config: &'static Config,
+) -> Result<(Rig, SelfIdentification, Switchover), ExperimentError> {
     let mut rig = plant
         .rig(Sfm3300Params::default(), seed)
         .map_err(ExperimentError::Plant)?;
-    let mut sm = SelfIdentification::new(&DEFAULT_CONFIG, None);
+    let mut sm = SelfIdentification::new(config, None);
     let mut duty = 0u16;
     let mut events = Vec::new();
     for tick in 0..IDENTIFY_MAX_TICKS {
@@ -406,7 +426,17 @@ fn run_all(
 /// from the switch-over (`zn`: the plant's Ziegler–Nichols tuning, from [`tune_zn`]), with the
 /// sensor's noise and again with a noise-free sensor.
 pub fn run_case(plant: &PlantArgs, seed: u64, zn: &ZnTuning) -> Result<CaseRun, ExperimentError> {
-    let (rig, sm, sw) = identify(plant, seed)?;
+    run_case_with(plant, seed, zn, &EXPERIMENT_CONFIG)
+}
+
+/// [`run_case`] with the firmware's settings `config` instead of [`EXPERIMENT_CONFIG`].
+pub fn run_case_with(
+    plant: &PlantArgs,
+    seed: u64,
+    zn: &ZnTuning,
+    config: &'static Config,
+) -> Result<CaseRun, ExperimentError> {
+    let (rig, sm, sw) = identify_with(plant, seed, config)?;
     let fopdt = fit_model(&sw.model, TS_S).ok_or(ExperimentError::Fopdt)?;
     let simc = simc_pi(&fopdt, TS_S).ok_or(ExperimentError::Fopdt)?;
     let traces = run_all(&rig, &sm, &sw, zn.gains, simc.gains)?;

@@ -18,10 +18,13 @@
 
 use std::fmt::Write as _;
 
+use ridge_pump_firmware::selfid::Config;
 use ridge_pump_firmware::setpoint::DEMO_BREATH;
 
-use super::experiment::{run_case, score, tune_zn, CaseRun, Controller, ExperimentError, Scores};
-use super::experiment::{ZnTuning, ZN_SEARCH};
+use super::experiment::{
+    run_case_with, score, tune_zn, CaseRun, Controller, ExperimentError, Scores,
+};
+use super::experiment::{ZnTuning, EXPERIMENT_CONFIG, ZN_SEARCH};
 use super::metrics::{mean_present, StepMetrics, SS_WINDOW_S};
 use super::simc::{Fopdt, Simc};
 use crate::{PlantArgs, Sfm3300Params};
@@ -149,10 +152,19 @@ pub fn summarise(runs: &[CaseRun], c: Controller) -> Option<Summary> {
 /// Runs `plant` for every seed in `seeds` (ZN tuning once, then [`run_case`] per seed) and
 /// summarises it.
 pub fn run_plant(plant: &PlantArgs, seeds: &[u64]) -> Result<PlantSummary, ExperimentError> {
+    run_plant_with(plant, seeds, &EXPERIMENT_CONFIG)
+}
+
+/// [`run_plant`] with the firmware's settings `config` instead of [`EXPERIMENT_CONFIG`].
+pub fn run_plant_with(
+    plant: &PlantArgs,
+    seeds: &[u64],
+    config: &'static Config,
+) -> Result<PlantSummary, ExperimentError> {
     let zn = tune_zn(plant)?;
     let runs = seeds
         .iter()
-        .map(|&s| run_case(plant, s, &zn))
+        .map(|&s| run_case_with(plant, s, &zn, config))
         .collect::<Result<Vec<_>, _>>()?;
     let row = |c| summarise(&runs, c).ok_or(ExperimentError::Score);
     let rows = [
