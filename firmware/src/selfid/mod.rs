@@ -248,8 +248,9 @@ pub struct SelfIdentification<S: Settings = &'static Config> {
     program: Program,
 }
 
-// RAM guard: 744 bytes on x86-64 (run mode is the largest phase: 624). The search itself runs on the
-// stack (ridge-core `Search::run_with_progress`).
+// RAM guard: 998 bytes on the ATmega2560 (the largest phase is the blocking search's normal
+// equations, 848 B, `prepare_search`; run mode is 617 B). The search's factors and candidates
+// are on the stack (ridge-core `Search::run_with_progress`).
 #[cfg(target_arch = "avr")]
 const _: () = assert!(core::mem::size_of::<SelfIdentification>() <= 4000);
 
