@@ -15,9 +15,9 @@
 //!
 //! Keywords and keys are case-insensitive; fields are separated by spaces. Numbers are decimals
 //! with an optional sign, at most [`MAX_INTEGER_DIGITS`] digits before the point and at most
-//! [`MAX_DECIMALS`] after it (`25`, `-0.5`, `12.125`). A line that does not parse answers `ERR <why>` (see [`CommandError::name`]) and
-//! changes nothing; so does a command the state machine refuses (a value out of range, `REID`
-//! in the fault state).
+//! [`MAX_DECIMALS`] after it (`25`, `-0.5`, `12.125`). A line that does not parse answers
+//! `ERR <why>` (see [`CommandError::name`]) and changes nothing; so does a command the state
+//! machine refuses (a value out of range, `REID` in the fault state).
 
 use crate::setpoint::Shape;
 

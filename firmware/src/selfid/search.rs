@@ -67,20 +67,28 @@ fn evaluate(
     pet: &mut impl FnMut(),
 ) -> Result<(ArxModel<f32>, SearchStats), RejectReason> {
     pet();
+    // Filled in place: `Gram::normal` would return the 848-byte statistics by value.
+    let mut normal = Normal::<f32>::empty();
+    normal_equations(rec, min_response, &mut normal)?;
+    pet();
+    select(&normal, rec.u0, rec.y0, search, pet)
+}
+
+/// The excitation check (response RMS at least `min_response`) and the normal equations of
+/// `rec` into `normal`, or why the record is refused.
+fn normal_equations(
+    rec: &Recording,
+    min_response: f32,
+    normal: &mut Normal<f32>,
+) -> Result<(), RejectReason> {
     let rms = rec.response_rms();
     if rms < min_response || rms.is_nan() {
         return Err(RejectReason::NotExcited { rms });
     }
-    // Filled in place: `Gram::normal` would return the 848-byte statistics by value.
-    let mut normal = Normal::<f32>::empty();
-    rec.gram
-        .normal_into(&SCALE, &mut normal)
-        .map_err(|e| match e {
-            ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
-            e => RejectReason::Search(e),
-        })?;
-    pet();
-    select(&normal, rec.u0, rec.y0, search, pet)
+    rec.gram.normal_into(&SCALE, normal).map_err(|e| match e {
+        ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
+        e => RejectReason::Search(e),
+    })
 }
 
 /// The pruned search on `normal` (deviations from the operating point `u0`, `y0`) and the
@@ -149,22 +157,15 @@ impl<S: Settings> SelfIdentification<S> {
         else {
             return;
         };
-        let rms = rec.response_rms();
-        if rms < self.settings.config().min_response || rms.is_nan() {
-            self.phase = Phase::SearchRefused(RejectReason::NotExcited { rms });
-            return;
-        }
         self.phase = Phase::SearchNormal {
             normal: Normal::empty(),
             u0: rec.u0,
             y0: rec.y0,
         };
         if let Phase::SearchNormal { normal, .. } = &mut self.phase {
-            if let Err(e) = rec.gram.normal_into(&SCALE, normal) {
-                self.phase = Phase::SearchRefused(match e {
-                    ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
-                    e => RejectReason::Search(e),
-                });
+            let min_response = self.settings.config().min_response;
+            if let Err(reason) = normal_equations(&rec, min_response, normal) {
+                self.phase = Phase::SearchRefused(reason);
             }
         }
     }
