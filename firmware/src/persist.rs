@@ -21,7 +21,7 @@
 //! version or CRC, an invalid structure or offset flag, non-zero unused slots and non-finite
 //! numbers. CRC-32 detects every single-bit and every burst error up to 32 bits.
 
-use ridge_core::{ArxModel, Offset, P_MAX, Q_MAX};
+use ridge_core::{ArxModel, Offset, Real, P_MAX, Q_MAX};
 
 /// Length of a record in bytes.
 pub const RECORD_LEN: usize = 69;
@@ -162,7 +162,7 @@ pub fn decode(bytes: &[u8]) -> Result<(ArxModel<f32>, f32), PersistError> {
     if !unused_zero {
         return Err(PersistError::Structure);
     }
-    if !fit.is_finite() {
+    if !Real::is_finite(fit) {
         return Err(PersistError::NonFinite);
     }
     let model = ArxModel::new(

@@ -17,6 +17,7 @@
 //! modulo, [`BreathWave`] instead of divisions), cheap enough for the 100 Hz tick.
 
 use crate::units::{SAMPLE_RATE_HZ, TS_S};
+use ridge_core::Real;
 
 /// The shape of the inspiratory flow.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -48,17 +49,17 @@ impl Breath {
     /// Why a profile is unusable, or `Ok`: positive finite rate and I:E, finite flows, a rise
     /// time from 0 to half the inspiration.
     pub fn check(&self) -> Result<(), &'static str> {
-        let ok = |x: f32| x.is_finite() && x > 0.0;
+        let ok = |x: f32| Real::is_finite(x) && x > 0.0;
         if !ok(self.rate) || self.rate > 60.0 {
             return Err("rate");
         }
         if !ok(self.ie) || self.ie > 10.0 {
             return Err("ie");
         }
-        if !self.peak.is_finite() || !self.bias.is_finite() {
+        if !Real::is_finite(self.peak) || !Real::is_finite(self.bias) {
             return Err("flow");
         }
-        if !self.rise.is_finite() || self.rise < 0.0 || self.rise > 0.5 * self.inspiration() {
+        if !Real::is_finite(self.rise) || self.rise < 0.0 || self.rise > 0.5 * self.inspiration() {
             return Err("rise");
         }
         Ok(())

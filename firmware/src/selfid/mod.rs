@@ -90,7 +90,7 @@ pub use search::{SearchJob, SearchOutcome};
 use core::mem::discriminant;
 
 use ridge_core::excitation::Excitation;
-use ridge_core::{ArxModel, Evaluation, IntGram, Normal};
+use ridge_core::{ArxModel, Evaluation, IntGram, Normal, Real};
 
 use crate::event::{Event, FaultReason, RejectReason, SensorFault, StoredReason};
 use crate::persist::{self, RECORD_LEN};
@@ -269,7 +269,7 @@ impl<S: Settings> SelfIdentification<S> {
             let (m, fit) = persist::decode(bytes).map_err(StoredReason::Record)?;
             ridge_core::control::check_model(&m, &config.control.model)
                 .map_err(StoredReason::Model)?;
-            if !fit.is_finite() || fit < config.min_fit {
+            if !Real::is_finite(fit) || fit < config.min_fit {
                 return Err(StoredReason::Fit {
                     fit,
                     min: config.min_fit,
@@ -754,7 +754,9 @@ impl<S: Settings> SelfIdentification<S> {
         };
         let model = *model;
         let (free, one) = match (eval.free_run(), eval.one_step()) {
-            (Some(f), Some(o)) if f.fit.is_finite() && f.rmse.is_finite() && o.rmse.is_finite() => {
+            (Some(f), Some(o))
+                if Real::is_finite(f.fit) && Real::is_finite(f.rmse) && Real::is_finite(o.rmse) =>
+            {
                 (f, o)
             }
             _ => return self.reject(RejectReason::NonFinite),
