@@ -16,8 +16,9 @@
 //! same code. [`Setpoint`] produces the same values incrementally (a phase counter instead of a
 //! modulo, [`BreathWave`] instead of divisions), cheap enough for the 100 Hz tick.
 
-use crate::units::{SAMPLE_RATE_HZ, TS_S};
 use ridge_core::Real;
+
+use crate::units::{SAMPLE_RATE_HZ, TS_S};
 
 /// The shape of the inspiratory flow.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
