@@ -32,6 +32,16 @@ pub fn write<W: ufmt::uWrite>(w: &mut W) {
         (3, 5, 2, 7),
         (1 << 40, 1 << 30, 1, 1),
         (45168016793, 45268477322, 45163815969, 45163815969),
+        // Signs (the magnitudes and the negations of the exact products), zero products, a
+        // second product alone: the byte form passed its second pair on the stack once.
+        (-3, 5, 2, -7),
+        (0, 0, 2, 7),
+        (0, 0, -2, 7),
+        (1, 1, 1, 1),
+        (256, 1, 0, 0),
+        (-(1 << 40), 1 << 30, -5, -7),
+        (-45168016793, -45268477322, 45163815969, -45163815969),
+        (-i64::MAX, i64::MAX, i64::MAX, -i64::MAX),
     ] {
         let (hi, lo, f) = ridge_core::wide::probe(&a, &b, &c, &d);
         let _ = ufmt::uwriteln!(

@@ -158,14 +158,20 @@ impl Accumulator for i64 {
     fn schur<T: Real>(s11: &i64, sab: &i64, sa1: &i64, sb1: &i64) -> Result<T> {
         // Exact: |S| < 2^63 (capacity), so both products are below 2^126 and their
         // difference fits in 128 bits.
-        let num = Wide::mul(*s11, *sab).sub(Wide::mul(*sa1, *sb1));
+        let mut num = Wide::product(s11, sab);
+        num.sub_product(sa1, sb1);
         Ok(num.to_real::<T>() / T::from_i64(*s11))
     }
     fn rounding(_: u32, _: i64) -> f64 {
         0.0
     }
+    // Inlined: out of line its 20 bytes of arguments are more than the AVR argument
+    // registers hold, and the ATmega2560 build reads arguments passed on the stack one byte
+    // off (see `wide.rs`; `avr-stack-args` checks the images).
+    #[inline(always)]
     fn is_constant(n: u32, sum: i64, sum_sq: i64) -> bool {
-        let var = Wide::mul(i64::from(n), sum_sq).sub(Wide::mul(sum, sum));
+        let mut var = Wide::product(&i64::from(n), &sum_sq);
+        var.sub_product(&sum, &sum);
         var.is_negative() || var.is_zero()
     }
     #[inline]
@@ -428,50 +434,28 @@ impl<A: Accumulator> Gram<A> {
             (Col::One, c) | (c, Col::One) => self.column_sum(c),
             // Each arm subtracts `Σ_{m<i} a_{N-m} b_{N-m-k}`, what the running correlation at
             // lag `k` holds beyond the rows where the earlier column is still inside the
-            // record. The loops are spelled out per history pair on purpose: on AVR the
-            // current backend miscompiled a shared helper taking two slices (the tail came
-            // out zero) and one taking two flags (the wrong history was read); found with
-            // `scripts/avr-arith-check`.
+            // record ([`tail`]).
             (Col::Y(i), Col::Y(j)) => {
                 let (i, k) = lag_pair(i, j);
-                let mut tail = A::default();
-                for m in 0..i {
-                    if let (Some(&a), Some(&b)) = (self.y_hist.get(m), self.y_hist.get(m + k)) {
-                        tail = tail.plus(A::product(a, b));
-                    }
-                }
+                let tail = tail::<A>(&self.y_hist, &self.y_hist, i, k);
                 self.yy.get(k).copied().unwrap_or_default().minus(tail)
             }
             (Col::U(i), Col::U(j)) => {
                 let (i, k) = lag_pair(i, j);
-                let mut tail = A::default();
-                for m in 0..i {
-                    if let (Some(&a), Some(&b)) = (self.u_hist.get(m), self.u_hist.get(m + k)) {
-                        tail = tail.plus(A::product(a, b));
-                    }
-                }
+                let tail = tail::<A>(&self.u_hist, &self.u_hist, i, k);
                 self.uu.get(k).copied().unwrap_or_default().minus(tail)
             }
             (Col::Y(i), Col::U(j)) | (Col::U(j), Col::Y(i)) => {
                 let (i, j) = (usize::from(i), usize::from(j));
-                let mut tail = A::default();
                 if i <= j {
                     // Σ y_s u_{s-k}, truncated: the output lag is the earlier column.
                     let k = j - i;
-                    for m in 0..i {
-                        if let (Some(&a), Some(&b)) = (self.y_hist.get(m), self.u_hist.get(m + k)) {
-                            tail = tail.plus(A::product(a, b));
-                        }
-                    }
+                    let tail = tail::<A>(&self.y_hist, &self.u_hist, i, k);
                     self.yu.get(k).copied().unwrap_or_default().minus(tail)
                 } else {
                     // Σ u_s y_{s-k}, truncated: the input lag is the earlier column.
                     let k = i - j;
-                    for m in 0..j {
-                        if let (Some(&a), Some(&b)) = (self.u_hist.get(m), self.y_hist.get(m + k)) {
-                            tail = tail.plus(A::product(a, b));
-                        }
-                    }
+                    let tail = tail::<A>(&self.u_hist, &self.y_hist, j, k);
                     self.uy.get(k - 1).copied().unwrap_or_default().minus(tail)
                 }
             }
@@ -553,6 +537,24 @@ impl<A: Accumulator> Rows<A> for Gram<A> {
     fn sum(&self, a: Col, b: Col) -> A {
         self.entry(a, b)
     }
+}
+
+/// `Σ_{m<n} a_m b_{m+k}` over two lag histories (most recent sample first): the edge terms
+/// a running correlation at lag `k` holds beyond the rows of an entry (see the module docs).
+///
+/// One function for the four history pairs of [`Gram::entry`]. Its arguments (two slices, two
+/// counts: 12 bytes) fit in the AVR argument registers: earlier shared forms of this loop were
+/// miscompiled on the ATmega2560 (the tail came out zero, or the wrong history was read), the
+/// pattern of arguments passed on the stack, which that build reads one byte off (see
+/// `wide.rs`); `scripts/avr-arith-check` compares the entries with the host's.
+fn tail<A: Accumulator>(a: &[A::Sample], b: &[A::Sample], n: usize, k: usize) -> A {
+    let mut sum = A::default();
+    for m in 0..n {
+        if let (Some(&x), Some(&y)) = (a.get(m), b.get(m + k)) {
+            sum = sum.plus(A::product(x, y));
+        }
+    }
+    sum
 }
 
 /// The body of [`Gram::normal_into`] for any [`Rows`] (inlined into each caller: the
