@@ -17,6 +17,18 @@
 //!
 //! Not handled, and reported when present: indirect calls (`icall`, `eicall`, `ijmp`,
 //! `eijmp`), recursion.
+//!
+//! **Stack arguments** ([`StackAnalysis::stack_arguments`]): a function that reads or writes
+//! `Y+q` above its own frame (pushes and reserved bytes), with Y the stack pointer its prologue
+//! copied, uses arguments its caller passed on the stack. The rustc nightly used here
+//! addresses them one byte too low on the ATmega2560: it allows two bytes for the return
+//! address where the 22-bit program counter pushes three. Measured: `Wide::mul_sub(&i64 ×
+//! 4)`, whose references the compiler turned into four `i64` values (32 bytes, more than the
+//! 18 argument registers r8–r25 hold), read its last two values one byte off and computed
+//! wrong differences (`scripts/avr-arith-check`); the integer Gram's `is_constant(u32, i64,
+//! i64)` read its last argument the same way on main until 2026-11-24. Covered: slots
+//! `Y+1 … Y+63` reached without moving Y; a frame so large that its arguments are only
+//! reachable after moving Y is not checked.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -42,6 +54,20 @@ pub struct Function {
     pub late_pushes: u32,
     /// Indirect calls or jumps.
     pub indirect: u32,
+    /// Whether the prologue copied the stack pointer into Y (a frame pointer).
+    pub frame_pointer: bool,
+    /// Bytes between Y and the return address: pushes plus the reserved frame.
+    pub below_return: u32,
+    /// The highest `Y+q` a `ldd`/`std` uses (0 for none).
+    pub highest_slot: u32,
+}
+
+impl Function {
+    /// Whether it reads or writes above its own frame through the frame pointer: arguments
+    /// its caller passed on the stack (see the module docs).
+    pub fn uses_stack_arguments(&self) -> bool {
+        self.frame_pointer && self.highest_slot > self.below_return
+    }
 }
 
 /// A deepest call path: total bytes and `(function, own frame)` from the root down.
@@ -67,6 +93,9 @@ pub struct StackAnalysis {
     pub indirect: BTreeSet<String>,
     /// Functions with a `push` after the prologue (frame possibly underestimated).
     pub late_pushes: BTreeSet<String>,
+    /// Functions that use arguments passed on the stack (miscompiled on the ATmega2560, see
+    /// the module docs).
+    pub stack_arguments: BTreeSet<String>,
 }
 
 impl StackAnalysis {
@@ -108,18 +137,34 @@ pub fn parse(disassembly: &str) -> BTreeMap<String, Function> {
         index += 1;
         let in_prologue = index <= PROLOGUE;
         match mnemonic {
-            "push" if in_prologue => f.own += 1,
+            "push" if in_prologue => {
+                f.own += 1;
+                f.below_return += 1;
+            }
             "push" => f.late_pushes += 1,
             "rcall" if operands.starts_with(".+0") && in_prologue => f.own += RETURN_ADDRESS,
-            "in" if in_prologue && operands.starts_with("r29, 0x3e") => sp_in_y = true,
-            "subi" if sp_in_y && operands.starts_with("r28,") => f.own += immediate(operands),
+            "in" if in_prologue && operands.starts_with("r29, 0x3e") => {
+                sp_in_y = true;
+                f.frame_pointer = true;
+            }
+            "subi" if sp_in_y && operands.starts_with("r28,") => {
+                f.own += immediate(operands);
+                f.below_return += immediate(operands);
+            }
             "sbci" if sp_in_y && operands.starts_with("r29,") => {
                 f.own += 256 * immediate(operands);
+                f.below_return += 256 * immediate(operands);
                 sp_in_y = false;
             }
             "sbiw" if sp_in_y && operands.starts_with("r28,") => {
                 f.own += immediate(operands);
+                f.below_return += immediate(operands);
                 sp_in_y = false;
+            }
+            "ldd" | "std" => {
+                if let Some(q) = y_slot(operands) {
+                    f.highest_slot = f.highest_slot.max(q);
+                }
             }
             "icall" | "eicall" | "ijmp" | "eijmp" => f.indirect += 1,
             _ => {}
@@ -149,6 +194,9 @@ pub fn analyze(disassembly: &str) -> StackAnalysis {
         }
         if f.late_pushes > 0 {
             analysis.late_pushes.insert(name.clone());
+        }
+        if f.uses_stack_arguments() {
+            analysis.stack_arguments.insert(name.clone());
         }
     }
     let mut memo: BTreeMap<String, CallPath> = BTreeMap::new();
@@ -273,6 +321,13 @@ pub(crate) fn target_address(line: &str) -> Option<u32> {
     u32::from_str_radix(hex, 16).ok()
 }
 
+/// The displacement of a `Y+q` operand: `r24, Y+53` (ldd) or `Y+53, r24` (std) → 53.
+fn y_slot(operands: &str) -> Option<u32> {
+    let rest = operands.split_once("Y+")?.1;
+    let digits: &str = rest.split(|c: char| !c.is_ascii_digit()).next()?;
+    digits.parse().ok()
+}
+
 /// `r28, 0x5B` → 0x5B; `r28, 91` → 91.
 fn immediate(operands: &str) -> u32 {
     let v = operands
@@ -347,6 +402,40 @@ mod tests {
         assert_eq!(r.interrupt.bytes, 6);
         assert_eq!(r.worst(), r.main.bytes + 6);
         assert!(r.complete());
+    }
+
+    /// Arguments above the frame: `args` (2 pushes, 4 reserved) reads `Y+7`, the first byte
+    /// above its 6; `inside` reads its own top slot `Y+6`; `pointer` uses Y as a plain
+    /// pointer (no frame pointer), where `Y+20` is a field, not a stack slot.
+    #[test]
+    fn reads_above_the_frame_are_stack_arguments() {
+        let image = "\
+00000100 <args>:
+     100:\t0f 93 \tpush\tr16
+     102:\tcf 93 \tpush\tr28
+     104:\tcd b7 \tin\tr28, 0x3d\t; 61
+     106:\tde b7 \tin\tr29, 0x3e\t; 62
+     108:\t24 97 \tsbiw\tr28, 0x04\t; 4
+     10a:\t8f 81 \tldd\tr24, Y+7\t; 0x07
+     10c:\t08 95 \tret
+00000200 <inside>:
+     200:\t0f 93 \tpush\tr16
+     202:\tcf 93 \tpush\tr28
+     204:\tcd b7 \tin\tr28, 0x3d\t; 61
+     206:\tde b7 \tin\tr29, 0x3e\t; 62
+     208:\t24 97 \tsbiw\tr28, 0x04\t; 4
+     20a:\t8e 83 \tstd\tY+6, r24\t; 0x06
+     20c:\t08 95 \tret
+00000300 <pointer>:
+     300:\tec 01 \tmovw\tr28, r24
+     302:\t8c 89 \tldd\tr24, Y+20\t; 0x14
+     304:\t08 95 \tret
+";
+        let funcs = parse(image);
+        assert_eq!(funcs["args"].below_return, 6);
+        assert_eq!(funcs["args"].highest_slot, 7);
+        let r = analyze(image);
+        assert_eq!(r.stack_arguments, BTreeSet::from(["args".to_string()]));
     }
 
     #[test]

@@ -2,8 +2,10 @@
 //! `simavr_harness::stack`), and the SRAM budget check: static RAM + worst-case stack.
 //!
 //! Usage: `avr-stack ELF [--budget BYTES] [--path]`; exits 1 when static RAM + stack exceeds
-//! the budget (default 6144) or the analysis is incomplete (recursion, indirect calls), 2 on
-//! a usage error or an ELF that cannot be read or disassembled.
+//! the budget (default 6144), the analysis is incomplete (recursion, indirect calls) or a
+//! function uses arguments passed on the stack (read one byte off on the ATmega2560, see
+//! `simavr_harness::stack`), 2 on a usage error or an ELF that cannot be read or
+//! disassembled.
 
 use clap::Parser;
 use simavr_harness::firmware::sizes;
@@ -57,6 +59,13 @@ fn main() -> ExitCode {
         eprintln!(
             "avr-stack: incomplete bound: recursion {:?}, indirect calls {:?}, pushes past the prologue {:?}",
             analysis.recursive, analysis.indirect, analysis.late_pushes
+        );
+        ok = false;
+    }
+    if !analysis.stack_arguments.is_empty() {
+        eprintln!(
+            "avr-stack: arguments passed on the stack (addressed one byte off on the ATmega2560): {:?}",
+            analysis.stack_arguments
         );
         ok = false;
     }
