@@ -33,10 +33,11 @@ use std::path::PathBuf;
 use std::rc::Rc;
 
 use crate::bus::{self, BusState, SdaHold};
-use crate::machine::{Halt, IrqEvent, Machine, UartByte};
+use crate::machine::{Halt, IrqEvent, Machine, UartByte, UartInput};
 use crate::pwm::{self, Channel};
 use crate::report::{Line, LineSplitter};
 use crate::sensor::{Fault, SensorState, Sfm3300Slave};
+use crate::uart::{SendId, SerialLine, Transmission, UartTiming, BAUD};
 use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
 
 /// Plant sub-steps per 10 ms sample (0.5 ms each: the SFM3300 update period).
@@ -67,11 +68,13 @@ pub struct BenchConfig {
     pub tick_vector: Option<u8>,
     /// EEPROM contents to program before reset (offset, bytes).
     pub eeprom: Vec<(u16, Vec<u8>)>,
+    /// How USART0's frames are timed (transmit and receive; [`crate::uart`]).
+    pub uart_timing: UartTiming,
 }
 
 impl BenchConfig {
     /// ATmega2560 at 16 MHz, default pump and sensor, seed 1, OC4A (the board's pump PWM),
-    /// TIMER3_COMPA tick.
+    /// TIMER3_COMPA tick, simavr's own UART timing.
     pub fn new(elf: impl Into<PathBuf>) -> Self {
         Self {
             elf: elf.into(),
@@ -86,6 +89,7 @@ impl BenchConfig {
             }),
             tick_vector: Some(TIMER3_COMPA),
             eeprom: Vec::new(),
+            uart_timing: UartTiming::Simavr,
         }
     }
 }
@@ -327,9 +331,9 @@ pub enum Action {
     HoldSda(SdaHold),
 }
 
-/// The closed-loop bench: the simulated MCU running the firmware, its UART transcript, the
-/// simulated SFM3300 on its TWI bus and the blower model on its PWM pin, with the timing meter
-/// (see the module docs). Time is the core's cycle counter; [`Bench::time_s`] in seconds.
+/// The closed-loop bench: the simulated MCU running the firmware, its UART transcript, a serial
+/// line into its USART0 ([`crate::uart`]), the simulated SFM3300 on its TWI bus and the blower
+/// model on its PWM pin, with the timing meter (see the module docs). Time is the core's cycle counter; [`Bench::time_s`] in seconds.
 pub struct Bench {
     /// The simulated MCU.
     pub machine: Machine,
@@ -361,6 +365,9 @@ pub struct Bench {
     schedule: Vec<(u64, Action)>,
     ticks: TickMeter,
     halted: Option<Halt>,
+    /// The serial line into USART0 and its schedule.
+    serial: SerialLine,
+    uart_in: UartInput,
 }
 
 impl std::fmt::Debug for Bench {
@@ -415,7 +422,13 @@ impl Bench {
             ..TickMeter::default()
         };
         let step_cycles = u64::from(cfg.frequency) / 2_000;
+        let uart_in = machine.uart_input('0')?;
+        if cfg.uart_timing == UartTiming::Chip {
+            machine.uart_chip_timing('0')?;
+        }
         Ok(Self {
+            serial: SerialLine::new(cfg.frequency, BAUD),
+            uart_in,
             uart: machine.uart0(),
             machine,
             sensor,
@@ -584,7 +597,11 @@ impl Bench {
             return RunEnd::Halted(h);
         }
         while self.machine.cycle() < target {
-            let chunk_end = self.next_step.min(target);
+            self.serial.deliver(self.machine.cycle(), &self.uart_in);
+            let chunk_end = self
+                .next_step
+                .min(target)
+                .min(self.serial.next_due().unwrap_or(u64::MAX));
             while self.machine.cycle() < chunk_end {
                 let executed = self.machine.pc();
                 let h = self.machine.step();
@@ -608,6 +625,10 @@ impl Bench {
             let new = self.drain_uart();
             if new > 0 {
                 let first = self.lines.len() - new;
+                let now = self.machine.cycle();
+                for l in &self.lines[first..] {
+                    self.serial.on_line(l, now);
+                }
                 for i in first..self.lines.len() {
                     if stop(&self.lines[i]) {
                         return RunEnd::Line(i);
@@ -622,6 +643,47 @@ impl Bench {
     pub fn run_for(&mut self, seconds: f64) -> RunEnd {
         let t = self.time_s() + seconds;
         self.run_until(t, |_| false)
+    }
+
+    /// Sends `bytes` on the serial line into USART0 from simulated time `at_s` (seconds since
+    /// reset) on, or as soon as the line is free (see [`crate::uart`]). A command line needs its
+    /// `\n`.
+    pub fn send_at(&mut self, at_s: f64, bytes: impl Into<Vec<u8>>) -> SendId {
+        let at = self.cycles(at_s);
+        self.serial.send_at(at, bytes)
+    }
+
+    /// Sends `bytes` from core cycle `at` on (or as soon as the line is free).
+    pub fn serial_at_cycle(&mut self, at: u64, bytes: impl Into<Vec<u8>>) -> SendId {
+        self.serial.send_at(at, bytes)
+    }
+
+    /// Sends `bytes` from now on (or as soon as the line is free).
+    pub fn send_now(&mut self, bytes: impl Into<Vec<u8>>) -> SendId {
+        let at = self.machine.cycle();
+        self.serial.send_at(at, bytes)
+    }
+
+    /// Sends `bytes` `delay_s` seconds after the end of the first UART line from now on whose
+    /// text `matches` accepts (checked as lines complete while the bench runs).
+    pub fn send_after(
+        &mut self,
+        matches: impl FnMut(&str) -> bool + 'static,
+        delay_s: f64,
+        bytes: impl Into<Vec<u8>>,
+    ) -> SendId {
+        let delay = self.cycles(delay_s);
+        self.serial.send_after(matches, delay, bytes)
+    }
+
+    /// The transmission `id` (its bytes, when each went out, bytes lost).
+    pub fn sent(&self, id: SendId) -> &Transmission {
+        self.serial.get(id)
+    }
+
+    /// The serial line into USART0.
+    pub fn serial(&self) -> &SerialLine {
+        &self.serial
     }
 
     /// Tick timings measured so far (empty until the idle loop has been learned, i.e. the first

@@ -19,6 +19,9 @@
 //!   prints and the tests check).
 //! - [`tracking`]: run mode rebuilt tick by tick from the bench (setpoint, duty, flow),
 //!   checked against the firmware's `TRACK` lines and scored ([`tracking::RunTrace`]).
+//! - [`uart`]: a serial line into USART0 (commands to the firmware's console at 115 200
+//!   baud, scheduled at a cycle or after a line the firmware printed); [`Bench::send_at`](bench::Bench::send_at),
+//!   [`Bench::send_after`](bench::Bench::send_after).
 //! - [`stack`]: worst-case stack from the image's call graph ([`stack::StackAnalysis`], what
 //!   `avr-stack` prints).
 
@@ -33,3 +36,4 @@ pub mod sensor;
 pub mod session;
 pub mod stack;
 pub mod tracking;
+pub mod uart;

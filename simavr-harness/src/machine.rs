@@ -310,6 +310,141 @@ impl ExternalPins {
     }
 }
 
+/// What became of a byte handed to a UART's receiver ([`UartInput::send`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Delivery {
+    /// In simavr's input FIFO: the receiver raises RXC for it one frame time after the FIFO
+    /// was last empty (or after the byte before it).
+    Queued,
+    /// The firmware had the receiver off (`RXENn` = 0): the byte is lost, as on the chip.
+    ReceiverOff,
+    /// simavr's 64-entry input FIFO was full (it had signalled `UART_IRQ_OUT_XOFF`): the byte is
+    /// lost and `DORn` set. (The chip has a 2-byte FIFO; a firmware that reads `UDRn` in its
+    /// receive interrupt never lets simavr's fill.)
+    FifoFull,
+}
+
+/// simavr's `UART_IRQ_OUT_XOFF`: 1 when the UART's input FIFO is full, 0 when it has room.
+unsafe extern "C" fn on_xoff(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
+    // SAFETY: `param` is the `Rc<Cell<bool>>` leaked in `Machine::uart_input`; it lives until
+    // the core is freed.
+    let full = unsafe { &*(param as *const Rc<Cell<bool>>) };
+    full.set(value != 0);
+}
+
+/// The receive side of one UART, seen from the wire: hands bytes to simavr's UART input IRQ
+/// (`UART_IRQ_INPUT`) as the line delivers them (see [`crate::uart`] for the line's timing).
+/// Clones share the FIFO-full flag. Does nothing once its [`Machine`] is dropped.
+#[derive(Clone)]
+pub struct UartInput {
+    avr: *mut ffi::avr_t,
+    alive: Rc<Cell<bool>>,
+    input: *mut ffi::avr_irq_t,
+    /// simavr's input FIFO is full (last `UART_IRQ_OUT_XOFF` value).
+    full: Rc<Cell<bool>>,
+    /// Data-space address of `UCSRnB` (receiver enable `RXENn`, bit 4).
+    ucsrb: u16,
+}
+
+impl std::fmt::Debug for UartInput {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("UartInput")
+            .field("ucsrb", &self.ucsrb)
+            .field("fifo_full", &self.full.get())
+            .finish()
+    }
+}
+
+/// `RXENn` in `UCSRnB` (ATmega2560 datasheet, USART register description).
+const RXEN: u8 = 1 << 4;
+
+impl UartInput {
+    /// Whether the firmware has the receiver on (`RXENn` in `UCSRnB`).
+    pub fn receiver_enabled(&self) -> bool {
+        if !self.alive.get() {
+            return false;
+        }
+        // SAFETY: live core; `ucsrb` is an I/O register below RAMEND.
+        unsafe { *(*self.avr).data.add(self.ucsrb.into()) & RXEN != 0 }
+    }
+
+    /// Whether simavr's input FIFO is full (it signalled XOFF and not XON since).
+    pub fn fifo_full(&self) -> bool {
+        self.full.get()
+    }
+
+    /// Hands `byte` to the receiver now (its start bit is on the line now; simavr raises RXC
+    /// one frame time later, see [`crate::uart`]).
+    pub fn send(&self, byte: u8) -> Delivery {
+        if !self.receiver_enabled() {
+            return Delivery::ReceiverOff;
+        }
+        if self.full.get() {
+            // simavr drops it and sets DORn: raise it anyway so that the firmware sees the
+            // overrun flag as it would on the chip.
+            // SAFETY: live core (checked above); the input IRQ of the same core.
+            unsafe { ffi::avr_raise_irq(self.input, u32::from(byte)) };
+            return Delivery::FifoFull;
+        }
+        // SAFETY: as above.
+        unsafe { ffi::avr_raise_irq(self.input, u32::from(byte)) };
+        Delivery::Queued
+    }
+}
+
+/// Data-space address of `UCSRnA` of USART `id` (`'0'` … `'3'`) on the ATmega2560 (datasheet,
+/// register summary); `UCSRnB`, `UCSRnC`, `UBRRnL`, `UBRRnH`, `UDRn` follow at +1, +2, +4,
+/// +5, +6.
+pub fn uart_base(id: char) -> Option<u16> {
+    Some(match id {
+        '0' => 0xC0,
+        '1' => 0xC8,
+        '2' => 0xD0,
+        '3' => 0x130,
+        _ => return None,
+    })
+}
+
+/// A post-write hook on a UART's frame registers (see [`Machine::uart_chip_timing`]).
+struct FrameHook {
+    uart: *mut ffi::avr_uart_t,
+    /// `UCSRnA`'s address.
+    base: u16,
+    /// The handler that owned the register before (simavr's UART, or none).
+    original: ffi::avr_io_write_t,
+    original_param: *mut c_void,
+}
+
+impl FrameHook {
+    /// Sets simavr's frame time from the registers as the chip times its frames.
+    ///
+    /// # Safety
+    /// `avr` and `self.uart` are the live core and its UART.
+    unsafe fn apply(&self, avr: *mut ffi::avr_t) {
+        // SAFETY: the registers are I/O addresses below RAMEND; `uart` is live (caller).
+        unsafe {
+            let reg = |k: u16| *(*avr).data.add(usize::from(self.base + k));
+            let ubrr = u16::from_le_bytes([reg(4), reg(5) & 0x0F]);
+            (*self.uart).cycles_per_byte =
+                crate::uart::chip_frame_cycles(ubrr, reg(0), reg(1), reg(2));
+        }
+    }
+}
+
+unsafe extern "C" fn on_frame_write(avr: *mut ffi::avr_t, addr: u16, v: u8, param: *mut c_void) {
+    // SAFETY: `param` is the `FrameHook` installed by `Machine::uart_chip_timing`; simavr calls
+    // it from the core's register write on this thread.
+    let hook = unsafe { &*(param as *const FrameHook) };
+    match hook.original {
+        // SAFETY: the handler and its parameter as simavr registered them.
+        Some(c) => unsafe { c(avr, addr, v, hook.original_param) },
+        // SAFETY: `addr` is an I/O register below RAMEND (checked at installation).
+        None => unsafe { *(*avr).data.add(addr.into()) = v },
+    }
+    // SAFETY: the live core calling us, and its UART.
+    unsafe { hook.apply(avr) };
+}
+
 /// simavr's raw run loop calls `avr->sleep` while the core sleeps, which paces the host to real
 /// time (`usleep`). The harness wants simulated time only.
 unsafe extern "C" fn no_sleep(_avr: *mut ffi::avr_t, _how_long: ffi::avr_cycle_count_t) {}
@@ -459,6 +594,76 @@ impl Machine {
                 sink: self.uart0.clone(),
             });
             ffi::avr_irq_register_notify(irq, Some(on_uart), hook.cast());
+        }
+        Ok(())
+    }
+
+    /// The receive side of UART `id` (`'0'` … `'3'`: USART0 … USART3 of the ATmega2560), to
+    /// send it bytes from outside ([`UartInput::send`]).
+    pub fn uart_input(&mut self, id: char) -> Result<UartInput, String> {
+        let ucsrb = uart_base(id).ok_or_else(|| format!("no UART{id}"))? + 1;
+        let avr = self.raw();
+        let ctl = ioctl(b'u', b'a', b'r', id as u8);
+        let full = Rc::new(Cell::new(false));
+        // SAFETY: IRQ look-ups on a valid core; the flag outlives the core's use of it.
+        unsafe {
+            let input = ffi::avr_io_getirq(avr, ctl, ffi::UART_IRQ_INPUT as _);
+            let xoff = ffi::avr_io_getirq(avr, ctl, ffi::UART_IRQ_OUT_XOFF as _);
+            if input.is_null() || xoff.is_null() {
+                return Err(format!("no UART{id} input IRQ"));
+            }
+            let flag = self.leak(full.clone());
+            ffi::avr_irq_register_notify(xoff, Some(on_xoff), flag.cast());
+            Ok(UartInput {
+                avr,
+                alive: self.alive.clone(),
+                input,
+                full,
+                ucsrb,
+            })
+        }
+    }
+
+    /// Makes simavr time UART `id`'s frames as the chip does, from now on and after every
+    /// write to its frame registers (`UBRRnL/H`, `UCSRnA/B/C`): `(UBRR + 1) · (U2X ? 8 : 16)`
+    /// cycles a bit and start + data + parity + stop bits a frame
+    /// ([`crate::uart::chip_frame_cycles`]). simavr itself recomputes its frame time only when
+    /// `UBRRnL` is written, so a `U2Xn` set afterwards (as the firmware does) is not seen, and
+    /// counts a parity bit in every frame: at `UBRR0 = 16` with U2X it transmits and receives a
+    /// byte every 2 992 cycles instead of the chip's 1 360.
+    pub fn uart_chip_timing(&mut self, id: char) -> Result<(), String> {
+        let base = uart_base(id).ok_or_else(|| format!("no UART{id}"))?;
+        let avr = self.raw();
+        let want = ioctl(b'u', b'a', b'r', id as u8);
+        // SAFETY: walks simavr's list of I/O modules of a valid core; a module whose IRQs are
+        // the UART's is an `avr_uart_t` (its `avr_io_t` is the first member).
+        let uart = unsafe {
+            let mut io = (*avr).io_port;
+            while !io.is_null() && (*io).irq_ioctl_get != want {
+                io = (*io).next;
+            }
+            io.cast::<ffi::avr_uart_t>()
+        };
+        if uart.is_null() {
+            return Err(format!("no UART{id} module"));
+        }
+        for k in [0u16, 1, 2, 4, 5] {
+            let io = usize::from(base + k - 32);
+            // SAFETY: `io` is within `avr->io`; the hook outlives the core's use of it.
+            unsafe {
+                let slot = &mut (*avr).io[io].w;
+                let hook = self.leak(FrameHook {
+                    uart,
+                    base,
+                    original: slot.c,
+                    original_param: slot.param,
+                });
+                slot.c = Some(on_frame_write);
+                slot.param = hook.cast();
+                if k == 0 {
+                    (*hook).apply(avr);
+                }
+            }
         }
         Ok(())
     }
