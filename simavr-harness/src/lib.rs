@@ -22,11 +22,13 @@
 //! - [`uart`]: a serial line into USART0 (commands to the firmware's console at 115 200
 //!   baud, scheduled at a cycle or after a line the firmware printed); [`Bench::send_at`](bench::Bench::send_at),
 //!   [`Bench::send_after`](bench::Bench::send_after).
+//! - [`capture`]: the firmware's UART output as the CSV `ridge-id capture` writes (its log).
 //! - [`stack`]: worst-case stack from the image's call graph ([`stack::StackAnalysis`], what
 //!   `avr-stack` prints).
 
 pub mod bench;
 pub mod bus;
+pub mod capture;
 pub mod firmware;
 pub mod machine;
 pub mod pwm;

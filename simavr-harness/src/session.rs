@@ -197,16 +197,21 @@ pub struct SessionConfig {
     /// After `ACCEPT` or `LOADED`: run on until the controller is designed (`CTRL`, or a
     /// `FAULT`), then this many seconds of run mode; 0 stops after the linger.
     pub track_s: f64,
+    /// Send `LOG on` (the console's CSV log, one row per tick) once the firmware has printed
+    /// its first line, as `ridge-id capture --send "LOG on"` does; [`crate::capture`] then
+    /// writes what it streamed.
+    pub log: bool,
 }
 
 impl SessionConfig {
-    /// Default plant, seed 1, 200 s limit, 0.5 s linger, no run mode.
+    /// Default plant, seed 1, 200 s limit, 0.5 s linger, no run mode, log off.
     pub fn new(elf: impl Into<std::path::PathBuf>) -> Self {
         Self {
             bench: BenchConfig::new(elf),
             max_s: 200.0,
             linger_s: 0.5,
             track_s: 0.0,
+            log: false,
         }
     }
 }
@@ -221,6 +226,9 @@ fn is_final(l: &Line) -> bool {
 pub fn run(cfg: &SessionConfig) -> Result<Outcome, String> {
     let sizes = firmware::sizes(&cfg.bench.elf)?;
     let mut bench = Bench::new(cfg.bench.clone())?;
+    if cfg.log {
+        bench.send_after(|_| true, 0.0, b"LOG on\n".to_vec());
+    }
     let t0 = Instant::now();
     let end = bench.run_until(cfg.max_s, is_final);
     if let RunEnd::Line(i) = end {

@@ -2,7 +2,8 @@
 //! lung) and SFM3300 (the main command, `scripts/simulate`, calls this) and prints what the
 //! firmware identified, how good the model is, the controller it designed and how it tracked
 //! its setpoint program, the cycle figures, flash and RAM; writes a PNG of measured vs model
-//! flow, a PNG of setpoint vs flow, and with `--trace` a per-tick CSV.
+//! flow, a PNG of setpoint vs flow, with `--trace` a per-tick CSV, and with `--log` the console's
+//! CSV log as `ridge-id capture` writes it.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -10,10 +11,12 @@ use std::process::ExitCode;
 use clap::Parser;
 use pump_sim::baseline::experiment::run_ticks;
 use pump_sim::PlantArgs;
+use ridge_id::capture::{classify, Kind};
 use ridge_pump_firmware::excitation::Record;
-use simavr_harness::firmware;
 use simavr_harness::session::{self, IdLine, Outcome, SessionConfig, TICK_CYCLES};
 use simavr_harness::tracking::RunTrace;
+use simavr_harness::uart::UartTiming;
+use simavr_harness::{capture, firmware};
 
 /// Power-up self-identification of the ATmega2560 firmware in simavr (16 MHz), closed loop
 /// with a simulated SFM3300 (TWI 0x40) and blower.
@@ -49,6 +52,24 @@ struct Args {
     /// Print every UART line as it arrives.
     #[arg(long)]
     lines: bool,
+    /// Send `LOG on` to the console once the firmware printed its first line and write what it
+    /// streamed to PATH as `ridge-id capture` does (header `t,u,y,r,phase`, one row per tick,
+    /// every other line as a `# ` comment); `ridge-id identify --input PATH --device` reads it.
+    #[arg(long, value_name = "PATH")]
+    log: Option<PathBuf>,
+    /// USART0 frame timing: `simavr` (simavr's own, 2 992 cycles a byte with the firmware's
+    /// settings, 2.2 times slower than the chip) or `chip` (the datasheet's, 1 360 cycles).
+    #[arg(long, value_enum, default_value = "simavr")]
+    uart_timing: Timing,
+}
+
+/// `--uart-timing` (see `simavr_harness::uart::UartTiming`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Timing {
+    /// simavr's own frame time.
+    Simavr,
+    /// The chip's frame time.
+    Chip,
 }
 
 /// Excitation preset of the fresh host-side validation signal (a record the firmware neither
@@ -98,6 +119,11 @@ fn main() -> ExitCode {
         }
     };
     cfg.track_s = args.track_s.unwrap_or(f64::from(run_ticks()) * 0.01 + 0.5);
+    cfg.log = args.log.is_some();
+    cfg.bench.uart_timing = match args.uart_timing {
+        Timing::Simavr => UartTiming::Simavr,
+        Timing::Chip => UartTiming::Chip,
+    };
     println!(
         "simavr: ATmega2560 @ 16 MHz, {}, {}, sensor seed {}",
         elf.display(),
@@ -111,7 +137,17 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    print_outcome(&args, &cfg, &out)
+    let mut status = print_outcome(&args, &cfg, &out);
+    if let Some(path) = &args.log {
+        match capture::write_capture(&out.bench, path) {
+            Ok(c) => println!("\n== log\n  {} ({c})", path.display()),
+            Err(e) => {
+                println!("\n== log\n  failed: {e}");
+                status = ExitCode::FAILURE;
+            }
+        }
+    }
+    status
 }
 
 fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
@@ -121,10 +157,10 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
             println!("  [{:8.3} s] {}", l.cycle as f64 / 16e6, l.text);
         }
     } else {
-        println!("firmware lines (events):");
+        println!("firmware lines (events; log rows left out):");
         for l in bench.lines.iter().filter(|l| {
             let k = l.text.split_whitespace().next().unwrap_or("");
-            !matches!(k, "RES")
+            !matches!(k, "RES") && classify(l.text.as_bytes()) != Kind::Row
         }) {
             println!("  [{:8.3} s] {}", l.cycle as f64 / 16e6, l.text);
         }
