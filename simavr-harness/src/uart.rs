@@ -268,8 +268,8 @@ mod tests {
             chip_frame_cycles(16, 0x00, 0x98, 0x06 | 0x20 | 0x08),
             12 * 272
         );
-        // 9 data bits (UCSZ = 7), 1 stop.
-        assert_eq!(chip_frame_cycles(0, 0x02, 0x04, 0x06), 8 * 12);
+        // 9 data bits (UCSZ = 7), no parity, 1 stop: 11 bits of 8 cycles.
+        assert_eq!(chip_frame_cycles(0, 0x02, 0x04, 0x06), 8 * 11);
     }
 
     #[test]
