@@ -43,13 +43,12 @@
 //! then (the state machine follows after the search); any other command waits for the end of
 //! the search. With the log on, each tick appends its [`LogRow`] after the PWM write.
 
-use crate::command::{Command, CommandError, Line, ProfileArgs};
+use crate::command::{Command, CommandError, Line};
 use crate::console::{LogRow, ModelLine, RstLine, Status, LOG_HEADER, LOG_ROW_MAX};
 use crate::event::{Event, FaultReason, SensorFault};
 use crate::persist::RECORD_LEN;
 use crate::pump::Pump;
 use crate::selfid::{Config, Guard, SelfIdentification, Settings, State};
-use crate::setpoint::{Breath, DEMO_BREATH};
 use crate::sfm3300::Sfm3300;
 use embedded_hal::i2c::I2c;
 use embedded_hal::pwm::SetDutyCycle;
@@ -380,7 +379,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
                 .map_err(CommandError::Range),
             Ok(Command::Profile(args)) => self
                 .sid
-                .set_breath(&breath(&args))
+                .set_profile(&args)
                 .map(|()| "profile")
                 .map_err(CommandError::Range),
             Ok(Command::Reid) => match self.sid.state() {
@@ -725,19 +724,5 @@ fn wait_tick(board: &mut impl Board) -> (u16, bool) {
         if let Some(elapsed) = board.poll_tick() {
             return (elapsed, false);
         }
-    }
-}
-
-/// The breath of a `PROFILE` command: the values given, the demo breath's for the others.
-fn breath(args: &ProfileArgs) -> Breath {
-    let value = |v: Option<i32>, default: f32| v.map_or(default, |m| m as f32 / 1000.0);
-    let d = DEMO_BREATH;
-    Breath {
-        shape: args.shape,
-        rate: value(args.rate, d.rate),
-        ie: value(args.ie, d.ie),
-        peak: value(args.peak, d.peak),
-        bias: value(args.bias, d.bias),
-        rise: value(args.rise, d.rise),
     }
 }

@@ -819,6 +819,71 @@ fn profile_runs_the_breath_it_names() {
     assert!(best < 1e-3, "largest difference from the breath {best}");
 }
 
+/// The limits themselves are accepted, each the breath it names: half the inspiration (1 s at
+/// 20 /min, 1:2; 5 s at 4 /min, 1:0.5), 60 /min, I:E 1:10, 0 and 250 slm (the flow limit).
+#[test]
+fn profile_limits_are_accepted() {
+    use ridge_pump_firmware::setpoint::{Breath, BreathWave, Program, Shape};
+    let (_w, uart, mut board, mut app) = running();
+    for (line, shape, rate, ie, peak, bias, rise) in [
+        (
+            "PROFILE square rise=0.5\n",
+            Shape::Square,
+            20.0,
+            2.0,
+            60.0,
+            10.0,
+            0.5,
+        ),
+        (
+            "PROFILE ramp rate=4 ie=0.5 rise=5\n",
+            Shape::Ramp,
+            4.0,
+            0.5,
+            60.0,
+            10.0,
+            5.0,
+        ),
+        (
+            "PROFILE square rate=60 ie=10 rise=0\n",
+            Shape::Square,
+            60.0,
+            10.0,
+            60.0,
+            10.0,
+            0.0,
+        ),
+        (
+            "PROFILE ramp peak=250 bias=0\n",
+            Shape::Ramp,
+            20.0,
+            2.0,
+            250.0,
+            0.0,
+            0.3,
+        ),
+    ] {
+        assert_eq!(
+            ask(&mut board, &mut app, &uart, line),
+            "OK profile",
+            "{line:?}"
+        );
+        let b = Breath {
+            shape,
+            rate,
+            ie,
+            peak,
+            bias,
+            rise,
+        };
+        assert_eq!(
+            app.selfid().program(),
+            Program::Breath(BreathWave::new(&b)),
+            "{line:?}"
+        );
+    }
+}
+
 #[test]
 fn bad_commands_answer_err_and_change_nothing() {
     let (_w, uart, mut board, mut app) = running();
@@ -833,6 +898,15 @@ fn bad_commands_answer_err_and_change_nothing() {
         ("SET flow=40 now\n", "ERR field"),
         ("FLY\n", "ERR unknown"),
         ("PROFILE square rise=5\n", "ERR range rise"),
+        // Half the inspiration of 20 /min at 1:2 (T_i = 1 s) is 0.5 s; 4 /min at 1:0.5 gives 5 s.
+        ("PROFILE square rise=0.501\n", "ERR range rise"),
+        ("PROFILE ramp rate=4 ie=0.5 rise=5.001\n", "ERR range rise"),
+        ("PROFILE square rise=-0.001\n", "ERR range rise"),
+        ("PROFILE square rate=60.001\n", "ERR range rate"),
+        ("PROFILE square ie=0\n", "ERR range ie"),
+        ("PROFILE square ie=10.001\n", "ERR range ie"),
+        ("PROFILE square peak=250.001\n", "ERR range flow"),
+        ("PROFILE square bias=-0.001\n", "ERR range flow"),
         ("PROFILE square rate=0\n", "ERR range rate"),
         ("PROFILE sine\n", "ERR field"),
         ("PROFILE square peak\n", "ERR field"),
