@@ -158,7 +158,8 @@ mod image {
         uwriteln!(
             out,
             "BOOT board=atmega2560 reset={} record={}",
-            reset_cause,
+            // As u32: the image's one integer formatter (u8's is another 178 B here).
+            u32::from(reset_cause),
             if stored.is_some() { "stored" } else { "none" }
         )
         .ok();
