@@ -167,7 +167,7 @@ impl Accumulator for i64 {
     }
     // Inlined: out of line its 20 bytes of arguments are more than the AVR argument
     // registers hold, and the ATmega2560 build reads arguments passed on the stack one byte
-    // off (see `wide.rs`; `avr-stack-args` checks the images).
+    // off (see `wide.rs`; `avr-stack` checks the images).
     #[inline(always)]
     fn is_constant(n: u32, sum: i64, sum_sq: i64) -> bool {
         let mut var = Wide::product(&i64::from(n), &sum_sq);

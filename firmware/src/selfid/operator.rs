@@ -53,21 +53,11 @@ impl<S: Settings> SelfIdentification<S> {
         Ok(())
     }
 
-    /// Run mode tracks `breath` (now, or from its start). `Err(<setting>)` (nothing changes)
-    /// when [`Breath::check`] refuses it or a flow is outside 0 ..= the flow limit (`"flow"`).
-    pub fn set_breath(&mut self, breath: &Breath) -> Result<(), &'static str> {
-        breath.check()?;
-        self.check_flow(breath.peak)?;
-        self.check_flow(breath.bias)?;
-        self.use_program(Program::Breath(BreathWave::new(breath)));
-        Ok(())
-    }
-
     /// Run mode tracks the breath of a `PROFILE` command: the values given, [`DEMO_BREATH`]'s
-    /// for the keys left out. The checks of [`set_breath`](Self::set_breath), exactly, in
-    /// thousandths (`Err("rate" | "ie" | "rise" | "flow")`, nothing changes): 0 < rate ≤ 60 /min,
-    /// 0 < ie ≤ 10, 0 ≤ rise ≤ half the inspiration `30 / (rate · (1 + ie))` s, both flows in 0
-    /// ..= the flow limit. Integer tests instead of [`Breath::check`] on the converted values:
+    /// for the keys left out. Checked exactly, in thousandths (`Err("rate" | "ie" | "rise" |
+    /// "flow")`, nothing changes): 0 < rate ≤ 60 /min, 0 < ie ≤ 10, 0 ≤ rise ≤ half the
+    /// inspiration `30 / (rate · (1 + ie))` s ([`Breath::check`]'s bounds), both flows in 0 ..=
+    /// the flow limit. Integer tests instead of [`Breath::check`] on the converted values:
     /// 0.3 KB less of the ATmega2560's flash, and no rounding at the limits.
     pub fn set_profile(&mut self, args: &ProfileArgs) -> Result<(), &'static str> {
         let rate = args.rate.unwrap_or(const { milli(DEMO_BREATH.rate) });
