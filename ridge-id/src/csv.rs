@@ -19,7 +19,7 @@
 //! The parsing is the `csv` crate's ([`Reference`]); [`CsvRecord`] reads the common rows —
 //! one line, no double quote, ASCII — itself, which the `csv` crate would split on the
 //! commas alone, and hands the rest of the input to [`Reference`] at the first row that is
-//! not such a line (a quote, a non-ASCII byte, a line longer than its 64 KiB buffer): the
+//! not such a line (a quote, a non-ASCII byte, a line whose end is not within 64 KiB): the
 //! results, errors included, are the `csv` crate's, which a test checks on arbitrary bytes.
 //! This module adds the column lookup, the checks and the messages. Rows are read one at a
 //! time into reused buffers, so a record of any length streams in constant memory. Errors
@@ -49,7 +49,8 @@ pub const MAX_LINE: u64 = 1 << 20;
 /// Most characters of a cell or a header quoted in an error message.
 pub const QUOTE_CHARS: usize = 80;
 
-/// Bytes [`CsvRecord`] buffers (64 KiB): the longest line it reads itself.
+/// Bytes of each read, [`CsvRecord`]'s and the `csv` crate's (64 KiB): [`CsvRecord`] reads a
+/// line itself when it finds its end within this many bytes.
 const BUFFER: usize = 1 << 16;
 
 /// `text` as a quoted string for a message: `"abc"` (Rust string syntax, so control
@@ -164,7 +165,13 @@ impl<R: Read> Read for Rest<R> {
     }
 }
 
-/// The plain-line reader: a 64 KiB buffer over the input, the lines consumed so far.
+/// The plain-line reader: a buffer over the input, the lines consumed so far.
+///
+/// It reads as the `csv` crate's reader does — [`BUFFER`] bytes asked for, and only once
+/// the bytes read before are used up (the part of a line they end with is kept) — so that
+/// after a switch the input sees the same reads, and fails or ends on the same one, as
+/// under [`Reference`] alone. Hence twice [`BUFFER`]: the kept part, shorter than
+/// [`BUFFER`], and one read.
 #[derive(Debug)]
 struct Lines<R> {
     inner: R,
@@ -205,7 +212,7 @@ impl<R: Read> Lines<R> {
     fn new(inner: R) -> Self {
         Lines {
             inner,
-            buf: vec![0; BUFFER].into_boxed_slice(),
+            buf: vec![0; 2 * BUFFER].into_boxed_slice(),
             start: 0,
             end: 0,
             eof: false,
@@ -220,8 +227,8 @@ impl<R: Read> Lines<R> {
     }
 
     /// The next line, scanned ([`scan`], cells `want` located), reading more input as
-    /// needed; `None` at the end of the input, for a line longer than the buffer and for a
-    /// non-ASCII first byte of the input. Errors: the input cannot be read (on the line being
+    /// needed; `None` at the end of the input, for a line whose end is not within [`BUFFER`]
+    /// bytes and for a non-ASCII first byte of the input. Errors: the input cannot be read (on the line being
     /// read, as the `csv` crate says).
     fn next_line(&mut self, path: &Path, want: [usize; 2]) -> Result<Option<Scan>, IdError> {
         loop {
@@ -236,7 +243,7 @@ impl<R: Read> Lines<R> {
             if line.ended || (self.eof && line.len > 0) {
                 return Ok(Some(line));
             }
-            if self.eof || unread.len() == self.buf.len() {
+            if self.eof || unread.len() >= BUFFER {
                 return Ok(None);
             }
             self.buf.copy_within(self.start..self.end, 0);
@@ -244,7 +251,7 @@ impl<R: Read> Lines<R> {
             self.start = 0;
             let n = self
                 .inner
-                .read(&mut self.buf[self.end..])
+                .read(&mut self.buf[self.end..self.end + BUFFER])
                 .map_err(|source| IdError::Io {
                     path: path.to_path_buf(),
                     line: Some(self.line),

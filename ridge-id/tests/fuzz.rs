@@ -218,6 +218,21 @@ fn same_as_reference(text: &[u8], (sizes, fail_after): &Pieces) {
     assert_eq!(ours, csv, "input {:?}", String::from_utf8_lossy(text));
 }
 
+/// A case the property above found: a last row longer than the 64 KiB buffer, without a
+/// line end, and the input failing on the read after it ended (the `csv` crate never makes
+/// that read: the row's bytes end the input).
+#[test]
+fn csv_reader_long_last_row_then_failing_input() {
+    let mut text = b"t,u,y\n1,2,".to_vec();
+    text.extend(std::iter::repeat_n(b'5', 68_081));
+    for fail_after in [Some(1), Some(2), Some(3), None] {
+        same_as_reference(&text, &(vec![usize::MAX], fail_after));
+        same_as_reference(&text, &(vec![7, 30_000], fail_after));
+    }
+    text.push(b'\n');
+    same_as_reference(&text, &(vec![usize::MAX], Some(2)));
+}
+
 /// One of `texts`, owned.
 fn one_of(texts: &[&'static str]) -> impl Strategy<Value = String> + Clone {
     prop::sample::select(texts.to_vec()).prop_map(String::from)
