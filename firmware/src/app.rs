@@ -36,12 +36,16 @@
 //! | `OK <command>` / `ERR <why>` | the answer to a console command ([`crate::command`]) |
 //!
 //! # Console
-//! Received bytes are assembled into lines after each tick's PWM write (at most one command
-//! per pass) and executed at once ([`crate::command`], answers in [`crate::console`]): `STOP`
-//! writes duty 0 to the PWM in the same pass. While a blocking search or design runs, the
-//! watch keeps reading the receiver at every tick boundary: a `STOP` stops the pump there and
-//! then (the state machine follows after the search); any other command waits for the end of
-//! the search. With the log on, each tick appends its [`LogRow`] after the PWM write.
+//! While the loop waits for a tick it moves received bytes into the console's line (no
+//! parsing there): a completed `STOP` stops the state machine and writes duty 0 to the PWM at
+//! once, within microseconds of its last byte when the loop is idle and at the end of the
+//! pass otherwise. Any other line is held (further bytes wait in the receive queue) and
+//! executed after the next tick's PWM write, at most one command per pass, once the transmit
+//! queue has [`ANSWER_ROOM`] bytes free ([`crate::command`], answers in [`crate::console`]).
+//! While a blocking search or design runs, the watch keeps collecting bytes at every tick
+//! boundary: a `STOP` stops the pump there and then (the state machine follows after the
+//! search); any other command waits for the end of the search. With the log on, each tick
+//! appends its [`LogRow`] after the PWM write.
 
 use crate::command::{Command, CommandError, Line};
 use crate::console::{LogRow, ModelLine, RstLine, Status, LOG_HEADER, LOG_ROW_MAX};
@@ -53,6 +57,12 @@ use crate::sfm3300::Sfm3300;
 use embedded_hal::i2c::I2c;
 use embedded_hal::pwm::SetDutyCycle;
 use ufmt::{uWrite, uwriteln};
+
+/// Free bytes the transmit queue must have before the console answers a command, so that the
+/// answer goes out without the loop waiting for the line: more than the longest answer line
+/// of a model of orders p, q ≤ 6 (`MODEL` ~180 bytes; its `RST` line comes in a later pass,
+/// under the same condition). A longer line waits for the rest at 11.5 bytes per ms.
+pub const ANSWER_ROOM: usize = 200;
 
 /// Ticks over which [`App::start`] retries *start continuous measurement* (1 s: covers the
 /// sensor's power-up time when the MCU starts faster than the sensor).
@@ -108,7 +118,9 @@ pub trait Board {
     fn receive(&mut self) -> Option<u8> {
         None
     }
-    /// Whether received bytes were lost since the last call (the receive queue was full).
+    /// Whether received bytes were lost since the last call (the receive queue was full). A
+    /// board that marks the place in its queue instead ([`crate::command::LOST`], the
+    /// ATmega2560) keeps the default `false`.
     fn receive_overrun(&mut self) -> bool {
         false
     }
@@ -129,8 +141,9 @@ pub trait Board {
 pub struct Console {
     /// The line being received.
     line: Line,
-    /// A command received during a blocking search, executed after it.
-    pending: Option<Result<Command, CommandError>>,
+    /// `MODEL` was answered and its `RST` line (if a controller is in use then) waits for room
+    /// in the transmit queue.
+    rst_due: bool,
     /// Tick boundaries since the start (the log's time base).
     clock: u32,
     /// Whether the CSV log is on.
@@ -145,7 +158,7 @@ impl Console {
     pub const fn new() -> Self {
         Console {
             line: Line::new(),
-            pending: None,
+            rst_due: false,
             clock: 0,
             log: false,
             dropped: 0,
@@ -238,7 +251,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
     /// One pass: wait for the tick, then do that tick's work (and the search if due).
     #[inline(never)]
     pub fn step<B: Board>(&mut self, board: &mut B) {
-        let (elapsed, late) = wait_tick(board);
+        let (elapsed, late) = self.wait(board);
         board.pet();
         if late {
             self.late = self.late.saturating_add(1);
@@ -330,16 +343,49 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
         }
     }
 
-    /// Reads the console: a command left over from a blocking search, else received bytes
-    /// up to the end of one line, which is executed at once.
+    /// Answers the console, once the transmit queue has [`ANSWER_ROOM`] bytes free: the `RST`
+    /// line of a `MODEL` answered before, else the command of the line the wait completed,
+    /// executed at once.
     #[inline(never)]
     fn serve(&mut self, board: &mut impl Board) {
-        let pending = match board.console() {
-            Some(c) => c.pending.take(),
-            None => return,
-        };
-        if let Some(command) = pending.or_else(|| receive_line(board)) {
+        if board.console().is_none() || board.tx_room() < ANSWER_ROOM {
+            return;
+        }
+        if let Some(c) = board.console().filter(|c| c.rst_due) {
+            c.rst_due = false;
+            if let Some(ctrl) = self.sid.controller() {
+                uwriteln!(self.out, "{}", RstLine(ctrl.rst())).ok();
+            }
+            return;
+        }
+        if let Some(c) = board.console().filter(|c| c.line.is_complete()) {
+            let command = c.line.take();
             self.execute(board, command);
+        }
+    }
+
+    /// `STOP`: the state machine stops (latched until `START`) and the pump's PWM goes to 0.
+    #[inline(never)]
+    fn halt(&mut self) {
+        self.sid.stop();
+        self.pump.stop().ok();
+    }
+
+    /// Waits for the next tick boundary: `(boundaries passed, already passed on entry)`.
+    /// Meanwhile it moves received console bytes into the console's line ([`listen`]): a
+    /// `STOP` completed there stops the state machine and the pump at once (its answer comes
+    /// with the next pass); any other line waits for the next pass's [`serve`](Self::serve).
+    fn wait<B: Board>(&mut self, board: &mut B) -> (u16, bool) {
+        if let Some(elapsed) = board.poll_tick() {
+            return (elapsed, true);
+        }
+        loop {
+            if let Some(elapsed) = board.poll_tick() {
+                return (elapsed, false);
+            }
+            if listen(board) {
+                self.halt();
+            }
         }
     }
 
@@ -360,8 +406,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
                 return;
             }
             Ok(Command::Stop) => {
-                self.sid.stop();
-                self.pump.stop().ok();
+                self.halt();
                 if self.sid.state() == State::Fault {
                     Err(CommandError::State)
                 } else {
@@ -394,8 +439,8 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
                     model: self.sid.model().zip(self.sid.fit()),
                 };
                 uwriteln!(self.out, "{}", model).ok();
-                if let Some(ctrl) = self.sid.controller() {
-                    uwriteln!(self.out, "{}", RstLine(ctrl.rst())).ok();
+                if let Some(c) = board.console() {
+                    c.rst_due = true;
                 }
                 return;
             }
@@ -534,7 +579,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
                 ticks
             };
             c.clock = c.clock.wrapping_add(u32::from(watched) + u32::from(lost));
-            if c.pending == Some(Ok(Command::Stop)) {
+            if c.line.is_complete() && c.line.is_stop() {
                 // The watch stopped the pump; the state machine follows now (the answer in
                 // the next pass).
                 self.sid.stop();
@@ -658,38 +703,52 @@ impl<'a, I: I2c, P: SetDutyCycle, B: Board> Watch<'a, I, P, B> {
 }
 
 impl<I: I2c, P: SetDutyCycle, B: Board> Watch<'_, I, P, B> {
-    /// The console during a blocking search: one command is kept for after it; a `STOP`
-    /// stops the pump now.
+    /// The console during a blocking search: received bytes go into the console's line, which
+    /// is held for after it; a `STOP` stops the pump now.
     fn console(&mut self) {
-        if self.board.console().is_none_or(|c| c.pending.is_some()) {
-            return;
-        }
-        let Some(command) = receive_line(self.board) else {
-            return;
-        };
-        if command == Ok(Command::Stop) {
+        if listen(self.board) {
             self.pump.stop().ok();
             self.applied = 0;
-        }
-        if let Some(c) = self.board.console() {
-            c.pending = Some(command);
         }
     }
 }
 
-/// Reads received bytes into the console's line up to the end of one line: its command (or
-/// why it is none). `None` when no line was completed (or the board has no console). A
-/// receiver overrun marks the line in progress as damaged first.
-fn receive_line(board: &mut impl Board) -> Option<Result<Command, CommandError>> {
-    if board.receive_overrun() {
-        board.console()?.line.overrun();
+/// Moves received bytes into the console's line until it holds a complete line (then they
+/// wait in the receive queue); `true` when the line completed now is `STOP`. A receiver
+/// overrun the board reports marks the line in progress as damaged. No parsing: a few dozen
+/// cycles per byte. Inlined up to the first byte: in the loop's idle wait, where it runs
+/// between polls of the tick, an empty queue costs a dozen instructions.
+#[inline(always)]
+fn listen(board: &mut impl Board) -> bool {
+    if board.console().is_none_or(|c| c.line.is_complete()) {
+        return false;
     }
-    while let Some(byte) = board.receive() {
-        if let Some(command) = board.console()?.line.push(byte) {
-            return Some(command);
+    match board.receive() {
+        Some(byte) => listen_from(board, byte),
+        None => false,
+    }
+}
+
+/// [`listen`] from the received `byte` on.
+#[inline(never)]
+fn listen_from(board: &mut impl Board, mut byte: u8) -> bool {
+    if board.receive_overrun() {
+        if let Some(c) = board.console() {
+            c.line.overrun();
         }
     }
-    None
+    loop {
+        let Some(c) = board.console() else {
+            return false;
+        };
+        if c.line.feed(byte) {
+            return c.line.is_stop();
+        }
+        match board.receive() {
+            Some(b) => byte = b,
+            None => return false,
+        }
+    }
 }
 
 /// The blocking work the loop runs between ticks.

@@ -21,6 +21,11 @@
 
 use crate::setpoint::Shape;
 
+/// The byte a receiver puts in its queue where it lost bytes (its queue was full, or a
+/// framing or overrun error): the line it falls in answers [`CommandError::Overrun`]. A NUL
+/// is no part of a command.
+pub const LOST: u8 = 0;
+
 /// Longest accepted line, bytes without the terminator (the longest valid command with every
 /// key and 3 decimals is 72 bytes).
 pub const MAX_LINE: usize = 80;
@@ -260,6 +265,8 @@ pub struct Line {
     len: u8,
     /// What the line in progress will answer instead of being parsed.
     damaged: Option<CommandError>,
+    /// A line end completed the line, held until [`Line::take`].
+    complete: bool,
 }
 
 impl Default for Line {
@@ -275,24 +282,41 @@ impl Line {
             buf: [0; MAX_LINE],
             len: 0,
             damaged: None,
+            complete: false,
         }
     }
 
     /// Adds `byte`; at a line end returns the line's command (or why it is none) and starts a
-    /// new line. Empty lines return `None` (a `\r\n` ends one line, not two).
+    /// new line. Empty lines return `None` (a `\r\n` ends one line, not two). The same as
+    /// [`feed`](Line::feed) then [`take`](Line::take).
     pub fn push(&mut self, byte: u8) -> Option<Result<Command, CommandError>> {
+        if self.feed(byte) {
+            return Some(self.take());
+        }
+        None
+    }
+
+    /// Adds `byte` without parsing: `true` when it completes a line that is not blank, which
+    /// is then held until [`take`](Line::take) (bytes fed meanwhile start no new line: they
+    /// are dropped and the held line answers [`CommandError::TooLong`]). A few dozen cycles on
+    /// the ATmega2560, so that the main loop can collect bytes while it waits for a tick.
+    pub fn feed(&mut self, byte: u8) -> bool {
+        if self.complete {
+            self.damaged.get_or_insert(CommandError::TooLong);
+            return false;
+        }
+        if byte == LOST {
+            self.damaged = Some(CommandError::Overrun);
+            return false;
+        }
         if byte == b'\n' || byte == b'\r' {
-            let len = usize::from(self.len);
-            let damaged = self.damaged.take();
-            self.len = 0;
-            if let Some(e) = damaged {
-                return Some(Err(e));
+            let blank = self.text().iter().all(|&b| b == b' ' || b == b'\t');
+            if blank && self.damaged.is_none() {
+                self.len = 0;
+                return false;
             }
-            let line = self.buf.get(..len).unwrap_or_default();
-            if line.iter().all(|&b| b == b' ' || b == b'\t') {
-                return None;
-            }
-            return Some(parse(line));
+            self.complete = true;
+            return true;
         }
         match self.buf.get_mut(usize::from(self.len)) {
             Some(slot) => {
@@ -303,7 +327,49 @@ impl Line {
                 self.damaged.get_or_insert(CommandError::TooLong);
             }
         }
-        None
+        false
+    }
+
+    /// Whether a complete line is held (see [`feed`](Line::feed)).
+    pub fn is_complete(&self) -> bool {
+        self.complete
+    }
+
+    /// Whether the held line is `STOP` (the one command [`parse`] reads from it, without
+    /// parsing: case-insensitive, blanks around it), so that it can act before the line is
+    /// parsed. `false` for a damaged line.
+    pub fn is_stop(&self) -> bool {
+        let blank = |b: &u8| *b == b' ' || *b == b'\t';
+        let mut text = self.text();
+        while let [first, rest @ ..] = text {
+            if !blank(first) {
+                break;
+            }
+            text = rest;
+        }
+        while let [rest @ .., last] = text {
+            if !blank(last) {
+                break;
+            }
+            text = rest;
+        }
+        self.damaged.is_none() && eq(text, b"STOP")
+    }
+
+    /// The held line's command (or why it is none), and starts a new line.
+    pub fn take(&mut self) -> Result<Command, CommandError> {
+        let command = match self.damaged.take() {
+            Some(e) => Err(e),
+            None => parse(self.text()),
+        };
+        self.len = 0;
+        self.complete = false;
+        command
+    }
+
+    /// The bytes of the line so far.
+    fn text(&self) -> &[u8] {
+        self.buf.get(..usize::from(self.len)).unwrap_or_default()
     }
 
     /// The receiver lost bytes: the line in progress answers [`CommandError::Overrun`].

@@ -59,9 +59,23 @@ impl<const N: usize> Ring<N> {
         }
         // SAFETY: slot `head` is free (not in tail..head) and only the producer writes free
         // slots; see the `Sync` impl.
-        unsafe { (*self.buf.get())[usize::from(head)] = byte };
+        unsafe { (*self.buf.get())[usize::from(head & Self::MASK)] = byte };
         self.head.store(next, Ordering::Release);
         true
+    }
+
+    /// Producer only, on a full queue: overwrites the newest byte (a receiver marks lost
+    /// bytes there). Does nothing on an empty queue. The consumer reads the oldest byte, which
+    /// on a full queue of `N ≥ 4` is not the newest.
+    pub fn replace_newest(&self, byte: u8) {
+        let head = self.head.load(Ordering::Relaxed);
+        if head == self.tail.load(Ordering::Acquire) {
+            return;
+        }
+        let newest = head.wrapping_sub(1) & Self::MASK;
+        // SAFETY: slot `newest` is written by the producer only; the consumer is at `tail`,
+        // another slot unless the queue holds one byte (then it may read the old or new value).
+        unsafe { (*self.buf.get())[usize::from(newest)] = byte };
     }
 
     /// Free slots: bytes that [`push`](Self::push) would take now. Producer side only.
@@ -83,7 +97,9 @@ impl<const N: usize> Ring<N> {
             return None;
         }
         // SAFETY: slot `tail` is filled and only the consumer reads filled slots.
-        let byte = unsafe { (*self.buf.get())[usize::from(tail)] };
+        // (`& MASK` changes no index, all are below `N`: it lets the compiler drop the bounds
+        // check and its panic path.)
+        let byte = unsafe { (*self.buf.get())[usize::from(tail & Self::MASK)] };
         self.tail
             .store(tail.wrapping_add(1) & Self::MASK, Ordering::Release);
         Some(byte)

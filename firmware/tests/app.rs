@@ -17,7 +17,7 @@ use std::rc::Rc;
 
 use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, NoAcknowledgeSource, Operation};
 use embedded_hal::pwm::{self, SetDutyCycle};
-use ridge_pump_firmware::app::{App, Board, Console, START_TICKS};
+use ridge_pump_firmware::app::{App, Board, Console, ANSWER_ROOM, START_TICKS};
 use ridge_pump_firmware::persist;
 use ridge_pump_firmware::pump::Pump;
 use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, DEFAULT_CONFIG};
@@ -734,6 +734,80 @@ fn stop_turns_the_pump_off_in_the_same_pass_until_start() {
     assert!(w.borrow().pwm > 0);
     // START while running changes nothing.
     assert_eq!(ask(&mut board, &mut app, &uart, "START\n"), "ERR state");
+}
+
+/// A `STOP` that arrives while the loop waits for the next tick stops the pump there, one poll
+/// after its last byte and before the boundary; the answer comes with the next pass.
+#[test]
+fn stop_received_while_waiting_stops_the_pump_before_the_next_tick() {
+    let (w, uart, mut board, mut app) = running();
+    mean_flow(&mut board, &mut app, &w, 200);
+    assert!(w.borrow().pwm > 0);
+    // The last byte arrives 6 ms into the interval, after this pass's work.
+    let (now, boundary) = (w.borrow().clock, w.borrow().last_boundary);
+    let arrival = boundary + 6_000;
+    assert!(now < arrival, "the pass ran {} µs", now - boundary);
+    board.send("STOP\n", arrival - now);
+    w.borrow_mut().pwm_log.clear();
+    app.step(&mut board);
+    let log = w.borrow().pwm_log.clone();
+    let (t, counts) = log.first().copied().expect("a PWM write");
+    assert_eq!(counts, 0, "the first write is the stop: {log:?}");
+    assert!(
+        t >= arrival && t <= arrival + POLL_US && t < boundary + TICK_US,
+        "PWM 0 at {} µs, STOP at {} µs, boundary at {} µs",
+        t - boundary,
+        arrival - boundary,
+        TICK_US
+    );
+    assert_eq!(app.selfid().state(), State::Stopped);
+    assert!(uart.lines().iter().any(|l| l == "OK stop"));
+}
+
+/// A command is executed only when the transmit queue has [`ANSWER_ROOM`] bytes free (so its
+/// answer never makes the loop wait for the line), and `MODEL`'s `RST` line comes in a later
+/// pass under the same condition; the line waits meanwhile.
+#[test]
+fn answers_wait_for_room_in_the_transmit_queue() {
+    let (_w, uart, mut board, mut app) = running();
+    let from = uart.lines().len();
+    let answers = |uart: &Uart| -> Vec<String> {
+        uart.lines()[from..]
+            .iter()
+            .filter(|l| l.starts_with("MODEL ") || l.starts_with("RST "))
+            .cloned()
+            .collect()
+    };
+    board.room = ANSWER_ROOM - 1;
+    board.send("MODEL\n", 0);
+    for _ in 0..50 {
+        app.step(&mut board);
+    }
+    assert!(answers(&uart).is_empty(), "{:?}", answers(&uart));
+    board.room = ANSWER_ROOM;
+    app.step(&mut board);
+    let got = answers(&uart);
+    assert!(got.len() == 1 && got[0].starts_with("MODEL p="), "{got:?}");
+    board.room = ANSWER_ROOM - 1;
+    for _ in 0..50 {
+        app.step(&mut board);
+    }
+    assert_eq!(answers(&uart).len(), 1);
+    board.room = ANSWER_ROOM;
+    app.step(&mut board);
+    let got = answers(&uart);
+    assert!(
+        got.len() == 2 && got[1].starts_with("RST r=1.000000,"),
+        "{got:?}"
+    );
+    // Nothing else was waiting.
+    board.room = usize::MAX;
+    assert_eq!(
+        ask(&mut board, &mut app, &uart, "STATUS\n")
+            .split(' ')
+            .next(),
+        Some("STATUS")
+    );
 }
 
 #[test]

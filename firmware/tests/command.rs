@@ -2,7 +2,9 @@
 //! fields, every refusal, numbers against a reference conversion, and arbitrary bytes
 //! (deterministic byte-level fuzzing: no panic, every line answers).
 
-use ridge_pump_firmware::command::{parse, Command, CommandError, Line, ProfileArgs, MAX_LINE};
+use ridge_pump_firmware::command::{
+    parse, Command, CommandError, Line, ProfileArgs, LOST, MAX_LINE,
+};
 use ridge_pump_firmware::setpoint::Shape;
 
 #[test]
@@ -160,6 +162,7 @@ fn arbitrary_bytes_never_panic_and_every_line_answers() {
         b"SETflowPROFILEsquarerampeakbiasrateierise=LOGonfSTOPARTMDUX0123456789.-+ \t\r";
     let mut rng = Bytes(0x9E37_79B9_7F4A_7C15);
     let mut line = Line::new();
+    let mut fed = Line::new();
     let (mut lines, mut answers, mut parsed) = (0u32, 0u32, 0u32);
     for _ in 0..200_000 {
         // Up to 8 pieces: grammar tokens (whole or cut), numbers, or random bytes.
@@ -199,6 +202,25 @@ fn arbitrary_bytes_never_panic_and_every_line_answers() {
                 got = Some(answer);
             }
         }
+        // The main loop's way (feed in the idle wait, take in the pass) answers the same, and
+        // tells a STOP without parsing exactly when the parser reads one.
+        let mut held = None;
+        for &b in text.iter().chain(b"\n") {
+            if held.is_none() && fed.feed(b) {
+                assert!(fed.is_complete());
+                held = Some(fed.is_stop());
+            }
+        }
+        if let Some(stop) = held {
+            assert_eq!(
+                stop,
+                got == Some(Ok(Command::Stop)),
+                "{:?}",
+                String::from_utf8_lossy(&text)
+            );
+            assert_eq!(Some(fed.take()), got);
+        }
+        assert!(!fed.is_complete());
         lines += 1;
         match got {
             None => assert!(blank, "{:?} got no answer", String::from_utf8_lossy(&text)),
@@ -220,4 +242,52 @@ fn arbitrary_bytes_never_panic_and_every_line_answers() {
     eprintln!("{lines} lines, {answers} answered, {parsed} parsed");
     // The bias towards the grammar reaches the parser's accepting paths too.
     assert!(parsed > 100, "{parsed} lines parsed");
+}
+
+/// A receiver's [`LOST`] marker damages the line it falls in, and only that one: the line
+/// before it and the line after it are read as sent.
+#[test]
+fn a_lost_marker_refuses_its_line_only() {
+    let mut line = Line::new();
+    let mut answers = Vec::new();
+    for &b in b"SET flow=15\nSET flow=1\x005\nSTOP\n".iter() {
+        if let Some(a) = line.push(b) {
+            answers.push(a);
+        }
+    }
+    assert_eq!(
+        answers,
+        [
+            Ok(Command::Set(15_000)),
+            Err(CommandError::Overrun),
+            Ok(Command::Stop)
+        ]
+    );
+    // A marker alone on a line still answers (bytes were lost there).
+    assert_eq!(line.push(LOST), None);
+    assert_eq!(line.push(b'\n'), Some(Err(CommandError::Overrun)));
+}
+
+/// A held line (fed, complete, not yet taken) takes no new line: bytes fed meanwhile are
+/// dropped and the held line answers `too-long`, never a command it was not.
+#[test]
+fn a_held_line_takes_no_more_bytes() {
+    let mut line = Line::new();
+    assert!(!line.feed(b' '));
+    assert!(!line.feed(b'\r'), "a blank line is skipped");
+    for &b in b"stop\t" {
+        assert!(!line.feed(b));
+    }
+    assert!(line.feed(b'\r'));
+    assert!(line.is_complete() && line.is_stop());
+    assert!(!line.feed(b'\n'));
+    assert!(!line.is_stop(), "damaged");
+    assert_eq!(line.take(), Err(CommandError::TooLong));
+    assert!(!line.is_complete());
+    for &b in b"START" {
+        assert!(!line.feed(b));
+    }
+    assert!(line.feed(b'\n'));
+    assert!(!line.is_stop());
+    assert_eq!(line.take(), Ok(Command::Start));
 }

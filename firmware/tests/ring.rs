@@ -110,3 +110,27 @@ fn room_counts_the_free_slots() {
     assert_eq!(ring.pop(), Some(1));
     assert_eq!(ring.room(), 1);
 }
+
+/// A receiver that finds the queue full marks the newest byte instead (`replace_newest`): the
+/// bytes before it come out unchanged and in order, the marker last; an empty queue is left
+/// alone.
+#[test]
+fn replace_newest_marks_the_last_byte_of_a_full_queue() {
+    let q: Ring<8> = Ring::new();
+    q.replace_newest(0);
+    assert_eq!(q.pop(), None);
+    for b in 1..=7u8 {
+        assert!(q.push(b));
+    }
+    assert!(!q.push(8));
+    q.replace_newest(0);
+    let out: Vec<u8> = std::iter::from_fn(|| q.pop()).collect();
+    assert_eq!(out, [1, 2, 3, 4, 5, 6, 0]);
+    // After wrapping: the newest slot is the one before `head`, whatever the indices.
+    for b in 10..=16u8 {
+        assert!(q.push(b));
+    }
+    q.replace_newest(0);
+    let out: Vec<u8> = std::iter::from_fn(|| q.pop()).collect();
+    assert_eq!(out, [10, 11, 12, 13, 14, 15, 0]);
+}
