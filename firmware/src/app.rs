@@ -714,10 +714,9 @@ impl<I: I2c, P: SetDutyCycle, B: Board> Watch<'_, I, P, B> {
 }
 
 /// Moves received bytes into the console's line until it holds a complete line (then they
-/// wait in the receive queue); `true` when the line completed now is `STOP`. A receiver
-/// overrun the board reports marks the line in progress as damaged. No parsing: a few dozen
-/// cycles per byte. Inlined up to the first byte: in the loop's idle wait, where it runs
-/// between polls of the tick, an empty queue costs a dozen instructions.
+/// wait in the receive queue); `true` when the line completed now is `STOP`. No parsing: a
+/// few dozen cycles per byte. Inlined up to the first byte: in the loop's idle wait, where it
+/// runs between polls of the tick, an empty queue costs a dozen instructions.
 #[inline(always)]
 fn listen(board: &mut impl Board) -> bool {
     if board.console().is_none_or(|c| c.line.is_complete()) {
@@ -725,18 +724,16 @@ fn listen(board: &mut impl Board) -> bool {
     }
     match board.receive() {
         Some(byte) => listen_from(board, byte),
-        None => false,
+        None => {
+            lost(board);
+            false
+        }
     }
 }
 
 /// [`listen`] from the received `byte` on.
 #[inline(never)]
 fn listen_from(board: &mut impl Board, mut byte: u8) -> bool {
-    if board.receive_overrun() {
-        if let Some(c) = board.console() {
-            c.line.overrun();
-        }
-    }
     loop {
         let Some(c) = board.console() else {
             return false;
@@ -746,7 +743,22 @@ fn listen_from(board: &mut impl Board, mut byte: u8) -> bool {
         }
         match board.receive() {
             Some(b) => byte = b,
-            None => return false,
+            None => {
+                lost(board);
+                return false;
+            }
+        }
+    }
+}
+
+/// With the receive queue read empty: a loss the board reports by flag
+/// ([`Board::receive_overrun`], once the bytes before it are read) damages the line in
+/// progress. Nothing on a board that marks losses in its queue.
+#[inline(always)]
+fn lost(board: &mut impl Board) {
+    if board.receive_overrun() {
+        if let Some(c) = board.console() {
+            c.line.overrun();
         }
     }
 }

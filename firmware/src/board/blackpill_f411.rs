@@ -84,8 +84,8 @@ const CR1_TXEIE: u16 = 1 << 7;
 static TX: Ring<256> = Ring::new();
 
 /// Receive queue, filled by the USART1 interrupt, read by the main loop ([`receive`]). 255
-/// bytes: 22 ms at 115200 baud without a read; the loop reads at every pass (one command
-/// line per pass), not during the ticking search.
+/// bytes: 22 ms at 115200 baud without a read; the loop reads while it waits for each tick
+/// (one command line per pass), not during the ticking search.
 static RX: Ring<256> = Ring::new();
 
 /// Set by the USART1 interrupt when a received byte is lost (queue full, or an overrun,
