@@ -27,7 +27,7 @@ mod image {
     use avr_device::atmega2560 as pac;
     use core::mem::MaybeUninit;
     use core::ptr::addr_of_mut;
-    use ridge_pump_firmware::app::{App, Board};
+    use ridge_pump_firmware::app::{App, Board, Console};
     use ridge_pump_firmware::event::FaultReason;
     use ridge_pump_firmware::pump::Pump;
     use ridge_pump_firmware::resets::{self, Resets};
@@ -56,6 +56,7 @@ mod image {
         resets: Resets,
         /// Ticks left until the count is cleared (0: done).
         clean: u16,
+        console: Console,
     }
 
     impl Board for Mega {
@@ -98,6 +99,15 @@ mod image {
         }
         fn stack(&self) -> Option<(u16, u16)> {
             Some(stack::usage())
+        }
+        fn receive(&mut self) -> Option<u8> {
+            usart::receive()
+        }
+        fn tx_room(&self) -> usize {
+            usart::tx_room()
+        }
+        fn console(&mut self) -> Option<&mut Console> {
+            Some(&mut self.console)
         }
     }
 
@@ -150,7 +160,7 @@ mod image {
         });
 
         let ticker = timer::Ticker::new(dp.TC3);
-        // SAFETY: all interrupt handlers (Timer3 compare, USART0 UDRE) only use state that is
+        // SAFETY: all interrupt handlers (Timer3 compare, USART0 UDRE and RX) only use state that is
         // initialised statically.
         unsafe { avr_device::interrupt::enable() };
         let watchdog = watchdog::Watchdog::start(dp.WDT);
@@ -175,6 +185,7 @@ mod image {
             forgetting: None,
             resets,
             clean: resets::CLEAN_TICKS,
+            console: Console::new(),
         });
         (app, board)
     }
