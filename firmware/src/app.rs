@@ -230,7 +230,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
     /// answers is left to the state machine, which reports the fault on its first ticks.
     pub fn start(&mut self, board: &mut impl Board) {
         for tries in 1..=START_TICKS {
-            wait_tick(board);
+            wait_tick(board, |_| {});
             board.pet();
             if self.sensor.start_continuous().is_ok() {
                 uwriteln!(self.out, "SENSOR ready tries={}", u32::from(tries)).ok();
@@ -371,22 +371,16 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
         self.pump.stop().ok();
     }
 
-    /// Waits for the next tick boundary: `(boundaries passed, already passed on entry)`.
-    /// Meanwhile it moves received console bytes into the console's line ([`listen`]): a
-    /// `STOP` completed there stops the state machine and the pump at once (its answer comes
-    /// with the next pass); any other line waits for the next pass's [`serve`](Self::serve).
+    /// [`wait_tick`], moving received console bytes into the console's line meanwhile
+    /// ([`listen`]): a `STOP` completed there stops the state machine and the pump at once
+    /// (its answer comes with the next pass); any other line waits for the next pass's
+    /// [`serve`](Self::serve).
     fn wait<B: Board>(&mut self, board: &mut B) -> (u16, bool) {
-        if let Some(elapsed) = board.poll_tick() {
-            return (elapsed, true);
-        }
-        loop {
-            if let Some(elapsed) = board.poll_tick() {
-                return (elapsed, false);
-            }
+        wait_tick(board, |board| {
             if listen(board) {
                 self.halt();
             }
-        }
+        })
     }
 
     /// Executes a console command and answers it (one line, `MODEL` two in run mode).
@@ -579,7 +573,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
                 ticks
             };
             c.clock = c.clock.wrapping_add(u32::from(watched) + u32::from(lost));
-            if c.line.is_complete() && c.line.is_stop() {
+            if c.line.is_stop() {
                 // The watch stopped the pump; the state machine follows now (the answer in
                 // the next pass).
                 self.sid.stop();
@@ -786,8 +780,10 @@ struct SearchEnd {
     lost: u16,
 }
 
-/// Waits for the next tick boundary: `(boundaries passed, already passed on entry)`.
-fn wait_tick(board: &mut impl Board) -> (u16, bool) {
+/// Waits for the next tick boundary: `(boundaries passed, already passed on entry)`;
+/// `idle` runs between the polls.
+#[inline(always)]
+fn wait_tick<B: Board>(board: &mut B, mut idle: impl FnMut(&mut B)) -> (u16, bool) {
     if let Some(elapsed) = board.poll_tick() {
         return (elapsed, true);
     }
@@ -795,5 +791,6 @@ fn wait_tick(board: &mut impl Board) -> (u16, bool) {
         if let Some(elapsed) = board.poll_tick() {
             return (elapsed, false);
         }
+        idle(board);
     }
 }

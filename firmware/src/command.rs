@@ -125,7 +125,7 @@ pub fn parse(line: &[u8]) -> Result<Command, CommandError> {
         return Err(CommandError::TooLong);
     }
     let mut words = line
-        .split(|&b| b == b' ' || b == b'\t' || b == b'\r')
+        .split(|&b| blank(b) || b == b'\r')
         .filter(|w| !w.is_empty());
     let keyword = words.next().ok_or(CommandError::Unknown)?;
     let command = if eq(keyword, b"STATUS") {
@@ -198,6 +198,12 @@ pub fn parse(line: &[u8]) -> Result<Command, CommandError> {
         return Err(CommandError::BadField);
     }
     Ok(command)
+}
+
+/// A blank inside a line: what separates words, besides a `\r` that [`Line`] takes as a line
+/// end.
+fn blank(b: u8) -> bool {
+    b == b' ' || b == b'\t'
 }
 
 /// `word` equals the upper-case `keyword`, ignoring ASCII case.
@@ -310,7 +316,7 @@ impl Line {
             return false;
         }
         if byte == b'\n' || byte == b'\r' {
-            let blank = self.text().iter().all(|&b| b == b' ' || b == b'\t');
+            let blank = self.text().iter().copied().all(blank);
             if blank && self.damaged.is_none() {
                 self.len = 0;
                 return false;
@@ -335,25 +341,24 @@ impl Line {
         self.complete
     }
 
-    /// Whether the held line is `STOP` (the one command [`parse`] reads from it, without
-    /// parsing: case-insensitive, blanks around it), so that it can act before the line is
-    /// parsed. `false` for a damaged line.
+    /// Whether a complete line is held and is `STOP` (the one command [`parse`] reads from
+    /// it, without parsing: case-insensitive, blanks around it), so that it can act before the
+    /// line is parsed. `false` for a line in progress or a damaged line.
     pub fn is_stop(&self) -> bool {
-        let blank = |b: &u8| *b == b' ' || *b == b'\t';
         let mut text = self.text();
         while let [first, rest @ ..] = text {
-            if !blank(first) {
+            if !blank(*first) {
                 break;
             }
             text = rest;
         }
         while let [rest @ .., last] = text {
-            if !blank(last) {
+            if !blank(*last) {
                 break;
             }
             text = rest;
         }
-        self.damaged.is_none() && eq(text, b"STOP")
+        self.complete && self.damaged.is_none() && eq(text, b"STOP")
     }
 
     /// The held line's command (or why it is none), and starts a new line.

@@ -228,8 +228,8 @@ impl<R: Read> Lines<R> {
 
     /// The next line, scanned ([`scan`], cells `want` located), reading more input as
     /// needed; `None` at the end of the input, for a line whose end is not within [`BUFFER`]
-    /// bytes and for a non-ASCII first byte of the input. Errors: the input cannot be read (on the line being
-    /// read, as the `csv` crate says).
+    /// bytes and for a non-ASCII first byte of the input. Errors: the input cannot be read
+    /// (on the line being read, as the `csv` crate says).
     fn next_line(&mut self, path: &Path, want: [usize; 2]) -> Result<Option<Scan>, IdError> {
         loop {
             // A byte order mark, or the start of one, at the start: the `csv` crate decides
