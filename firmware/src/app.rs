@@ -48,10 +48,11 @@
 //! appends its [`LogRow`] after the PWM write.
 
 use crate::command::{Command, CommandError, Line};
-use crate::console::{LogRow, ModelLine, RstLine, Status, LOG_HEADER, LOG_ROW_MAX};
+use crate::console::{LogRow, ModelLine, Poly, RstLine, Status, LOG_HEADER, LOG_ROW_MAX};
 use crate::event::{Event, FaultReason, SensorFault};
 use crate::persist::RECORD_LEN;
 use crate::pump::Pump;
+use crate::report::Int;
 use crate::selfid::{Config, Guard, SelfIdentification, Settings, State};
 use crate::sfm3300::Sfm3300;
 use embedded_hal::i2c::I2c;
@@ -59,9 +60,10 @@ use embedded_hal::pwm::SetDutyCycle;
 use ufmt::{uWrite, uwriteln};
 
 /// Free bytes the transmit queue must have before the console answers a command, so that the
-/// answer goes out without the loop waiting for the line: more than the longest answer line
-/// of a model of orders p, q ≤ 6 (`MODEL` ~180 bytes; its `RST` line comes in a later pass,
-/// under the same condition). A longer line waits for the rest at 11.5 bytes per ms.
+/// answer goes out without the loop waiting for the line: more than the answer lines of a
+/// model of orders p, q ≤ 6 take with coefficients of up to 9 characters (`MODEL` ≤ 180
+/// bytes; its `RST` lines, one per polynomial and pass after it under the same condition,
+/// ≤ 137). A longer line waits for the rest at 11.5 bytes per ms.
 pub const ANSWER_ROOM: usize = 200;
 
 /// Ticks over which [`App::start`] retries *start continuous measurement* (1 s: covers the
@@ -141,9 +143,9 @@ pub trait Board {
 pub struct Console {
     /// The line being received.
     line: Line,
-    /// `MODEL` was answered and its `RST` line (if a controller is in use then) waits for room
-    /// in the transmit queue.
-    rst_due: bool,
+    /// `MODEL` was answered and this `RST` line (if a controller is in use then), and those of
+    /// the polynomials after it, wait for room in the transmit queue.
+    rst_due: Option<Poly>,
     /// Tick boundaries since the start (the log's time base).
     clock: u32,
     /// Whether the CSV log is on.
@@ -158,7 +160,7 @@ impl Console {
     pub const fn new() -> Self {
         Console {
             line: Line::new(),
-            rst_due: false,
+            rst_due: None,
             clock: 0,
             log: false,
             dropped: 0,
@@ -233,7 +235,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
             wait_tick(board, |_| {});
             board.pet();
             if self.sensor.start_continuous().is_ok() {
-                uwriteln!(self.out, "SENSOR ready tries={}", u32::from(tries)).ok();
+                uwriteln!(self.out, "SENSOR ready tries={}", Int::from(tries)).ok();
                 return;
             }
         }
@@ -351,12 +353,14 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
         if board.console().is_none() || board.tx_room() < ANSWER_ROOM {
             return;
         }
-        if let Some(c) = board.console().filter(|c| c.rst_due) {
-            c.rst_due = false;
-            if let Some(ctrl) = self.sid.controller() {
-                uwriteln!(self.out, "{}", RstLine(ctrl.rst())).ok();
+        if let Some(c) = board.console() {
+            if let Some(poly) = c.rst_due {
+                c.rst_due = poly.next();
+                if let Some(ctrl) = self.sid.controller() {
+                    uwriteln!(self.out, "{}", RstLine(ctrl.rst(), poly)).ok();
+                }
+                return;
             }
-            return;
         }
         if let Some(c) = board.console().filter(|c| c.line.is_complete()) {
             let command = c.line.take();
@@ -434,7 +438,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
                 };
                 uwriteln!(self.out, "{}", model).ok();
                 if let Some(c) = board.console() {
-                    c.rst_due = true;
+                    c.rst_due = Some(Poly::R);
                 }
                 return;
             }
@@ -603,16 +607,16 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
                 self.out,
                 "{} ticks={} lost={}",
                 name,
-                u32::from(ticks),
-                u32::from(lost)
+                Int::from(ticks),
+                Int::from(lost)
             )
             .ok();
             if let Some((used, free)) = board.stack() {
                 uwriteln!(
                     self.out,
                     "STACK used={} free={}",
-                    u32::from(used),
-                    u32::from(free)
+                    Int::from(used),
+                    Int::from(free)
                 )
                 .ok();
             }
@@ -626,15 +630,15 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
             self.summary_in = SUMMARY_TICKS;
             if let Some(c) = board.console().filter(|c| c.dropped != c.dropped_reported) {
                 c.dropped_reported = c.dropped;
-                uwriteln!(self.out, "LOG dropped={}", u32::from(c.dropped)).ok();
+                uwriteln!(self.out, "LOG dropped={}", Int::from(c.dropped)).ok();
             }
             if (self.late, self.lost) != self.reported {
                 self.reported = (self.late, self.lost);
                 uwriteln!(
                     self.out,
                     "MISSED late={} lost={}",
-                    u32::from(self.late),
-                    u32::from(self.lost)
+                    Int::from(self.late),
+                    Int::from(self.lost)
                 )
                 .ok();
             }

@@ -5,7 +5,7 @@
 //! |---|---|
 //! | [`Status`] | `STATUS state=run duty=35.20 flow=40.125 sp=40.000 log=1 fault=none` |
 //! | [`ModelLine`] | `MODEL p=1 q=1 d=3 off=1 theta=0.935000 phi=6.500000 c=-0.125000 fit=87.3` |
-//! | [`RstLine`] | `RST r=1.000000,-1.000000 s=0.120000,-0.080000 t=0.040000,0.000000` |
+//! | [`RstLine`] | `RST r=1.000000,-1.000000`, then `RST s=0.120000,-0.080000`, `RST t=0.040000` |
 //! | [`LOG_HEADER`] | `t,u,y,r,phase` |
 //! | [`LogRow`] | `12.34,0.3500,40.12500,40.000,run` |
 //!
@@ -153,21 +153,55 @@ impl uDisplay for ModelLine<'_> {
     }
 }
 
-/// The controller's polynomials after `MODEL` in run mode: `R(q⁻¹) u = T(q⁻¹) r − S(q⁻¹) y`,
-/// coefficients from `q⁰`.
+/// One of the controller's polynomials in `R(q⁻¹) u = T(q⁻¹) r − S(q⁻¹) y`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Poly {
+    /// `R`, acting on the duty.
+    R,
+    /// `S`, acting on the flow.
+    S,
+    /// `T`, acting on the setpoint.
+    T,
+}
+
+impl Poly {
+    /// The polynomial printed after this one, `None` after `T`.
+    pub fn next(self) -> Option<Poly> {
+        match self {
+            Poly::R => Some(Poly::S),
+            Poly::S => Some(Poly::T),
+            Poly::T => None,
+        }
+    }
+}
+
+/// One polynomial of the controller in use, coefficients from `q⁰` (`RST r=…`, `RST s=…`,
+/// `RST t=…`: after `MODEL` in run mode, one line per pass). One line holds at most
+/// [`R_LEN`](ridge_core::control::R_LEN) = 13 coefficients, so each stays shorter than the
+/// console's answer room (≤ 175 bytes with 12-character numbers).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RstLine<'a>(pub &'a Rst<f32>);
+pub struct RstLine<'a>(pub &'a Rst<f32>, pub Poly);
 
 impl uDisplay for RstLine<'_> {
     fn fmt<W>(&self, f: &mut Formatter<'_, W>) -> Result<(), W::Error>
     where
         W: uWrite + ?Sized,
     {
-        f.write_str("RST r=")?;
-        write_list(f, self.0.r(), COEF_DIGITS)?;
-        f.write_str(" s=")?;
-        write_list(f, self.0.s(), COEF_DIGITS)?;
-        f.write_str(" t=")?;
-        write_list(f, self.0.t(), COEF_DIGITS)
+        // One arm each: a table of the names would take static RAM on the ATmega2560.
+        let coefficients = match self.1 {
+            Poly::R => {
+                f.write_str("RST r=")?;
+                self.0.r()
+            }
+            Poly::S => {
+                f.write_str("RST s=")?;
+                self.0.s()
+            }
+            Poly::T => {
+                f.write_str("RST t=")?;
+                self.0.t()
+            }
+        };
+        write_list(f, coefficients, COEF_DIGITS)
     }
 }

@@ -28,7 +28,7 @@ use ridge_core::{ArxModel, Error as CoreError, Offset};
 use ufmt::{uDisplay, uWrite, Formatter};
 
 use crate::persist::PersistError;
-use crate::report::{Decimal, Fixed, Milli};
+use crate::report::{Decimal, Fixed, Int, Milli};
 use crate::sfm3300;
 
 /// Why a flow reading failed, as the board reports it to
@@ -524,10 +524,10 @@ where
     ufmt::uwrite!(
         f,
         "p={} q={} d={} off={} theta=",
-        u32::from(s.p),
-        u32::from(s.q),
-        u32::from(s.d),
-        u32::from(off)
+        Int::from(s.p),
+        Int::from(s.q),
+        Int::from(s.d),
+        Int::from(off)
     )?;
     write_list(f, m.theta(), COEF_DIGITS)?;
     f.write_str(" phi=")?;
@@ -564,7 +564,7 @@ impl uDisplay for RejectReason {
                 ufmt::uwrite!(f, "fit={}<{}", Fixed::new(fit, 1), Fixed::new(min, 1))
             }
             RejectReason::NonFinite => f.write_str("nonfinite"),
-            RejectReason::SensorGaps { gaps } => ufmt::uwrite!(f, "gaps={}", u32::from(gaps)),
+            RejectReason::SensorGaps { gaps } => ufmt::uwrite!(f, "gaps={}", Int::from(gaps)),
         }
     }
 }
@@ -576,7 +576,7 @@ impl uDisplay for FaultReason {
     {
         match *self {
             FaultReason::Sensor { error, count } => {
-                ufmt::uwrite!(f, "sensor={} n={}", error.name(), u32::from(count))
+                ufmt::uwrite!(f, "sensor={} n={}", error.name(), Int::from(count))
             }
             FaultReason::FlowRange { counts } => ufmt::uwrite!(f, "range flow={}", slm(counts)),
             FaultReason::Stall { duty, counts } => {
@@ -599,11 +599,11 @@ impl uDisplay for FaultReason {
             FaultReason::ResetLoop { watchdog, brownout } => ufmt::uwrite!(
                 f,
                 "resets watchdog={} brownout={}",
-                u32::from(watchdog),
-                u32::from(brownout)
+                Int::from(watchdog),
+                Int::from(brownout)
             ),
             FaultReason::Unidentified { attempts } => {
-                ufmt::uwrite!(f, "unidentified attempts={}", u32::from(attempts))
+                ufmt::uwrite!(f, "unidentified attempts={}", Int::from(attempts))
             }
             FaultReason::Control(r) => ufmt::uwrite!(f, "control {}", r),
         }
@@ -639,7 +639,7 @@ impl uDisplay for ControlRefusal {
                         ufmt::uwrite!(f, "margin={}", Fixed::new(*margin, 3))?
                     }
                 }
-                ufmt::uwrite!(f, " tries={}", u32::from(*tries))
+                ufmt::uwrite!(f, " tries={}", Int::from(*tries))
             }
         }
     }
@@ -683,11 +683,11 @@ impl uDisplay for Event {
                 f,
                 "EXCITE {} n={} u0={} y0={} attempt={}/{}",
                 record.name(),
-                *samples,
+                Int::from(*samples),
                 percent(*u0),
                 slm(*y0),
-                u32::from(*attempt),
-                u32::from(*attempts)
+                Int::from(*attempt),
+                Int::from(*attempts)
             ),
             Event::Identified { model, stats } => {
                 f.write_str("ID ")?;
@@ -696,14 +696,14 @@ impl uDisplay for Event {
                     f,
                     " score={} eval={}/{} skip={} iters={}",
                     Fixed::new(stats.score, 1),
-                    u32::from(stats.evaluated),
-                    u32::from(stats.candidates),
-                    u32::from(stats.skipped),
-                    stats.iterations
+                    Int::from(stats.evaluated),
+                    Int::from(stats.candidates),
+                    Int::from(stats.skipped),
+                    Int::from(stats.iterations)
                 )
             }
             Event::Validate { record, samples } => {
-                ufmt::uwrite!(f, "VALIDATE {} n={}", record.name(), *samples)
+                ufmt::uwrite!(f, "VALIDATE {} n={}", record.name(), Int::from(*samples))
             }
             Event::Accepted {
                 fit,
@@ -716,7 +716,7 @@ impl uDisplay for Event {
                 Fixed::new(*fit, 1),
                 Fixed::new(*rmse, 3),
                 Fixed::new(*one_step, 3),
-                *samples
+                Int::from(*samples)
             ),
             Event::Rejected {
                 reason,
@@ -726,8 +726,8 @@ impl uDisplay for Event {
                 f,
                 "REJECT {} attempt={}/{}",
                 reason,
-                u32::from(*attempt),
-                u32::from(*attempts)
+                Int::from(*attempt),
+                Int::from(*attempts)
             ),
             Event::Control {
                 tau,
@@ -743,10 +743,10 @@ impl uDisplay for Event {
                 Fixed::new(*tau, 3),
                 Fixed::new(*alpha, 3),
                 Fixed::new(*beta, 3),
-                u32::from(*kept),
+                Int::from(*kept),
                 Fixed::new(*margin, 3),
-                u32::from(*tries),
-                u32::from(*preview)
+                Int::from(*tries),
+                Int::from(*preview)
             ),
             Event::Track {
                 sum_setpoint,
@@ -768,7 +768,7 @@ impl uDisplay for Event {
                     Fixed::new(root(sum_sq * inv), 3),
                     Fixed::new(*max, 3),
                     percent(duty),
-                    *tick
+                    Int::from(*tick)
                 )
             }
             Event::Alarm { on: false, .. } => f.write_str("ALARM track clear"),
@@ -783,7 +783,7 @@ impl uDisplay for Event {
                 Decimal::new(i32::from(*ticks), 2)
             ),
             Event::Residual(r) => {
-                ufmt::uwrite!(f, "RES {} n={}", r, u32::from(r.samples))
+                ufmt::uwrite!(f, "RES {} n={}", r, Int::from(r.samples))
             }
             Event::Drift {
                 residuals,
@@ -793,8 +793,8 @@ impl uDisplay for Event {
                 f,
                 "DRIFT {} s={} reid={}",
                 residuals,
-                u32::from(*seconds),
-                u32::from(*reidentify)
+                Int::from(*seconds),
+                Int(u32::from(*reidentify))
             ),
             Event::Fault(reason) => ufmt::uwrite!(f, "FAULT {}", reason),
         }

@@ -771,8 +771,9 @@ fn stop_received_while_waiting_stops_the_pump_before_the_next_tick() {
 }
 
 /// A command is executed only when the transmit queue has [`ANSWER_ROOM`] bytes free (so its
-/// answer never makes the loop wait for the line), and `MODEL`'s `RST` line comes in a later
-/// pass under the same condition; the line waits meanwhile.
+/// answer never makes the loop wait for the line), and `MODEL`'s `RST` lines (one per
+/// polynomial) come in the passes after it, one per pass, under the same condition; the line
+/// waits meanwhile.
 #[test]
 fn answers_wait_for_room_in_the_transmit_queue() {
     let (_w, uart, mut board, mut app) = running();
@@ -799,13 +800,16 @@ fn answers_wait_for_room_in_the_transmit_queue() {
         app.step(&mut board);
     }
     assert_eq!(answers(&uart).len(), 1);
-    board.room = ANSWER_ROOM;
-    app.step(&mut board);
-    let got = answers(&uart);
-    assert!(
-        got.len() == 2 && got[1].starts_with("RST r=1.000000,"),
-        "{got:?}"
-    );
+    // One polynomial per pass, each once there is room.
+    for (n, prefix) in [(2, "RST r=1.000000,"), (3, "RST s="), (4, "RST t=")] {
+        board.room = ANSWER_ROOM;
+        app.step(&mut board);
+        let got = answers(&uart);
+        assert!(got.len() == n && got[n - 1].starts_with(prefix), "{got:?}");
+        board.room = ANSWER_ROOM - 1;
+        app.step(&mut board);
+        assert_eq!(answers(&uart).len(), n);
+    }
     // Nothing else was waiting.
     board.room = usize::MAX;
     assert_eq!(
@@ -1032,11 +1036,15 @@ fn status_model_and_forget_answer() {
     for key in ["p", "q", "d", "theta", "phi", "c"] {
         assert_eq!(field(&model, key), field(&id, key), "{key}");
     }
-    app.step(&mut board);
-    assert!(uart
-        .lines()
-        .iter()
-        .any(|l| l.starts_with("RST r=1.000000,")));
+    for _ in 0..3 {
+        app.step(&mut board);
+    }
+    for prefix in ["RST r=1.000000,", "RST s=", "RST t="] {
+        assert!(
+            uart.lines().iter().any(|l| l.starts_with(prefix)),
+            "{prefix}"
+        );
+    }
     let saves = board.saves.len();
     assert_eq!(ask(&mut board, &mut app, &uart, "FORGET\n"), "OK forget");
     let erased = board.saves.get(saves).expect("a write");

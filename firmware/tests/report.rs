@@ -4,7 +4,7 @@
 //! the comments), not produced by the code under test.
 
 use heapless::String;
-use ridge_pump_firmware::report::{Decimal, Fixed, Milli, FIXED_LIMIT, MAX_DIGITS};
+use ridge_pump_firmware::report::{Decimal, Fixed, Int, Milli, FIXED_LIMIT, MAX_DIGITS};
 use ufmt::{uDisplay, uwrite};
 
 fn show<T: uDisplay>(value: T) -> String<64> {
@@ -153,6 +153,71 @@ fn decimal_values() {
     assert_eq!(show(Decimal::new(7, 9)), "0.000000007");
     assert_eq!(show(Decimal::new(i32::MIN, 9)), "-2.147483648");
     assert_eq!(show(Decimal::new(1, 20)), "0.000000001");
+}
+
+#[test]
+fn int_values() {
+    assert_eq!(show(Int(0)), "0");
+    assert_eq!(show(Int(7)), "7");
+    assert_eq!(show(Int(10)), "10");
+    assert_eq!(show(Int(1_000_000_000)), "1000000000");
+    assert_eq!(show(Int(u32::MAX)), "4294967295");
+    assert_eq!(show(Int::from(u8::MAX)), "255");
+    assert_eq!(show(Int::from(u16::MAX)), "65535");
+}
+
+/// `Decimal` and `Int` against std's integer formatting (quotient and zero-padded remainder),
+/// on every power of ten and its neighbours and on pseudo-random values, for every number of
+/// digits: the digit loop (repeated subtraction, power / 10 by a multiplicative inverse) has
+/// its edges where a digit is 9 or 0 and where the power changes.
+#[test]
+fn decimal_and_int_match_std_formatting() {
+    fn reference(value: i32, digits: u8) -> std::string::String {
+        let p = 10u64.pow(u32::from(digits));
+        let m = u64::from(value.unsigned_abs());
+        let sign = if value < 0 { "-" } else { "" };
+        if digits == 0 {
+            format!("{sign}{m}")
+        } else {
+            format!("{sign}{}.{:0w$}", m / p, m % p, w = usize::from(digits))
+        }
+    }
+    let mut values: Vec<i64> = vec![0, 1, 9, i64::from(i32::MAX), i64::from(i32::MIN)];
+    let mut p = 1i64;
+    while p <= i64::from(u32::MAX) {
+        for v in [p - 1, p, p + 1, 9 * p, 10 * p - 1] {
+            values.push(v);
+        }
+        p *= 10;
+    }
+    let mut x: u32 = 0x9E37_79B9;
+    for _ in 0..20_000 {
+        // xorshift32
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        values.push(i64::from(x));
+        values.push(i64::from(x >> (x % 32)));
+    }
+    for &v in &values {
+        if let Ok(u) = u32::try_from(v) {
+            assert_eq!(show(Int(u)).as_str(), u.to_string(), "Int({u})");
+        }
+        for signed in [v, -v] {
+            let Ok(s) = i32::try_from(signed) else {
+                continue;
+            };
+            for digits in 0..=MAX_DIGITS {
+                // No negative zero: a zero prints unsigned.
+                let want = reference(s, digits);
+                assert_eq!(
+                    show(Decimal::new(s, digits)).as_str(),
+                    want,
+                    "Decimal::new({s}, {digits})"
+                );
+            }
+        }
+    }
 }
 
 #[test]

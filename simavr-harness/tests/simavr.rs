@@ -949,6 +949,13 @@ fn tracking_run(
         .filter(|t| t.start >= run.first_cycle)
         .filter_map(|t| t.control)
         .collect();
+    if let Some(w) = control.iter().max() {
+        println!(
+            "{what}: run-mode control tick worst {w} cycles = {:.3} ms over {} ticks",
+            *w as f64 / 16e3,
+            control.len()
+        );
+    }
     match control.iter().max() {
         Some(&w) if w < TICK_BUDGET && control.len() > 1000 => {}
         w => bad.push(format!(

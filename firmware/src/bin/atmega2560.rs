@@ -30,6 +30,7 @@ mod image {
     use ridge_pump_firmware::app::{App, Board, Console};
     use ridge_pump_firmware::event::FaultReason;
     use ridge_pump_firmware::pump::Pump;
+    use ridge_pump_firmware::report::Int;
     use ridge_pump_firmware::resets::{self, Resets};
     use ridge_pump_firmware::selfid::{Defaults, SelfIdentification};
     use ridge_pump_firmware::sfm3300::Sfm3300;
@@ -168,8 +169,7 @@ mod image {
         uwriteln!(
             out,
             "BOOT board=atmega2560 reset={} record={}",
-            // As u32: the image's one integer formatter (u8's is another 178 B here).
-            u32::from(reset_cause),
+            Int::from(reset_cause),
             if stored.is_some() { "stored" } else { "none" }
         )
         .ok();

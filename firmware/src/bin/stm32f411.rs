@@ -24,6 +24,7 @@ mod image {
     use ridge_pump_firmware::app::{App, Board, Console};
     use ridge_pump_firmware::persist::RECORD_LEN;
     use ridge_pump_firmware::pump::Pump;
+    use ridge_pump_firmware::report::Int;
     use ridge_pump_firmware::selfid::{Defaults, SelfIdentification};
     use ridge_pump_firmware::sfm3300::Sfm3300;
     use stm32f4xx_hal::i2c::{I2c, Mode};
@@ -119,7 +120,7 @@ mod image {
         uwriteln!(
             out,
             "BOOT board=stm32f411 reset={} record={}",
-            reset_cause,
+            Int::from(reset_cause),
             match (store.available(), stored.is_some()) {
                 (false, _) => "unavailable",
                 (true, true) => "stored",
