@@ -311,12 +311,13 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
         }
         let before = (self.sid.state(), self.sid.duty(), self.sid.setpoint());
         let flow = self.sensor.read_counts().map_err(SensorFault::from);
-        let tick = self.sid.tick(flow);
-        if self.pump.set(tick.duty).is_err() {
+        let mut event = None;
+        let duty = self.sid.tick_into(flow, &mut event);
+        if self.pump.set(duty).is_err() {
             self.pump.stop().ok();
             uwriteln!(self.out, "PUMP error").ok();
         }
-        if let Some(event) = &tick.event {
+        if let Some(event) = &event {
             self.report(board, event);
         }
         if let Some(ok) = board.poll_store() {
