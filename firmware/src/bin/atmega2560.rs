@@ -161,8 +161,8 @@ mod image {
         });
 
         let ticker = timer::Ticker::new(dp.TC3);
-        // SAFETY: all interrupt handlers (Timer3 compare, USART0 UDRE and RX) only use state that is
-        // initialised statically.
+        // SAFETY: all interrupt handlers (Timer3 compare, USART0 UDRE and RX) only use state
+        // that is initialised statically.
         unsafe { avr_device::interrupt::enable() };
         let watchdog = watchdog::Watchdog::start(dp.WDT);
 

@@ -61,8 +61,9 @@ impl RunMode {
     /// One tick: the duty `applied` during the interval that ended with `reading` (counts;
     /// `None` after a sensor error, `last` is then the held reading). Returns the duty for the
     /// next interval; puts at most one event into `event`, which must be empty (the
-    /// monitor's; the tracking's waits a tick when both fall on the same tick). Events are written in place, not returned and
-    /// moved: each move of a 74-byte event costs ~550 cycles of the ATmega2560's control tick.
+    /// monitor's; the tracking's waits a tick when both fall on the same tick). Events are
+    /// written in place, not returned and moved: each move of a 74-byte event costs ~550
+    /// cycles of the ATmega2560's control tick.
     pub(super) fn step(
         &mut self,
         applied: u16,
