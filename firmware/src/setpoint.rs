@@ -1,4 +1,4 @@
-//! Flow setpoints for run mode, one value per 10 ms tick, in slm: a constant, a sequence of
+//! Flow setpoints for run mode, one value per 10 ms tick, in slm: a constant, the demo's
 //! steps, and breath profiles (square or decelerating-ramp inspiratory flow).
 //!
 //! # Breath profile
@@ -146,8 +146,6 @@ pub enum Program {
     Hold,
     /// A constant flow, slm.
     Constant(f32),
-    /// A sequence of levels, repeated.
-    Steps(&'static [Level]),
     /// A breath profile, repeated (prepared: `Program::Breath(BreathWave::new(&breath))`).
     Breath(BreathWave),
     /// The demonstration: 2 s holding the start flow, [`DEMO_STEPS`] once, then
@@ -356,30 +354,24 @@ fn before_breaths(program: Program, start: f32, tick: u32) -> f32 {
     match program {
         Program::Hold | Program::Breath(_) => start,
         Program::Constant(v) => v,
-        Program::Steps(levels) => steps_at(levels, tick),
         Program::Demo => match tick.checked_sub(DEMO_HOLD_TICKS) {
             None => start,
-            Some(t) => steps_at(DEMO_STEPS, t),
+            Some(t) => demo_step_at(t),
         },
     }
 }
 
-fn steps_at(levels: &[Level], tick: u32) -> f32 {
-    let mut total = 0u32;
-    for l in levels {
-        total += u32::from(l.ticks);
-    }
-    if total == 0 {
-        return levels.first().map_or(0.0, |l| l.slm);
-    }
-    // The demo runs its steps once (`tick < total`): no 32-bit modulo then, which costs
-    // ~650 cycles on the ATmega2560, twice per tick with the preview.
-    let mut t = if tick < total { tick } else { tick % total };
-    for l in levels {
+/// The level of [`DEMO_STEPS`] at `tick` ticks into them (the last one after their end: the
+/// breaths start there). (The demo's constant steps fold into a few comparisons; a step
+/// program of the settings' own, `Program::Steps` until it was removed, cost the ATmega2560
+/// 200 bytes of flash.)
+fn demo_step_at(tick: u32) -> f32 {
+    let mut t = tick;
+    for l in DEMO_STEPS {
         if t < u32::from(l.ticks) {
             return l.slm;
         }
         t -= u32::from(l.ticks);
     }
-    levels.last().map_or(0.0, |l| l.slm)
+    DEMO_STEPS.last().map_or(0.0, |l| l.slm)
 }

@@ -2,8 +2,7 @@
 //! the definition in seconds, and the incremental `Setpoint` (with preview) against `value`.
 
 use ridge_pump_firmware::setpoint::{
-    value, Breath, BreathWave, Level, Program, Setpoint, Shape, DEMO_BREATH, DEMO_HOLD_TICKS,
-    DEMO_STEPS,
+    value, Breath, BreathWave, Program, Setpoint, Shape, DEMO_BREATH, DEMO_HOLD_TICKS, DEMO_STEPS,
 };
 
 const SQUARE: Breath = Breath {
@@ -114,21 +113,10 @@ fn wave_matches_the_definition_at_every_tick() {
 /// for every kind of program, across the demo's hold → steps → breaths boundaries.
 #[test]
 fn setpoint_equals_value_at_every_tick_and_ahead() {
-    const LEVELS: &[Level] = &[
-        Level {
-            slm: 30.0,
-            ticks: 150,
-        },
-        Level {
-            slm: 45.0,
-            ticks: 75,
-        },
-    ];
     let programs = [
         Program::Demo,
         Program::Breath(BreathWave::new(&SQUARE)),
         Program::Breath(BreathWave::new(&RAMP)),
-        Program::Steps(LEVELS),
         Program::Constant(33.0),
         Program::Hold,
     ];

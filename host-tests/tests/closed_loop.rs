@@ -14,7 +14,7 @@ use pump_sim::{Pump, PumpParams, Rig, Sfm3300Params};
 use ridge_core::{IntGram, Offset, Regressor, Search, Structure};
 use ridge_pump_firmware::event::{Event, LINE_MAX};
 use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, SETTLE_MEAN_TICKS};
-use ridge_pump_firmware::setpoint::{Level, Program};
+use ridge_pump_firmware::setpoint::Program;
 use ridge_pump_firmware::sfm3300::raw_to_counts;
 use ridge_pump_firmware::units::{DUTY_FULL_SCALE, SCALE};
 
@@ -281,17 +281,15 @@ fn identification_is_reproducible_across_seeds() {
 #[test]
 fn run_mode_tracks_and_reports_residuals_without_drift_on_the_healthy_pump() {
     for (name, pump) in presets() {
-        // 10 s at each of the flows the pump gives at 30, 50, 80 and 25 % duty.
-        let levels: Vec<Level> = [3_000u16, 5_000, 8_000, 2_500]
+        // 10 s at each of the flows the pump gives at 30, 50, 80 and 25 % duty, each set as
+        // the operator's FLOW command does.
+        let levels: Vec<f32> = [3_000u16, 5_000, 8_000, 2_500]
             .iter()
-            .map(|&d| Level {
-                slm: flow_at(&pump, d),
-                ticks: 1_000,
-            })
+            .map(|&d| flow_at(&pump, d))
             .collect();
-        let levels: &'static [Level] = Box::leak(levels.into_boxed_slice());
-        let mut lp = identify_for(pump.clone(), 7, Program::Steps(levels));
-        for level in levels {
+        let mut lp = identify_for(pump.clone(), 7, Program::Constant(levels[0]));
+        for &slm in &levels {
+            lp.sm.set_flow(slm).unwrap();
             let before = lp.events.len();
             for _ in 0..1_000 {
                 lp.tick();
@@ -299,8 +297,8 @@ fn run_mode_tracks_and_reports_residuals_without_drift_on_the_healthy_pump() {
             let after = &lp.events[before..];
             let res: Vec<&String> = after.iter().filter(|e| e.starts_with("RES ")).collect();
             let track: Vec<&String> = after.iter().filter(|e| e.starts_with("TRACK ")).collect();
-            assert_eq!(res.len(), 10, "{name} {}: {after:#?}", level.slm);
-            assert_eq!(track.len(), 10, "{name} {}: {after:#?}", level.slm);
+            assert_eq!(res.len(), 10, "{name} {}: {after:#?}", slm);
+            assert_eq!(track.len(), 10, "{name} {}: {after:#?}", slm);
             // A large step can hold the flow outside the alarm band for more than 0.5 s (the
             // sluggish blower coasts down with τ = 0.45 s): an alarm then, cleared again.
             let alarms = after.iter().filter(|e| e.starts_with("ALARM")).count();
@@ -309,7 +307,7 @@ fn run_mode_tracks_and_reports_residuals_without_drift_on_the_healthy_pump() {
                 after.len(),
                 "{name}: {after:#?}"
             );
-            assert!(!lp.sm.tracking_alarm(), "{name} {}: {after:#?}", level.slm);
+            assert!(!lp.sm.tracking_alarm(), "{name} {}: {after:#?}", slm);
             // Steady windows: residual RMS near the sensor noise (3 % of the flow), the flow
             // on its setpoint within the noise, no steady error.
             let (r, t) = (res.last().unwrap(), track.last().unwrap());
@@ -317,7 +315,7 @@ fn run_mode_tracks_and_reports_residuals_without_drift_on_the_healthy_pump() {
                 field(r, "rms") < 0.06 * field(r, "flow") + 0.5,
                 "{name}: {r}"
             );
-            let sp = f64::from(level.slm);
+            let sp = f64::from(slm);
             assert!((field(t, "sp") - sp).abs() < 1e-3 * sp, "{name}: {t}");
             assert!(
                 (field(t, "flow") - sp).abs() < 0.01 * sp + 0.1,
