@@ -199,9 +199,9 @@ impl uDisplay for RstLine<'_> {
             }
             Poly::T => {
                 f.write_str("RST t=")?;
-                self.0.t()
+                return write_list(f, self.0.ao(), self.0.t0(), COEF_DIGITS);
             }
         };
-        write_list(f, coefficients, COEF_DIGITS)
+        write_list(f, coefficients, 1.0, COEF_DIGITS)
     }
 }

@@ -287,12 +287,15 @@ pub enum Event {
     },
     /// The flow controller was designed and passed its checks; run mode starts.
     Control {
-        /// The speed knob: time constant of the setpoint response, s.
+        /// The regulation loop's time constant, s (the speed knob as resolved and slowed).
         tau: f32,
-        /// Closed-loop pole of the setpoint response, `e^{−Ts/τ}`.
+        /// Closed-loop pole of the regulation loop, `e^{−Ts/τ}`.
         alpha: f32,
         /// Observer pole.
         beta: f32,
+        /// Pole of the setpoint response: the reference model's (`e^{−Ts/0.08 s}` without a
+        /// speed given), else `alpha`.
+        gamma: f32,
         /// Model poles kept in place (the others of the closed loop are at 0).
         kept: u8,
         /// Modulus margin.
@@ -497,6 +500,7 @@ pub(crate) const COEF_DIGITS: u8 = 6;
 pub(crate) fn write_list<W>(
     f: &mut Formatter<'_, W>,
     values: &[f32],
+    scale: f32,
     digits: u8,
 ) -> Result<(), W::Error>
 where
@@ -506,7 +510,7 @@ where
         if i > 0 {
             f.write_str(",")?;
         }
-        uDisplay::fmt(&Fixed::new(*v, digits), f)?;
+        uDisplay::fmt(&Fixed::new(*v * scale, digits), f)?;
     }
     Ok(())
 }
@@ -529,9 +533,9 @@ where
         Int::from(s.d),
         Int::from(off)
     )?;
-    write_list(f, m.theta(), COEF_DIGITS)?;
+    write_list(f, m.theta(), 1.0, COEF_DIGITS)?;
     f.write_str(" phi=")?;
-    write_list(f, m.phi(), COEF_DIGITS)?;
+    write_list(f, m.phi(), 1.0, COEF_DIGITS)?;
     ufmt::uwrite!(f, " c={}", Fixed::new(m.intercept(), COEF_DIGITS))
 }
 
@@ -733,16 +737,19 @@ impl uDisplay for Event {
                 tau,
                 alpha,
                 beta,
+                gamma,
                 kept,
                 margin,
                 tries,
                 preview,
             } => ufmt::uwrite!(
                 f,
-                "CTRL method=pole-placement tau={} poles={},{} kept={} mm={} tries={} preview={}",
+                "CTRL method=pole-placement tau={} poles={},{} ref={} kept={} mm={} tries={} \
+                 preview={}",
                 Fixed::new(*tau, 3),
                 Fixed::new(*alpha, 3),
                 Fixed::new(*beta, 3),
+                Fixed::new(*gamma, 3),
                 Int::from(*kept),
                 Fixed::new(*margin, 3),
                 Int::from(*tries),

@@ -3,6 +3,7 @@
 
 mod common;
 
+use ridge_core::control::REFERENCE_S;
 use ridge_core::{ArxModel, IntGram, Method, Offset, RidgeM, Search, Structure};
 use ridge_pump_firmware::event::{
     Event, FaultReason, RejectReason, Residuals, SearchStats, SensorFault, StoredReason,
@@ -10,10 +11,10 @@ use ridge_pump_firmware::event::{
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
 use ridge_pump_firmware::selfid::{
-    Config, Defaults, SelfIdentification, Settings, State, Tick, DEFAULT_CONFIG,
+    Config, Defaults, SelfIdentification, Settings, State, Tick, DEFAULT_CONFIG, REFERENCE_POLE,
 };
 use ridge_pump_firmware::setpoint::{Program, DEMO_HOLD_TICKS};
-use ridge_pump_firmware::units::SCALE;
+use ridge_pump_firmware::units::{SAMPLE_RATE_HZ, SCALE};
 
 use common::Plant;
 
@@ -844,6 +845,45 @@ fn a_stored_model_skips_identification() {
     rig.run_to(State::Run);
     assert!(rig.has_event("EXCITE A-Multistep n=3000 u0=30.00 y0="));
     assert!(rig.has_event("ACCEPT"));
+}
+
+/// The setpoint's reference model: `REFERENCE_POLE` is `e^{−Ts/REFERENCE_S}` (std's `exp`
+/// here); without a speed given the controller runs it (`ref=` on the CTRL line, the preview
+/// its mean delay); with a speed the setpoint response has the regulation pole (`ref` = `α`).
+#[test]
+fn the_reference_model_sets_the_setpoint_response_unless_a_speed_is_given() {
+    let want = (-1.0 / (f64::from(SAMPLE_RATE_HZ) * REFERENCE_S)).exp();
+    assert!((f64::from(REFERENCE_POLE) - want).abs() < 1e-7, "{want}");
+    let mut first = Rig::new(Config::default(), None, Plant::reference());
+    first.run_to(State::Run);
+    let bytes = first.sm.persist_bytes().unwrap();
+    let ctrl = |cfg: Config| {
+        let mut rig = Rig::new(cfg, Some(&bytes), Plant::reference());
+        rig.run_to(State::Run);
+        let ctrl = rig
+            .events
+            .iter()
+            .find(|e| e.starts_with("CTRL"))
+            .unwrap()
+            .clone();
+        (ctrl, rig.sm.preview().unwrap())
+    };
+    let (default, preview) = ctrl(Config::default());
+    assert!((field(&default, "ref") - want).abs() < 6e-4, "{default}");
+    // The mean delay of q^{−d−1} B/B(1) (one φ, d = 3: 4 samples) plus γ / (1 − γ).
+    let mean = 4.0 + want / (1.0 - want);
+    assert_eq!(f64::from(preview), mean.round(), "{default}");
+    let mut cfg = Config::default();
+    cfg.control.tau = Some(0.05);
+    let (given, preview) = ctrl(cfg);
+    let alpha = (-0.01f64 / 0.05).exp();
+    assert!((field(&given, "ref") - alpha).abs() < 6e-4, "{given}");
+    assert!(given.contains(&format!(" poles={alpha:.3},")), "{given}");
+    assert_eq!(
+        f64::from(preview),
+        (4.0 + alpha / (1.0 - alpha)).round(),
+        "{given}"
+    );
 }
 
 #[test]

@@ -6,8 +6,8 @@
 
 use nalgebra::{Complex, DMatrix};
 use ridge_core::control::{
-    check_model, design, design_slower_on_failure, Controller, DesignError, Limits, ModelFault,
-    ModelLimits, Spec,
+    check_model, design, design_slower_on_failure, Controller, Design, DesignError, Limits,
+    ModelFault, ModelLimits, Spec,
 };
 use ridge_core::{ArxModel, Offset};
 
@@ -232,7 +232,7 @@ fn f32_design_matches_f64() {
         for (a, b) in [
             (d64.rst.r(), d32.rst.r()),
             (d64.rst.s(), d32.rst.s()),
-            (d64.rst.t(), d32.rst.t()),
+            (&d64.rst.t()[..], &d32.rst.t()[..]),
         ] {
             let scale = a.iter().fold(1e-3f64, |s, x| s.max(x.abs()));
             for (x, y) in a.iter().zip(b) {
@@ -319,41 +319,132 @@ fn wide() -> Limits<f64> {
     }
 }
 
+/// The default design with the setpoint's reference model of time constant `reference` (s),
+/// its pole `e^{−Ts/τ}` computed here with std's `exp`.
+fn design_with_reference(m: &ArxModel<f64>, reference: Option<f64>) -> Design<f64> {
+    let mut d = design(m, &Spec::new(TS)).unwrap();
+    if let Some(tau) = reference {
+        d.set_reference((-TS / tau).exp()).unwrap();
+    }
+    d
+}
+
 /// Without limits the running controller (histories in rings, `T = t₀ A_o` folded into the
-/// observer terms) is the plain difference equation `R u_{t+1} = T r_{t+1} − S y_t` of its
-/// polynomials, evaluated here directly over the whole history.
+/// observer terms, the reference model) is the plain difference equation
+/// `R u_{t+1} = T r'_{t+1} − S y_t` of its polynomials, evaluated here directly over the whole
+/// history, with `r'` the setpoint through the reference model computed here from its
+/// definition (`r_m,t+1 = γ r_m,t + (1 − γ) r_{t+1}`, `r' = (r_m,t+1 − α r_m,t) / (1 − α)`), and
+/// without a reference model `r' = r`.
 #[test]
 fn unlimited_controller_is_the_rst_difference_equation() {
-    for (name, m) in plants() {
-        let d = design(&m, &Spec::new(TS)).unwrap();
-        let (r_p, s_p, t_p) = (d.rst.r(), d.rst.s(), d.rst.t());
-        let mut ctrl = Controller::new(d.rst, wide());
-        let (u0, y0) = (0.4, 30.0);
-        ctrl.start(u0, y0);
-        // Histories padded with the start values (the controller's bumpless start).
-        let pad = 16;
-        let (mut us, mut ys, mut rs) = (vec![u0; pad], vec![y0; pad], vec![y0; pad]);
-        for t in 0..300usize {
-            // Arbitrary bounded inputs: a pseudo-random reading and a stepping setpoint.
-            let y = y0 + 5.0 * ((t * 7919 % 101) as f64 / 50.0 - 1.0);
-            let r = y0 + if (t / 40) % 2 == 0 { 10.0 } else { -8.0 };
-            ys.push(y);
-            rs.push(r);
-            let u = ctrl.step(r, y);
-            let n = us.len();
-            // R(q⁻¹) u_{t+1} with u_{t+1} = u, the others from the history.
-            let lhs = u + (1..r_p.len()).map(|k| r_p[k] * us[n - k]).sum::<f64>();
-            let rhs = (0..t_p.len())
-                .map(|k| t_p[k] * rs[rs.len() - 1 - k])
-                .sum::<f64>()
-                - (0..s_p.len())
-                    .map(|k| s_p[k] * ys[ys.len() - 1 - k])
-                    .sum::<f64>();
+    for reference in [None, Some(0.08), Some(0.02)] {
+        for (name, m) in plants() {
+            let d = design_with_reference(&m, reference);
+            let t_p = d.rst.t();
+            let (r_p, s_p) = (d.rst.r(), d.rst.s());
+            let want = reference.map(|tau: f64| (-TS / tau).exp());
+            let got = d.rst.reference_pole();
+            assert_eq!(got.is_some(), want.is_some(), "{name}: γ {got:?}");
+            let gamma = got.unwrap_or(0.0);
             assert!(
-                (lhs - rhs).abs() <= 1e-9 * (1.0 + rhs.abs()),
-                "{name} t={t}: R u = {lhs}, T r − S y = {rhs}"
+                (gamma - want.unwrap_or(0.0)).abs() < 1e-12,
+                "{name}: γ {gamma}, e^(−Ts/τ) {want:?}"
             );
-            us.push(u);
+            let alpha = d.alpha;
+            let mut ctrl = Controller::new(d.rst, wide());
+            let (u0, y0) = (0.4, 30.0);
+            ctrl.start(u0, y0);
+            // Histories padded with the start values (the controller's bumpless start).
+            let pad = 16;
+            let (mut us, mut ys, mut rs) = (vec![u0; pad], vec![y0; pad], vec![y0; pad]);
+            let mut rm = y0;
+            for t in 0..300usize {
+                // Arbitrary bounded inputs: a pseudo-random reading and a stepping setpoint.
+                let y = y0 + 5.0 * ((t * 7919 % 101) as f64 / 50.0 - 1.0);
+                let r = y0 + if (t / 40) % 2 == 0 { 10.0 } else { -8.0 };
+                ys.push(y);
+                let shaped = match reference {
+                    Some(_) => {
+                        let next = gamma * rm + (1.0 - gamma) * r;
+                        let shaped = (next - alpha * rm) / (1.0 - alpha);
+                        rm = next;
+                        shaped
+                    }
+                    None => r,
+                };
+                rs.push(shaped);
+                let u = ctrl.step(r, y);
+                let n = us.len();
+                // R(q⁻¹) u_{t+1} with u_{t+1} = u, the others from the history.
+                let lhs = u + (1..r_p.len()).map(|k| r_p[k] * us[n - k]).sum::<f64>();
+                let rhs = (0..t_p.len())
+                    .map(|k| t_p[k] * rs[rs.len() - 1 - k])
+                    .sum::<f64>()
+                    - (0..s_p.len())
+                        .map(|k| s_p[k] * ys[ys.len() - 1 - k])
+                        .sum::<f64>();
+                assert!(
+                    (lhs - rhs).abs() <= 1e-9 * (1.0 + rhs.abs()),
+                    "{name} {reference:?} t={t}: R u = {lhs}, T r' − S y = {rhs}"
+                );
+                us.push(u);
+            }
+        }
+    }
+}
+
+/// On the exact model the setpoint response is the designed one, sample by sample:
+/// `y = y₀ + q^{−d−1} (B / B(1)) (1 − γ) / (1 − γ q⁻¹) Δr`, computed here from the model's
+/// coefficients, with `γ = α` without a reference model and `γ = e^{−Ts/τ_ref}` with one
+/// (the regulation loop's `α` cancelled).
+#[test]
+fn setpoint_response_is_the_designed_first_order_one() {
+    for reference in [None, Some(0.08), Some(0.15)] {
+        for (name, m) in plants() {
+            let d = design_with_reference(&m, reference);
+            let want = reference.map_or(d.alpha, |tau: f64| (-TS / tau).exp());
+            assert!(
+                (d.gamma - want).abs() < 1e-9,
+                "{name}: γ {}, want {want}",
+                d.gamma
+            );
+            let gamma = d.gamma;
+            let mut plant = Plant::new(&m, 1.0, -5.0, 0.3);
+            let y0 = plant.y[0];
+            let mut ctrl = Controller::new(d.rst, wide());
+            ctrl.start(0.3, y0);
+            let step = 20.0;
+            let (ys, _) = run(
+                &mut ctrl,
+                &mut plant,
+                200,
+                |t| if t >= 1 { y0 + step } else { y0 },
+                |_, _| {},
+            );
+            // The first-order reference, from the step at t = 1.
+            let mut first = vec![0.0; 200];
+            for t in 1..200 {
+                first[t] = gamma * first[t - 1] + (1.0 - gamma) * step;
+            }
+            let (phi, dd) = (m.phi(), usize::from(m.structure().d));
+            let b1: f64 = phi.iter().sum();
+            for (t, &y) in ys.iter().enumerate() {
+                // ys[t] is the reading that ends interval t; the setpoint r(t) entered the
+                // controller one reading earlier (`run` gives it r(t + 1) after ys[t]).
+                let want = y0
+                    + phi
+                        .iter()
+                        .enumerate()
+                        .map(|(j, p)| {
+                            let k = t as i64 - dd as i64 - j as i64;
+                            p / b1 * if k >= 0 { first[k as usize] } else { 0.0 }
+                        })
+                        .sum::<f64>();
+                assert!(
+                    (y - want).abs() < 1e-6 * step,
+                    "{name} {reference:?} t={t}: y {y}, designed {want}"
+                );
+            }
         }
     }
 }
@@ -383,7 +474,8 @@ fn setpoint_response_is_first_order_without_overshoot_and_offset_steps_leave_no_
         // Before the disturbance: the designed first-order response after the loop delay.
         let overshoot = ys[..300].iter().fold(f64::MIN, |a, &b| a.max(b)) - target;
         assert!(overshoot < 0.01 * 20.0, "{name}: overshoot {overshoot}");
-        let tau_samples = d.tau / TS;
+        // The setpoint response's time constant: the reference model's.
+        let tau_samples = -1.0 / d.gamma.ln();
         let t63 = ys.iter().position(|&y| y - y0 >= 0.632 * 20.0).unwrap();
         assert!(
             (t63 as f64) <= delay as f64 + tau_samples + 3.0,
@@ -417,8 +509,16 @@ fn gain_errors_of_a_factor_two_are_tolerated() {
 
 #[test]
 fn saturation_then_recovery_without_windup() {
+    // Without and with the firmware's reference model (0.08 s), which holds while the output
+    // is at the limit the setpoint pulls towards.
+    for reference in [None, Some(0.08)] {
+        saturation_then_recovery(reference);
+    }
+}
+
+fn saturation_then_recovery(reference: Option<f64>) {
     let (name, m) = plants().remove(0);
-    let d = design(&m, &Spec::new(TS)).unwrap();
+    let d = design_with_reference(&m, reference);
     let limits = Limits {
         min: 0.0,
         max: 0.5,

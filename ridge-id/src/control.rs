@@ -35,8 +35,8 @@ use std::fmt::Write as _;
 
 use nalgebra::{DMatrix, Schur};
 use ridge_core::control::{
-    check_model, design_slower_on_failure, Controller, Design, DesignError, Limits, ModelFault,
-    ModelLimits, Spec,
+    check_model, design_slower_on_failure, exp_neg, Controller, Design, DesignError, Limits,
+    ModelFault, ModelLimits, Spec, REFERENCE_S,
 };
 use ridge_core::ArxModel;
 
@@ -309,6 +309,31 @@ pub fn closed_loop(model: &ArxModel<f64>, r: &[f64], s: &[f64]) -> (Vec<f64>, f6
     (p, scale)
 }
 
+/// `design`'s controller in the conventions `R u_{t+1} = T r_{t+1} − S y_t` (ascending powers
+/// of `q⁻¹`, `R` monic): `(R, S, T)`. Without a reference model these are ridge-core's `R`,
+/// `S`, `T = t₀ A_o`. With one ([`Design::set_reference`]) the controller runs
+/// `R u = t₀ A_o r' − S y` on the shaped setpoint
+/// `r' = (1 − γ)(1 − α q⁻¹) / ((1 − α)(1 − γ q⁻¹)) r`; multiplied by `1 − γ q⁻¹` that is
+/// `R (1 − γ q⁻¹) u = t₀ (1 − γ)/(1 − α) A_o (1 − α q⁻¹) r − S (1 − γ q⁻¹) y`, the same
+/// controller in the conventions (integral action and `T(1) = S(1)` kept).
+pub fn conventions(design: &Design<f64>) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let rst = &design.rst;
+    let t = rst.t().to_vec();
+    match rst.reference_pole() {
+        Some(gamma) => {
+            let shift = [1.0, -gamma];
+            let gain = (1.0 - gamma) / (1.0 - design.alpha);
+            let t: Vec<f64> = t.iter().map(|x| x * gain).collect();
+            (
+                mul(rst.r(), &shift),
+                mul(rst.s(), &shift),
+                mul(&t, &[1.0, -design.alpha]),
+            )
+        }
+        None => (rst.r().to_vec(), rst.s().to_vec(), t),
+    }
+}
+
 /// A controller that passed every check.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Designed {
@@ -321,7 +346,19 @@ pub struct Designed {
     pub tau_derived: bool,
     /// [`Design::mean_delay`]: mean delay of the designed setpoint response, samples.
     pub mean_delay: f64,
-    /// `P = A R + q^{−d−1} B S`, ascending powers of `q⁻¹`.
+    /// The time constant of the setpoint's reference model, s ([`REFERENCE_S`] without
+    /// `--speed`, as the firmware), `None` without one.
+    pub reference_s: Option<f64>,
+    /// The controller in the conventions `R u_{t+1} = T r_{t+1} − S y_t`, the reference model
+    /// included ([`conventions`]): `R`, `S`, `T`, ascending powers of `q⁻¹`.
+    pub r: Vec<f64>,
+    /// See [`Designed::r`].
+    pub s: Vec<f64>,
+    /// See [`Designed::r`].
+    pub t: Vec<f64>,
+    /// `P = A R + q^{−d−1} B S` of [`Designed::r`] and [`Designed::s`], ascending powers of
+    /// `q⁻¹` (with a reference model its pole `γ` is a root: a pole of the setpoint
+    /// response).
     pub closed_loop: Vec<f64>,
     /// The roots of `P` (see [`roots`]); empty if they could not be computed.
     pub poles: Vec<Pole>,
@@ -569,14 +606,31 @@ fn check_and_design(
     let (result, tries) = design_slower_on_failure(model, &spec, TRIES, SLOWDOWN, || {});
     let slowed = SLOWDOWN.powi(i32::from(tries) - 1);
     match result {
-        Ok(design) => {
-            let (closed, scale) = closed_loop(model, design.rst.r(), design.rst.s());
+        Ok(mut design) => {
+            // As the firmware: without a speed given, the setpoint response is the
+            // reference model's. γ = e^{−Ts/0.08} is in 0..1 for the Ts the design accepted.
+            let reference_s = opts.speed.is_none().then_some(REFERENCE_S);
+            if let Some(tau_ref) = reference_s {
+                if design.set_reference(exp_neg(spec.ts / tau_ref)).is_err() {
+                    return Err(refuse(
+                        Check::Spec,
+                        tries,
+                        format!("design: reference model 0.08 s at Ts = {} s", spec.ts),
+                    ));
+                }
+            }
+            let (r, s, t) = conventions(&design);
+            let (closed, scale) = closed_loop(model, &r, &s);
             let poles = roots(&closed, ZERO_POLE_TOLERANCE * scale).unwrap_or_default();
             Ok(Designed {
                 design,
                 tries,
                 tau_derived: opts.speed.is_none(),
                 mean_delay: design.mean_delay(model),
+                reference_s,
+                r,
+                s,
+                t,
                 closed_loop: closed,
                 poles,
             })
@@ -684,7 +738,10 @@ pub fn simulate_step(
     }
     let s = model.structure();
     let (p, q, d) = (usize::from(s.p), usize::from(s.q), usize::from(s.d));
-    let hold = (10.0 * design.tau / ts).ceil() + (2 * (d + q) + 10) as f64;
+    // Long enough for the slower of the regulation loop and the setpoint response (the
+    // reference model's time constant, `−Ts / ln γ`).
+    let tau = design.tau.max(-ts / design.gamma.ln());
+    let hold = (10.0 * tau / ts).ceil() + (2 * (d + q) + 10) as f64;
     let hold = if hold.is_finite() {
         hold.clamp(40.0, 3000.0) as usize
     } else {
@@ -800,7 +857,7 @@ impl ControlReport {
                 let _ = writeln!(o, "  tau           {} s{slowed}, {how}", num(d.tau));
                 let _ = writeln!(
                     o,
-                    "  alpha         {} (setpoint response pole, exp(-Ts/tau))",
+                    "  alpha         {} (regulation pole, exp(-Ts/tau))",
                     num(d.alpha)
                 );
                 let _ = writeln!(
@@ -809,6 +866,20 @@ impl ControlReport {
                     num(d.beta),
                     num(d.spec.observer * d.spec.slowdown)
                 );
+                match c.reference_s {
+                    Some(tau_ref) => {
+                        let _ = writeln!(
+                            o,
+                            "  reference     {} s (setpoint response pole {}: the setpoint goes \
+                             through a first-order reference model, alpha cancelled)",
+                            num(tau_ref),
+                            num(d.gamma)
+                        );
+                    }
+                    None => {
+                        let _ = writeln!(o, "  reference     none (setpoint response pole alpha)");
+                    }
+                }
                 let _ = writeln!(
                     o,
                     "  kept          {} model pole(s) (those within {} of 0; a slow real pole is moved to alpha)",
@@ -831,12 +902,17 @@ impl ControlReport {
                     num(c.mean_delay),
                     num(c.mean_delay * ts)
                 );
-                let _ = writeln!(o, "  R = {}", list(d.rst.r()));
-                let _ = writeln!(o, "  S = {}", list(d.rst.s()));
-                let _ = writeln!(o, "  T = {}", list(d.rst.t()));
+                let _ = writeln!(o, "  R = {}", list(&c.r));
+                let _ = writeln!(o, "  S = {}", list(&c.s));
+                let _ = writeln!(o, "  T = {}", list(&c.t));
                 let _ = writeln!(
                     o,
-                    "  R(q^-1) u(t+1) = T(q^-1) r(t+1) - S(q^-1) y(t), ascending powers of q^-1"
+                    "  R(q^-1) u(t+1) = T(q^-1) r(t+1) - S(q^-1) y(t), ascending powers of q^-1{}",
+                    if c.reference_s.is_some() {
+                        " (the reference model multiplied in: R and S carry its (1 - gamma q^-1))"
+                    } else {
+                        ""
+                    }
                 );
                 let _ = writeln!(
                     o,

@@ -217,6 +217,8 @@ enum JsonControl<'a> {
         tau_s: f64,
         alpha: f64,
         beta: f64,
+        reference_s: Option<f64>,
+        gamma: f64,
         kept: u8,
         tries: u8,
         modulus_margin: f64,
@@ -244,13 +246,15 @@ impl<'a> From<&'a ControlReport> for JsonControl<'a> {
                 tau_s: d.design.tau,
                 alpha: d.design.alpha,
                 beta: d.design.beta,
+                reference_s: d.reference_s,
+                gamma: d.design.gamma,
                 kept: d.design.kept,
                 tries: d.tries,
                 modulus_margin: d.design.modulus_margin,
                 mean_delay_samples: d.mean_delay,
-                r: d.design.rst.r(),
-                s: d.design.rst.s(),
-                t: d.design.rst.t(),
+                r: &d.r,
+                s: &d.s,
+                t: &d.t,
                 ao: d.design.rst.ao(),
                 poles: d.poles.iter().map(|p| [p.re, p.im]).collect(),
             },
@@ -304,12 +308,15 @@ impl Report {
     /// A non-finite number (a diverging free run) is written as `null`.
     ///
     /// `"control"` is, for a designed controller,
-    /// `{"method": "pole-placement", "ts_s", "tau_s", "alpha", "beta", "kept", "tries",
-    /// "modulus_margin", "mean_delay_samples", "r", "s", "t", "ao", "poles": [[re, im], …]}`
-    /// (`ts_s` the sample period and `tau_s` the setpoint response's time constant, s;
-    /// `alpha = e^{−Ts/τ}`, `beta` the observer pole; `kept` model poles kept in `P`;
+    /// `{"method": "pole-placement", "ts_s", "tau_s", "alpha", "beta", "reference_s", "gamma",
+    /// "kept", "tries", "modulus_margin", "mean_delay_samples", "r", "s", "t", "ao", "poles":
+    /// [[re, im], …]}` (`ts_s` the sample period and `tau_s` the regulation loop's time
+    /// constant, s; `alpha = e^{−Ts/τ}`, `beta` the observer pole; `reference_s` the setpoint's
+    /// reference model time constant (s, `null` without one) and `gamma` the setpoint
+    /// response's pole (`e^{−Ts/reference_s}`, else `alpha`); `kept` model poles kept in `P`;
     /// `tries` designs made; `mean_delay_samples` of the setpoint response; `r`, `s`, `t` the
-    /// controller `R u_{t+1} = T r_{t+1} − S y_t` and `ao` its anti-windup observer
+    /// controller `R u_{t+1} = T r'_{t+1} − S y_t` (`r'` the setpoint through the reference
+    /// model, `ridge_core::control::Rst::set_reference`) and `ao` its anti-windup observer
     /// polynomial, ascending powers of `q⁻¹`; `poles` the roots of
     /// `P = A R + q^{−d−1} B S`, by decreasing `|z|`), and for a refused one
     /// `{"refused": "reason", "check": "unstable"|"gain"|…, "tries", "ts_s"}` (see

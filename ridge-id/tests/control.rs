@@ -226,12 +226,14 @@ fn closed_loop_from_the_json_is_the_reported_one_and_tracks_the_true_plant() {
                 "alpha",
                 "ao",
                 "beta",
+                "gamma",
                 "kept",
                 "mean_delay_samples",
                 "method",
                 "modulus_margin",
                 "poles",
                 "r",
+                "reference_s",
                 "s",
                 "t",
                 "tau_s",
@@ -270,8 +272,13 @@ fn closed_loop_from_the_json_is_the_reported_one_and_tracks_the_true_plant() {
             );
             assert!(m.0.hypot(m.1) < 1.0, "unstable closed loop: {mine:?}");
         }
-        // The designed poles α (setpoint response) and β (observer) are among them.
-        for key in ["alpha", "beta"] {
+        // Without --speed the firmware's reference model: 0.08 s, γ = e^{−Ts/0.08}.
+        assert_eq!(c["reference_s"].as_f64(), Some(0.08), "{c}");
+        let gamma = c["gamma"].as_f64().unwrap();
+        assert!((gamma - (-0.01f64 / 0.08).exp()).abs() < 1e-7, "{gamma}");
+        // The designed poles α (regulation), β (observer) and the reference model's γ (the
+        // setpoint response's, multiplied into R and S) are among them.
+        for key in ["alpha", "beta", "gamma"] {
             let want = c[key].as_f64().unwrap();
             assert!(
                 mine.iter()

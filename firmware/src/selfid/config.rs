@@ -98,8 +98,11 @@ pub struct Config {
 /// Settings of the flow controller: its design, its limits and what it tracks.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ControlConfig {
-    /// The speed knob: time constant of the setpoint response, s. `None` (the default): a
-    /// quarter of the model's open-loop time constant (see `ridge_core::control::Spec`).
+    /// The speed knob: time constant of the setpoint response, s; the regulation loop
+    /// (disturbances, margin) is designed at the same speed. `None` (the default): the
+    /// setpoint response follows a reference model at `ridge_core::control::REFERENCE_S`
+    /// (0.08 s) and the regulation loop gets a quarter of the model's open-loop time constant
+    /// (see `ridge_core::control::Spec`).
     pub tau: Option<f32>,
     /// Time constant of the observer pole, s (default 0.095: pole 0.9 at 100 Hz).
     pub observer: f32,

@@ -10,6 +10,11 @@ use crate::units::TS_S;
 use super::run::RunMode;
 use super::{Phase, SelfIdentification, Settings};
 
+/// The setpoint's reference model pole at the firmware's rate,
+/// `e^{−TS_S / ridge_core::control::REFERENCE_S}` = `e^{−0.125}` (a constant: computing it
+/// here cost the ATmega2560 ~100 bytes of flash; `firmware/tests/selfid.rs` checks it).
+pub const REFERENCE_POLE: f32 = 0.882_496_9;
+
 /// Each retry of a refused design is this much slower (`τ` and the observer pole).
 pub const SLOWDOWN: f32 = 1.5;
 
@@ -48,7 +53,12 @@ impl<S: Settings> SelfIdentification<S> {
         let (result, tries) = design_slower_on_failure(&model, &spec, tries, SLOWDOWN, &mut pet);
         pet();
         match result {
-            Ok(d) => {
+            Ok(mut d) => {
+                // Without a speed given, the setpoint response is the reference model's
+                // (docs/control.md). The constant pole is not refused.
+                if c.tau.is_none() {
+                    d.set_reference(REFERENCE_POLE).ok();
+                }
                 let run = RunMode::new(
                     self.settings.config(),
                     model,
@@ -65,6 +75,7 @@ impl<S: Settings> SelfIdentification<S> {
                     tau: d.tau,
                     alpha: d.alpha,
                     beta: d.beta,
+                    gamma: d.gamma,
                     kept: d.kept,
                     margin: d.modulus_margin,
                     tries,

@@ -83,6 +83,7 @@ mod run;
 mod search;
 
 pub use config::{Config, ControlConfig, Defaults, Settings, DEFAULT_CONFIG, LOSS_SHIFT};
+pub use design::{REFERENCE_POLE, SLOWDOWN};
 pub use guard::Guard;
 pub use recording::{absolute_model, SETTLE_MEAN_TICKS};
 pub use search::{SearchJob, SearchOutcome};
@@ -161,6 +162,9 @@ enum Then {
     Excite,
 }
 
+// One phase at a time, in the state machine's static storage: the variants share its bytes, and
+// `no_std` without a heap has no box to move the search's normal equations into.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 enum Phase {
     Wait,

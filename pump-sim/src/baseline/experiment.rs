@@ -26,12 +26,13 @@
 //! `k`, whose programmed setpoint is `value(program, start, k)`. [`Trace`] index `k` is
 //! interval `k`: the duty applied during it, the flow at its end and its setpoint.
 
+use ridge_core::control::{design_slower_on_failure, Spec};
 use ridge_core::ArxModel;
 use ridge_pump_firmware::event::{Event, LINE_MAX};
-use ridge_pump_firmware::selfid::{Config, SelfIdentification, State};
+use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, SLOWDOWN};
 use ridge_pump_firmware::setpoint::{self, Program, DEMO_BREATH, DEMO_HOLD_TICKS, DEMO_STEPS};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::DUTY_FULL_SCALE;
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, TS_S as FIRMWARE_TS_S};
 
 use super::metrics::{rms_error, step_metrics, total_variation, StepMetrics};
 use super::pid::{DutyLimits, Pid, PidError, PidGains};
@@ -180,6 +181,21 @@ pub fn tune_zn(plant: &PlantArgs) -> Result<ZnTuning, ExperimentError> {
     })
 }
 
+/// The preview the firmware's controller would have without its reference model (see
+/// [`Switchover::baseline_preview`]): the same design (`ridge_core`, `f32`, the settings'
+/// speed and observer, the firmware's retries) and its mean delay, rounded as the firmware
+/// rounds its own; 0 if the design fails (it did not: run mode started).
+pub fn regulation_preview(model: &ArxModel<f32>, config: &Config) -> u8 {
+    let c = &config.control;
+    let spec = Spec {
+        tau: c.tau,
+        observer: c.observer,
+        ..Spec::new(FIRMWARE_TS_S)
+    };
+    let (design, _) = design_slower_on_failure(model, &spec, c.tries, SLOWDOWN, || {});
+    design.map_or(0, |d| (d.mean_delay(model) + 0.5) as u8)
+}
+
 /// The state at the switch-over to run mode.
 #[derive(Clone, Debug)]
 pub struct Switchover {
@@ -187,8 +203,14 @@ pub struct Switchover {
     pub duty: u16,
     /// The flow reading at the switch-over, slm: the start of the program.
     pub flow: f32,
-    /// Ticks of setpoint preview ([`SelfIdentification::preview`]).
+    /// Ticks of setpoint preview of the RST ([`SelfIdentification::preview`]: its setpoint
+    /// response's mean delay, the reference model's included).
     pub preview: u8,
+    /// Ticks of setpoint preview of the baselines: the firmware's design's mean delay
+    /// without its reference model, `d + 1 + Σ k φₖ / Σ φₖ + α / (1 − α)` ([`regulation_preview`]):
+    /// the response time the plant-derived design targets, not the RST's deliberately slower
+    /// 0.08 s reference, which would give the PIDs their setpoint late.
+    pub baseline_preview: u8,
     /// The identified model (slm per duty fraction).
     pub model: ArxModel<f32>,
     /// The tick of the switch-over since power-up.
@@ -319,6 +341,7 @@ pub fn identify_with(
                     duty: sm.duty(),
                     flow,
                     preview,
+                    baseline_preview: regulation_preview(&model, config),
                     model,
                     tick,
                     events,
@@ -400,7 +423,7 @@ fn run_pid(
         f64::from(sw.duty) / f64::from(DUTY_FULL_SCALE),
         f64::from(sw.flow),
     );
-    let preview = u32::from(sw.preview);
+    let preview = u32::from(sw.baseline_preview);
     run_loop(rig, sw, program, |k, raw| {
         let r = f64::from(setpoint::value(program, sw.flow, k.saturating_add(preview)));
         Ok(duty_counts(pid.step(r, raw_to_flow(raw))))

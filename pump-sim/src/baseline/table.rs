@@ -83,8 +83,8 @@ pub struct PlantSummary {
     pub simc: Vec<Simc>,
     /// Identified structure `(p, q, d)` of each seed.
     pub structures: Vec<(u8, u8, u8)>,
-    /// Setpoint preview of each seed, ticks.
-    pub previews: Vec<u8>,
+    /// Setpoint preview of each seed, ticks: the RST's and the baselines'.
+    pub previews: Vec<(u8, u8)>,
     /// The `CTRL` line of each seed.
     pub ctrl: Vec<String>,
     /// In the order of [`Controller::ALL`].
@@ -115,7 +115,11 @@ pub fn summarise(runs: &[CaseRun], c: Controller) -> Option<Summary> {
     let mut noisy = Vec::new();
     let mut measured = Vec::new();
     for r in runs {
-        let p = u32::from(r.switchover.preview);
+        // Each controller is scored on the windows of its own preview.
+        let p = u32::from(match c {
+            Controller::Rst => r.switchover.preview,
+            _ => r.switchover.baseline_preview,
+        });
         clean.push(score(r.clean_trace(c), false, p)?);
         noisy.push(score(r.trace(c), false, p)?);
         measured.push(score(r.trace(c), true, p)?);
@@ -185,7 +189,10 @@ pub fn run_plant_with(
                 (s.p, s.q, s.d)
             })
             .collect(),
-        previews: runs.iter().map(|r| r.switchover.preview).collect(),
+        previews: runs
+            .iter()
+            .map(|r| (r.switchover.preview, r.switchover.baseline_preview))
+            .collect(),
         ctrl: runs
             .iter()
             .map(|r| r.switchover.events.last().cloned().unwrap_or_default())
@@ -250,7 +257,7 @@ pub fn markdown(plants: &[PlantSummary], command: &str) -> String {
     let _ = writeln!(
         o,
         "| plant | lung | u₀ (%) | K_u (%/slm) | T_u (s) | relay K_u / T_u | ZN K_p / T_i / T_d | \
-         model (p,q,d) | K (slm/duty) | τ (s) | θ (s) | SIMC K_c / T_i | preview (ticks) |"
+         model (p,q,d) | K (slm/duty) | τ (s) | θ (s) | SIMC K_c / T_i | preview RST/PIDs (ticks) |"
     );
     let _ = writeln!(
         o,
@@ -272,7 +279,7 @@ pub fn markdown(plants: &[PlantSummary], command: &str) -> String {
         let previews = p
             .previews
             .iter()
-            .map(|v| v.to_string())
+            .map(|(rst, pid)| format!("{rst}/{pid}"))
             .collect::<Vec<_>>()
             .join(", ");
         let _ = writeln!(

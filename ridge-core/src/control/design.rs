@@ -36,6 +36,13 @@
 //! The anti-windup observer polynomial is `A_o = (1 − β q⁻¹) A_fast` (see
 //! [`Controller`](super::Controller)).
 //!
+//! A reference model for the setpoint ([`Design::set_reference`]; the firmware's has the time
+//! constant [`REFERENCE_S`] = 0.08 s) then replaces `α` in the setpoint response by
+//! `γ = e^{−Ts/τ_ref}` ([`Rst::set_reference`]):
+//! `y = q^{−d−1} (B / B(1)) (1 − γ) / (1 − γ q⁻¹) · r`. So the regulation loop keeps the
+//! plant-derived `τ` (disturbances, margin) while the setpoint response has one time constant
+//! on every plant.
+//!
 //! Why this method: it needs only the model (no tuning experiment), a solve of the size of the
 //! slow poles (see [`design`]: milliseconds on the ATmega2560), it has integral action and
 //! anti-windup in the same
@@ -70,6 +77,16 @@ pub struct Spec<T> {
     /// Smallest accepted modulus margin (0.5).
     pub min_margin: T,
 }
+
+/// The time constant of the setpoint's reference model the firmware and `ridge-id` use when no
+/// speed is given, s ([`Design::set_reference`] with `γ = e^{−Ts/REFERENCE_S}`). It decouples the setpoint response from the regulation loop's `τ`, which the default design
+/// takes from the plant (a quarter of its open-loop time constant, 0.04–0.1 s on the simulated
+/// pumps). On the simulated blowers with a test lung, a `τ`-sized response overshoots by up
+/// to 19 % (noise-free; 25 % in simavr with noise) where the duty saturates on the stiff lung (small blower, `τ` = 0.047 s) and lags
+/// the breath's ramps by up to 5.3 % of peak on the sluggish blower (`τ` ≈ 0.095 s); a fixed
+/// reference between 0.07 and 0.09 s meets both targets (overshoot ≤ 10 %, breath RMS ≤ 5 %)
+/// on all nine plants of `docs/control.md`, 0.08 s in the middle.
+pub const REFERENCE_S: f64 = 0.08;
 
 impl<T: Real> Spec<T> {
     /// The default design at the sample period `ts` (see each field).
@@ -106,6 +123,9 @@ pub struct Design<T: Real> {
     pub alpha: T,
     /// Observer pole, `e^{−Ts/τ_o}`.
     pub beta: T,
+    /// Pole of the setpoint response: `α`, or after [`set_reference`](Self::set_reference)
+    /// the reference model's `e^{−Ts/τ_ref}`.
+    pub gamma: T,
     /// Model poles kept in `P` (0 when none were kept).
     pub kept: u8,
     /// `1 / max_ω |A R / P|` on the unit circle.
@@ -114,8 +134,8 @@ pub struct Design<T: Real> {
 
 impl<T: Real> Design<T> {
     /// The mean delay of the designed setpoint response, in samples: the centre of gravity of
-    /// the impulse response of `q^{−d−1} (B / B(1)) (1 − α) / (1 − α q⁻¹)`, which is
-    /// `d + 1 + Σ k φₖ / Σ φₖ + α / (1 − α)`. Given a setpoint known ahead (a breath program)
+    /// the impulse response of `q^{−d−1} (B / B(1)) (1 − γ) / (1 − γ q⁻¹)`, which is
+    /// `d + 1 + Σ k φₖ / Σ φₖ + γ / (1 − γ)` (`γ` = [`gamma`](Self::gamma)). Given a setpoint known ahead (a breath program)
     /// this many samples early, the flow follows it in time (a ramp without lag). `model` is
     /// the model the design was made for; the result is not finite when `B(1) = 0`.
     pub fn mean_delay(&self, model: &ArxModel<T>) -> T {
@@ -128,7 +148,21 @@ impl<T: Real> Design<T> {
         T::from_u32(u32::from(model.structure().d))
             + T::ONE
             + moment / sum
-            + self.alpha / (T::ONE - self.alpha)
+            + self.gamma / (T::ONE - self.gamma)
+    }
+
+    /// Gives the setpoint a first-order reference model with the pole `gamma`, in `0 ≤ γ < 1`
+    /// (`e^{−Ts/τ_ref}` for the time constant `τ_ref`, s; the firmware's is [`REFERENCE_S`]):
+    /// the setpoint response becomes `q^{−d−1} (B / B(1)) (1 − γ) / (1 − γ q⁻¹)`, `γ` in
+    /// place of `α` ([`Rst::set_reference`]). `R`, `S`, the closed-loop poles and the margin
+    /// do not change, so the checks made by [`design`] still hold. Refused
+    /// ([`DesignError::Spec`], nothing changed) for any other `gamma`.
+    pub fn set_reference(&mut self, gamma: T) -> Result<(), DesignError<T>> {
+        self.rst
+            .set_reference(self.alpha, gamma)
+            .map_err(|_| DesignError::Spec)?;
+        self.gamma = gamma;
+        Ok(())
     }
 }
 
@@ -247,6 +281,7 @@ pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>,
     }
     let alpha = exp_neg(ratio_a);
     let beta = exp_neg(ratio_b);
+
     // The reduced target P_small: (1 − α q⁻¹)(1 − β q⁻¹), or (1 − α q⁻¹) alone when the
     // reduced equation is too small for two poles (no slow pole and d + q = 1).
     let mut small = [T::ONE, -alpha, T::ZERO];
@@ -355,6 +390,7 @@ pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>,
         tau,
         alpha,
         beta,
+        gamma: alpha,
         kept: (nf - 1) as u8,
         modulus_margin: margin,
     })

@@ -27,7 +27,9 @@ mod model_check;
 pub mod poly;
 mod rst;
 
-pub use design::{design, design_slower_on_failure, exp_neg, Design, DesignError, Spec};
+pub use design::{
+    design, design_slower_on_failure, exp_neg, Design, DesignError, Spec, REFERENCE_S,
+};
 pub use margin::{modulus_margin, SWEEP_POINTS};
 pub use model_check::{check_model, ModelFault, ModelLimits};
-pub use rst::{Controller, Limits, Rst, RstError, R_LEN, S_LEN};
+pub use rst::{Coefficients, Controller, Limits, Rst, RstError, R_LEN, S_LEN};
