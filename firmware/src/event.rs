@@ -496,7 +496,7 @@ pub const fn core_error_name(e: CoreError) -> &'static str {
 /// Digits of coefficients in report lines.
 pub(crate) const COEF_DIGITS: u8 = 6;
 
-/// Writes `values` comma-separated with `digits` decimals.
+/// Writes `values`, each times `scale`, comma-separated with `digits` decimals.
 pub(crate) fn write_list<W>(
     f: &mut Formatter<'_, W>,
     values: &[f32],

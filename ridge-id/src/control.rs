@@ -615,7 +615,7 @@ fn check_and_design(
                     return Err(refuse(
                         Check::Spec,
                         tries,
-                        format!("design: reference model 0.08 s at Ts = {} s", spec.ts),
+                        format!("design: reference model {tau_ref} s at Ts = {} s", spec.ts),
                     ));
                 }
             }

@@ -1,12 +1,13 @@
 //! [`Config`]: the settings of the self-identification state machine and their defaults.
 
-use ridge_core::control::ModelLimits;
+use ridge_core::control::{ModelLimits, Spec};
 use ridge_core::Search;
 
 use crate::excitation::Record;
 use crate::monitor::MonitorConfig;
 use crate::setpoint::Program;
 use crate::tracking::TrackingConfig;
+use crate::units::TS_S;
 
 /// The no-flow check's fraction of the expected flow, as a right shift: a flow below
 /// `expected >> LOSS_SHIFT` (a quarter) is missing (see [`Config::loss_ticks`]). A quarter,
@@ -132,6 +133,17 @@ impl Default for ControlConfig {
 }
 
 impl ControlConfig {
+    /// The design settings these give: ridge-core's defaults at the loop's [`TS_S`] with this
+    /// speed knob and observer (the reference model is set after the design, see
+    /// [`REFERENCE_POLE`](super::REFERENCE_POLE)).
+    pub fn spec(&self) -> Spec<f32> {
+        Spec {
+            tau: self.tau,
+            observer: self.observer,
+            ..Spec::new(TS_S)
+        }
+    }
+
     /// The defaults (see each field).
     pub const DEFAULT: ControlConfig = ControlConfig {
         tau: None,

@@ -2,17 +2,16 @@
 //! (blocking, like the search: tens of milliseconds on the ATmega2560, the pump at the base
 //! duty meanwhile).
 
-use ridge_core::control::{check_model, design_slower_on_failure, Spec};
+use ridge_core::control::{check_model, design_slower_on_failure};
 
 use crate::event::{ControlRefusal, Event, FaultReason};
-use crate::units::TS_S;
 
 use super::run::RunMode;
 use super::{Phase, SelfIdentification, Settings};
 
 /// The setpoint's reference model pole at the firmware's rate,
 /// `e^{−TS_S / ridge_core::control::REFERENCE_S}` = `e^{−0.125}` (a constant: computing it
-/// here cost the ATmega2560 ~100 bytes of flash; `firmware/tests/selfid.rs` checks it).
+/// here cost the ATmega2560 54 bytes of flash; `firmware/tests/selfid.rs` checks it).
 pub const REFERENCE_POLE: f32 = 0.882_496_9;
 
 /// Each retry of a refused design is this much slower (`τ` and the observer pole).
@@ -44,11 +43,7 @@ impl<S: Settings> SelfIdentification<S> {
                 )
             }
         };
-        let spec = Spec {
-            tau: c.tau,
-            observer: c.observer,
-            ..Spec::new(TS_S)
-        };
+        let spec = c.spec();
         let tries = c.tries;
         let (result, tries) = design_slower_on_failure(&model, &spec, tries, SLOWDOWN, &mut pet);
         pet();

@@ -86,6 +86,7 @@ pub use config::{Config, ControlConfig, Defaults, Settings, DEFAULT_CONFIG, LOSS
 pub use design::{REFERENCE_POLE, SLOWDOWN};
 pub use guard::Guard;
 pub use recording::{absolute_model, SETTLE_MEAN_TICKS};
+pub use run::preview_ticks;
 pub use search::{SearchJob, SearchOutcome};
 
 use core::mem::discriminant;

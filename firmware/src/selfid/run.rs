@@ -111,6 +111,6 @@ impl RunMode {
 
 /// Whole ticks of setpoint preview for a mean delay of `delay` samples
 /// ([`Design::mean_delay`]): rounded, within 0..=255 (`as` saturates), 0 when NaN.
-fn preview_ticks(delay: f32) -> u8 {
+pub fn preview_ticks(delay: f32) -> u8 {
     (delay + 0.5) as u8
 }

@@ -26,13 +26,13 @@
 //! `k`, whose programmed setpoint is `value(program, start, k)`. [`Trace`] index `k` is
 //! interval `k`: the duty applied during it, the flow at its end and its setpoint.
 
-use ridge_core::control::{design_slower_on_failure, Spec};
+use ridge_core::control::design_slower_on_failure;
 use ridge_core::ArxModel;
 use ridge_pump_firmware::event::{Event, LINE_MAX};
-use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, SLOWDOWN};
+use ridge_pump_firmware::selfid::{preview_ticks, Config, SelfIdentification, State, SLOWDOWN};
 use ridge_pump_firmware::setpoint::{self, Program, DEMO_BREATH, DEMO_HOLD_TICKS, DEMO_STEPS};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, TS_S as FIRMWARE_TS_S};
+use ridge_pump_firmware::units::DUTY_FULL_SCALE;
 
 use super::metrics::{rms_error, step_metrics, total_variation, StepMetrics};
 use super::pid::{DutyLimits, Pid, PidError, PidGains};
@@ -183,17 +183,13 @@ pub fn tune_zn(plant: &PlantArgs) -> Result<ZnTuning, ExperimentError> {
 
 /// The preview the firmware's controller would have without its reference model (see
 /// [`Switchover::baseline_preview`]): the same design (`ridge_core`, `f32`, the settings'
-/// speed and observer, the firmware's retries) and its mean delay, rounded as the firmware
-/// rounds its own; 0 if the design fails (it did not: run mode started).
+/// [`ControlConfig::spec`](ridge_pump_firmware::selfid::ControlConfig::spec), the firmware's
+/// retries) and its mean delay in the firmware's [`preview_ticks`]; 0 if the design fails (it
+/// did not: run mode started).
 pub fn regulation_preview(model: &ArxModel<f32>, config: &Config) -> u8 {
     let c = &config.control;
-    let spec = Spec {
-        tau: c.tau,
-        observer: c.observer,
-        ..Spec::new(FIRMWARE_TS_S)
-    };
-    let (design, _) = design_slower_on_failure(model, &spec, c.tries, SLOWDOWN, || {});
-    design.map_or(0, |d| (d.mean_delay(model) + 0.5) as u8)
+    let (design, _) = design_slower_on_failure(model, &c.spec(), c.tries, SLOWDOWN, || {});
+    design.map_or(0, |d| preview_ticks(d.mean_delay(model)))
 }
 
 /// The state at the switch-over to run mode.

@@ -79,13 +79,15 @@ pub struct Spec<T> {
 }
 
 /// The time constant of the setpoint's reference model the firmware and `ridge-id` use when no
-/// speed is given, s ([`Design::set_reference`] with `γ = e^{−Ts/REFERENCE_S}`). It decouples the setpoint response from the regulation loop's `τ`, which the default design
-/// takes from the plant (a quarter of its open-loop time constant, 0.04–0.1 s on the simulated
-/// pumps). On the simulated blowers with a test lung, a `τ`-sized response overshoots by up
-/// to 19 % (noise-free; 25 % in simavr with noise) where the duty saturates on the stiff lung (small blower, `τ` = 0.047 s) and lags
-/// the breath's ramps by up to 5.3 % of peak on the sluggish blower (`τ` ≈ 0.095 s); a fixed
-/// reference between 0.07 and 0.09 s meets both targets (overshoot ≤ 10 %, breath RMS ≤ 5 %)
-/// on all nine plants of `docs/control.md`, 0.08 s in the middle.
+/// speed is given, s ([`Design::set_reference`] with `γ = e^{−Ts/REFERENCE_S}`). It decouples
+/// the setpoint response from the regulation loop's `τ`, which the default design takes from
+/// the plant (a quarter of its open-loop time constant, 0.04–0.1 s on the simulated pumps). On
+/// the simulated blowers with a test lung, a `τ`-sized response overshoots by up to 19 %
+/// (noise-free; 25 % in simavr with noise) where the duty saturates on the stiff lung (small
+/// blower, `τ` = 0.047 s) and lags the breath's ramps by up to 5.3 % of peak on the sluggish
+/// blower (`τ` ≈ 0.095 s); a fixed reference between 0.07 and 0.09 s meets both targets
+/// (overshoot ≤ 10 %, breath RMS ≤ 5 %) on all nine plants of `docs/control.md`, 0.08 s in the
+/// middle.
 pub const REFERENCE_S: f64 = 0.08;
 
 impl<T: Real> Spec<T> {
@@ -135,9 +137,10 @@ pub struct Design<T: Real> {
 impl<T: Real> Design<T> {
     /// The mean delay of the designed setpoint response, in samples: the centre of gravity of
     /// the impulse response of `q^{−d−1} (B / B(1)) (1 − γ) / (1 − γ q⁻¹)`, which is
-    /// `d + 1 + Σ k φₖ / Σ φₖ + γ / (1 − γ)` (`γ` = [`gamma`](Self::gamma)). Given a setpoint known ahead (a breath program)
-    /// this many samples early, the flow follows it in time (a ramp without lag). `model` is
-    /// the model the design was made for; the result is not finite when `B(1) = 0`.
+    /// `d + 1 + Σ k φₖ / Σ φₖ + γ / (1 − γ)` (`γ` = [`gamma`](Self::gamma)). Given a setpoint
+    /// known ahead (a breath program) this many samples early, the flow follows it in time (a
+    /// ramp without lag). `model` is the model the design was made for; the result is not
+    /// finite when `B(1) = 0`.
     pub fn mean_delay(&self, model: &ArxModel<T>) -> T {
         let (mut sum, mut moment, mut k) = (T::ZERO, T::ZERO, T::ZERO);
         for &phi in model.phi() {
@@ -281,7 +284,6 @@ pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>,
     }
     let alpha = exp_neg(ratio_a);
     let beta = exp_neg(ratio_b);
-
     // The reduced target P_small: (1 − α q⁻¹)(1 − β q⁻¹), or (1 − α q⁻¹) alone when the
     // reduced equation is too small for two poles (no slow pole and d + q = 1).
     let mut small = [T::ONE, -alpha, T::ZERO];

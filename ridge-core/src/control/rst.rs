@@ -196,9 +196,10 @@ pub struct Controller<T: Real> {
     u: [T; R_LEN],
     /// Readings (`y_t` at `hs` after a step), a ring sharing `hs` with `z`.
     y: [T; S_LEN],
-    /// `z_t = t₀ r_t − v_t` (`z_t` at `hs` after a step), with `r_t` the setpoint the step
-    /// was given and `v_t` its unlimited output: `T r − (A_o − 1) v` is then
-    /// `t₀ r_{t+1} + Σ_{k≥1} a_k z_{t+1−k}`, one product per observer coefficient.
+    /// `z_t = t₀ r'_t − v_t` (`z_t` at `hs` after a step), with `r'_t` the setpoint the step
+    /// was given, through the reference model if there is one, and `v_t` its unlimited
+    /// output: `T r' − (A_o − 1) v` is then `t₀ r'_{t+1} + Σ_{k≥1} a_k z_{t+1−k}`, one product
+    /// per observer coefficient.
     z: [T; S_LEN],
     hu: u8,
     hs: u8,
@@ -285,8 +286,8 @@ impl<T: Real> Controller<T> {
         if let Some(yy) = self.y.get_mut(hs) {
             *yy = y;
         }
-        // T r − S y + (A_o − R) û − (A_o − 1) v with T = t₀ A_o, as
-        // t₀ r_{t+1} − S y − (R − A_o)·(u_t, u_{t−1}, …) + (A_o − 1)·(z_t, z_{t−1}, …).
+        // T r' − S y + (A_o − R) û − (A_o − 1) v with T = t₀ A_o, as
+        // t₀ r'_{t+1} − S y − (R − A_o)·(u_t, u_{t−1}, …) + (A_o − 1)·(z_t, z_{t−1}, …).
         let ru = self.ru.get(..usize::from(self.nru)).unwrap_or(&[]);
         let ao = c.ao().get(1..).unwrap_or(&[]);
         let v = tr - ring_dot(c.s(), &self.y, hs) - ring_dot(ru, &self.u, hu)
