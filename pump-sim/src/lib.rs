@@ -146,7 +146,14 @@ impl Rig {
     /// Applies `duty` for one sample period and returns the true flow at its end, slm: the
     /// blower's open-outlet flow, or with a lung the flow against its back pressure.
     pub fn true_flow(&mut self, duty: u16) -> f64 {
-        let open = self.pump.step(duty_to_f64(duty.min(DUTY_FULL_SCALE)));
+        self.flow_at(duty_to_f64(duty.min(DUTY_FULL_SCALE)))
+    }
+
+    /// As [`true_flow`](Rig::true_flow) with the duty as an unrounded fraction of full scale
+    /// (0..1; the pump clamps it): the plant as a smooth function of its input, for
+    /// optimisations that differentiate it numerically.
+    pub fn flow_at(&mut self, duty: f64) -> f64 {
+        let open = self.pump.step(duty);
         match &mut self.lung {
             Some(lung) => {
                 let p = self.pump.params();

@@ -10,12 +10,14 @@
 //! - [`zn`]: Ziegler–Nichols tuning from the ultimate gain and period of the noise-free plant;
 //! - [`simc`]: SIMC PI tuning from an FOPDT fit of the identified model;
 //! - [`metrics`]: step metrics, RMS tracking error, duty total variation;
+//! - [`optimal`]: the open-loop optimum of a step, the least IAE of any duty sequence;
 //! - [`experiment`]: one plant and seed, the three controllers from the same switch-over;
 //! - [`table`]: the plant × lung × controller grid and its markdown (what `control-table`
 //!   prints).
 
 pub mod experiment;
 pub mod metrics;
+pub mod optimal;
 pub mod pid;
 pub mod plant;
 pub mod simc;
@@ -24,6 +26,6 @@ pub mod zn;
 
 pub use experiment::{run_case, tune_zn, CaseRun, Controller, ExperimentError, Trace, ZnTuning};
 pub use pid::{DutyLimits, Pid, PidGains};
-pub use plant::{ArxPlant, Plant};
+pub use plant::{ArxPlant, Plant, UnroundedRig};
 pub use simc::{fit_fopdt, fit_model, simc_pi, Fopdt, Simc};
 pub use zn::{ultimate, zn_pid, Ultimate, ZnSearch};

@@ -35,6 +35,19 @@ impl Plant for Rig {
     }
 }
 
+/// The rig driven by the unrounded duty ([`Rig::flow_at`]): the plant as a smooth function of
+/// its input, for the optimisation of [`super::optimal`], which differentiates it numerically
+/// (the counts' 1/10 000 steps would make the differences 0 or 10 000 times too large).
+#[derive(Clone, Debug)]
+pub struct UnroundedRig(pub Rig);
+
+impl Plant for UnroundedRig {
+    /// The duty fraction drives the rig as it is; returns its true flow, slm.
+    fn apply(&mut self, u: f64) -> f64 {
+        self.0.flow_at(u)
+    }
+}
+
 /// A linear ARX plant `y_t = Σ θ_i y_{t−i} + Σ φ_j u_{t−j−d}` (the crate's sample
 /// convention: `φ_0` multiplies the input applied during the interval that ends `d` samples
 /// before `y_t`), zero history, no noise.

@@ -87,6 +87,8 @@ pub struct PlantSummary {
     pub previews: Vec<(u8, u8)>,
     /// The `CTRL` line of each seed.
     pub ctrl: Vec<String>,
+    /// The flow at each seed's switch-over, slm: where its program starts.
+    pub starts: Vec<f64>,
     /// In the order of [`Controller::ALL`].
     pub rows: [Summary; 3],
 }
@@ -153,7 +155,7 @@ pub fn summarise(runs: &[CaseRun], c: Controller) -> Option<Summary> {
     })
 }
 
-/// Runs `plant` for every seed in `seeds` (ZN tuning once, then [`run_case`] per seed) and
+/// Runs `plant` for every seed in `seeds` (ZN tuning once, then [`run_case`](super::run_case) per seed) and
 /// summarises it.
 pub fn run_plant(plant: &PlantArgs, seeds: &[u64]) -> Result<PlantSummary, ExperimentError> {
     run_plant_with(plant, seeds, &EXPERIMENT_CONFIG)
@@ -197,6 +199,7 @@ pub fn run_plant_with(
             .iter()
             .map(|r| r.switchover.events.last().cloned().unwrap_or_default())
             .collect(),
+        starts: runs.iter().map(|r| f64::from(r.switchover.flow)).collect(),
         rows,
     })
 }
