@@ -83,6 +83,7 @@ fn main() -> ExitCode {
     // Two workers: the machine's two cores.
     let rows: Vec<Result<Row, String>> = std::thread::scope(|s| {
         let (a, b): (Vec<_>, Vec<_>) = plants.iter().enumerate().partition(|(i, _)| i % 2 == 0);
+        let a_index: Vec<usize> = a.iter().map(|(i, _)| *i).collect();
         let run = |part: Vec<(usize, &PlantArgs)>| {
             part.into_iter()
                 .map(|(i, p)| (i, row(p, &seeds, cap)))
@@ -90,7 +91,13 @@ fn main() -> ExitCode {
         };
         let ha = s.spawn(move || run(a));
         let rb = run(b);
-        let mut all = ha.join().unwrap_or_default();
+        // A worker that panicked loses its rows: each is reported as failed, none dropped.
+        let mut all = ha.join().unwrap_or_else(|_| {
+            a_index
+                .into_iter()
+                .map(|i| (i, Err("worker panicked".to_owned())))
+                .collect()
+        });
         all.extend(rb);
         all.sort_by_key(|(i, _)| *i);
         all.into_iter().map(|(_, r)| r).collect()
