@@ -35,9 +35,12 @@ struct Args {
     /// give the optimum's first step and lead); figures are means over them.
     #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
     seeds: u64,
-    /// Overshoot cap of the optimum, percent of the step (negative: no cap).
+    /// Overshoot cap of the optimum, percent of the step.
     #[arg(long, value_name = "PCT", default_value_t = 10.0)]
     overshoot: f64,
+    /// No overshoot cap (the least IAE of any sequence whatever it overshoots).
+    #[arg(long, conflicts_with = "overshoot")]
+    no_cap: bool,
 }
 
 /// One plant's row: the controllers' summary and the optimum's mean IAE per step.
@@ -79,7 +82,7 @@ fn main() -> ExitCode {
         vec![args.plant.clone()]
     };
     let seeds: Vec<u64> = (1..=args.seeds).collect();
-    let cap = (args.overshoot >= 0.0).then_some(args.overshoot / 100.0);
+    let cap = (!args.no_cap).then_some(args.overshoot / 100.0);
     // Two workers: the machine's two cores.
     let rows: Vec<Result<Row, String>> = std::thread::scope(|s| {
         let (a, b): (Vec<_>, Vec<_>) = plants.iter().enumerate().partition(|(i, _)| i % 2 == 0);
