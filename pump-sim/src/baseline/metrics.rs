@@ -87,15 +87,32 @@ pub fn step_metrics(
     let n = ((SS_WINDOW_S / ts_s).round() as usize).clamp(1, level.len());
     let tail = &level[level.len() - n..];
     let ss_error = tail.iter().map(|&v| to - v).sum::<f64>() / n as f64;
-    let before: f64 = y[step - lead..step].iter().map(|&v| (from - v).abs()).sum();
-    let after: f64 = level.iter().map(|&v| (to - v).abs()).sum();
     Some(StepMetrics {
         rise_s,
         overshoot_pct,
         settling_s,
         ss_error,
-        iae: (before + after) * ts_s,
+        iae: step_iae(y, step, lead, from, to, ts_s),
     })
+}
+
+/// The IAE of [`StepMetrics::iae`]: `Σ |r[i] − y[i]| · Ts` over `y[step − lead..]`, with
+/// `r` = `from` before `step` and `to` from it on, slm·s. Requires `lead ≤ step ≤ y.len()`
+/// (samples outside are not counted).
+pub fn step_iae(y: &[f64], step: usize, lead: usize, from: f64, to: f64, ts_s: f64) -> f64 {
+    let before: f64 = y
+        .get(step.saturating_sub(lead)..step)
+        .unwrap_or(&[])
+        .iter()
+        .map(|&v| (from - v).abs())
+        .sum();
+    let after: f64 = y
+        .get(step..)
+        .unwrap_or(&[])
+        .iter()
+        .map(|&v| (to - v).abs())
+        .sum();
+    (before + after) * ts_s
 }
 
 /// RMS of `r − y` over the common length, same units as the inputs; `None` when empty.

@@ -36,8 +36,10 @@ use microlp::{ComparisonOp, OptimizationDirection, Problem, SolveOutcome, Variab
 
 use ridge_pump_firmware::setpoint::DEMO_STEPS;
 
+use super::metrics::step_iae;
 use super::pid::DutyLimits;
 use super::plant::{Plant, UnroundedRig};
+use super::zn::operating_point;
 use crate::{PlantArgs, Sfm3300Params, TS_S};
 
 /// Weight of the overshoot excess in the objective, slm·s per slm: large enough that no
@@ -91,6 +93,13 @@ pub struct Optimum {
     pub excess: f64,
 }
 
+impl Optimum {
+    /// What the optimisation minimises: the IAE plus [`EXCESS_WEIGHT`] times the excess.
+    fn merit(&self) -> f64 {
+        self.iae + EXCESS_WEIGHT * self.excess
+    }
+}
+
 impl<P: Plant + Clone> StepProblem<P> {
     /// Number of free duties.
     fn free_len(&self) -> usize {
@@ -115,13 +124,10 @@ impl<P: Plant + Clone> StepProblem<P> {
             .collect()
     }
 
-    /// The IAE (slm·s) and the overshoot beyond the cap (slm) of the flows `y`.
+    /// The IAE (slm·s, as [`score`](super::experiment::score) counts it) and the overshoot
+    /// beyond the cap (slm) of the flows `y`.
     pub fn cost(&self, y: &[f64]) -> (f64, f64) {
-        let iae: f64 = y
-            .iter()
-            .enumerate()
-            .map(|(k, v)| (self.setpoint(k) - v).abs())
-            .sum();
+        let iae = step_iae(y, self.lead, self.lead, self.from, self.to, self.ts_s);
         let delta = self.to - self.from;
         let excess = match self.overshoot {
             Some(cap) => y
@@ -131,7 +137,7 @@ impl<P: Plant + Clone> StepProblem<P> {
                 .fold(0.0f64, f64::max),
             None => 0.0,
         };
-        (iae * self.ts_s, excess)
+        (iae, excess)
     }
 
     /// `u` made feasible: each duty limited to the bounds and to the rate limit from the one
@@ -227,7 +233,6 @@ impl<P: Plant + Clone> StepProblem<P> {
     /// Sequential linear programming from the duties `start` for at most `iterations`
     /// linear programs.
     fn descend(&self, start: Vec<f64>, iterations: usize) -> Optimum {
-        let merit = |o: &Optimum| o.iae + EXCESS_WEIGHT * o.excess;
         let mut x = self.evaluate(start);
         let mut radius = RADIUS.0;
         for _ in 0..iterations {
@@ -240,7 +245,7 @@ impl<P: Plant + Clone> StepProblem<P> {
             };
             self.feasible(&mut u);
             let candidate = self.evaluate(u);
-            if merit(&candidate) < merit(&x) - 1e-9 {
+            if candidate.merit() < x.merit() - 1e-9 {
                 x = candidate;
                 radius = (radius * 1.5).min(RADIUS.1);
             } else {
@@ -251,37 +256,17 @@ impl<P: Plant + Clone> StepProblem<P> {
     }
 }
 
-/// The steady duty for `flow` on `plant` within `limits` (bisection on the flow after
-/// `settle` intervals at a constant duty, which the blowers' flows rise with), and the plant
-/// settled there. `None` when `flow` is outside what the limits reach.
-pub fn steady_state<P: Plant + Clone>(
+/// The plant at rest at the flow `flow` and the duty that holds it there
+/// ([`operating_point`] after `settle` intervals), `None` when `flow` is out of reach or that
+/// duty is outside `limits`.
+pub fn rest_within<P: Plant + Clone>(
     plant: &P,
     flow: f64,
     limits: &DutyLimits,
     settle: usize,
 ) -> Option<(P, f64)> {
-    let at = |u: f64| {
-        let mut p = plant.clone();
-        let mut y = f64::NAN;
-        for _ in 0..settle {
-            y = p.apply(u);
-        }
-        (p, y)
-    };
-    let (mut lo, mut hi) = (limits.min, limits.max);
-    if !(at(lo).1 <= flow && flow <= at(hi).1) {
-        return None;
-    }
-    for _ in 0..48 {
-        let mid = 0.5 * (lo + hi);
-        if at(mid).1 < flow {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    let u = 0.5 * (lo + hi);
-    Some((at(u).0, u))
+    let (rested, u, _) = operating_point(plant, flow, settle)?;
+    (limits.min <= u && u <= limits.max).then_some((rested, u))
 }
 
 /// The least-IAE duty sequence found for `problem` (see the module docs), after at most
@@ -298,8 +283,7 @@ pub fn optimise<P: Plant + Clone>(
     problem.feasible(&mut ramp);
     let a = problem.descend(hold, iterations);
     let b = problem.descend(ramp, iterations);
-    let merit = |o: &Optimum| o.iae + EXCESS_WEIGHT * o.excess;
-    if merit(&b) < merit(&a) {
+    if b.merit() < a.merit() {
         b
     } else {
         a
@@ -332,18 +316,21 @@ pub fn demo_steps(
     let limits = DutyLimits::firmware();
     let rig = UnroundedRig(plant.rig(Sfm3300Params::ideal(), 0)?);
     let at = |flow: f64| {
-        steady_state(&rig, flow, &limits, SETTLE_TICKS)
+        rest_within(&rig, flow, &limits, SETTLE_TICKS)
             .ok_or_else(|| format!("{flow} slm is out of reach of duties {limits:?}"))
     };
     let mut from = start;
+    // The plant at rest at `from` and its duty: each level's rest is the next step's start.
+    let mut rest = at(from)?;
     let mut out = Vec::new();
     for l in DEMO_STEPS.iter().take(count) {
         let to = f64::from(l.slm);
         let level = usize::from(l.ticks)
             .checked_sub(lead)
             .ok_or("preview longer than a level")?;
-        let (rested, u0) = at(from)?;
-        let (_, u_to) = at(to)?;
+        let next = at(to)?;
+        let (rested, u0) = std::mem::replace(&mut rest, next);
+        let u_to = rest.1;
         let problem = StepProblem {
             plant: rested,
             u0,
@@ -435,7 +422,7 @@ mod tests {
             max: 0.95,
             max_step: 0.05,
         };
-        let (plant, u0) = steady_state(&ArxPlant::fopdt(k, tau, delay, TS), 30.0, &limits, 2_000)
+        let (plant, u0) = rest_within(&ArxPlant::fopdt(k, tau, delay, TS), 30.0, &limits, 2_000)
             .expect("30 slm is within the limits");
         assert!((u0 - 0.2).abs() < 1e-9, "steady duty {u0}");
         let (lead, level, to) = (5, 150, 75.0);
@@ -493,16 +480,16 @@ mod tests {
     }
 
     #[test]
-    fn steady_state_refuses_flows_out_of_reach() {
+    fn rest_within_refuses_flows_out_of_the_limits_reach() {
         let limits = DutyLimits {
             min: 0.15,
             max: 0.95,
             max_step: 0.05,
         };
         let plant = ArxPlant::fopdt(100.0, 0.1, 1, TS);
-        assert!(steady_state(&plant, 10.0, &limits, 500).is_none());
-        assert!(steady_state(&plant, 96.0, &limits, 500).is_none());
-        let (mut p, u) = steady_state(&plant, 50.0, &limits, 500).expect("within reach");
+        assert!(rest_within(&plant, 10.0, &limits, 500).is_none());
+        assert!(rest_within(&plant, 96.0, &limits, 500).is_none());
+        let (mut p, u) = rest_within(&plant, 50.0, &limits, 500).expect("within reach");
         assert!((u - 0.5).abs() < 1e-9 && (p.apply(u) - 50.0).abs() < 1e-6);
     }
 
@@ -522,8 +509,8 @@ mod tests {
         };
         let limits = DutyLimits::firmware();
         let rig = UnroundedRig(plant.rig(Sfm3300Params::ideal(), 0).expect("preset"));
-        let (rested, u0) = steady_state(&rig, 19.0, &limits, SETTLE_TICKS).expect("reach");
-        let (_, u_to) = steady_state(&rig, 40.0, &limits, SETTLE_TICKS).expect("reach");
+        let (rested, u0) = rest_within(&rig, 19.0, &limits, SETTLE_TICKS).expect("reach");
+        let (_, u_to) = rest_within(&rig, 40.0, &limits, SETTLE_TICKS).expect("reach");
         assert!(respects(&limits, u0, &best.duty));
         assert!(best.excess < 1e-6);
         let level = usize::from(DEMO_STEPS[0].ticks);
