@@ -27,7 +27,42 @@ use super::experiment::{
 use super::experiment::{ZnTuning, EXPERIMENT_CONFIG, ZN_SEARCH};
 use super::metrics::{mean_present, StepMetrics, SS_WINDOW_S};
 use super::simc::{Fopdt, Simc};
-use crate::{PlantArgs, Sfm3300Params};
+use crate::{Blower, Outlet, PlantArgs, Sfm3300Params};
+
+/// The cases a table runs, as command-line options (`control-table`, `step-optimum`): one
+/// plant or every preset, and the seeds.
+#[derive(Clone, Debug, clap::Args)]
+pub struct Cases {
+    /// The plant of a single case (ignored with `--all`).
+    #[command(flatten)]
+    pub plant: PlantArgs,
+    /// Every blower preset × every outlet preset (default, small, sluggish × open, adult,
+    /// stiff).
+    #[arg(long, conflicts_with_all = ["plant", "lung", "compliance", "resistance", "peep", "valve_resistance"])]
+    pub all: bool,
+    /// Sensor-noise seeds 1..=N; figures are means over them.
+    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
+    pub seeds: u64,
+}
+
+impl Cases {
+    /// The plants: every preset in the tables' order with `--all`, else the one given.
+    pub fn plants(&self) -> Vec<PlantArgs> {
+        if self.all {
+            Blower::ALL
+                .iter()
+                .flat_map(|&b| Outlet::ALL.iter().map(move |&o| PlantArgs::preset(b, o)))
+                .collect()
+        } else {
+            vec![self.plant.clone()]
+        }
+    }
+
+    /// The seeds, 1..=N.
+    pub fn seeds(&self) -> Vec<u64> {
+        (1..=self.seeds).collect()
+    }
+}
 
 /// One controller on one plant, over the seeds. Flows in slm, times in s.
 #[derive(Clone, Debug, PartialEq)]

@@ -13,24 +13,16 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::Parser;
-use pump_sim::baseline::table::{markdown, plain, run_plant};
-use pump_sim::{Blower, Outlet, PlantArgs};
+use pump_sim::baseline::table::{markdown, plain, run_plant, Cases};
 
 /// Runs the firmware's identification and RST controller, a Ziegler–Nichols PID and a SIMC PI
 /// on the simulated rig and prints their tracking figures on the demo setpoint program.
 #[derive(Debug, Parser)]
 #[command(name = "control-table")]
 struct Args {
-    /// The plant of a single case (ignored with `--all`).
+    /// Which plants and seeds.
     #[command(flatten)]
-    plant: PlantArgs,
-    /// Every blower preset × every outlet preset (default, small, sluggish × open, adult,
-    /// stiff).
-    #[arg(long, conflicts_with_all = ["plant", "lung", "compliance", "resistance", "peep", "valve_resistance"])]
-    all: bool,
-    /// Sensor-noise seeds 1..=N; figures are means over them.
-    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
-    seeds: u64,
+    cases: Cases,
     /// Print the markdown report (tunings, comparison, targets) instead of plain text.
     #[arg(long)]
     markdown: bool,
@@ -39,15 +31,8 @@ struct Args {
 fn main() -> ExitCode {
     let args = Args::parse();
     let start = Instant::now();
-    let plants: Vec<PlantArgs> = if args.all {
-        Blower::ALL
-            .iter()
-            .flat_map(|&b| Outlet::ALL.iter().map(move |&o| PlantArgs::preset(b, o)))
-            .collect()
-    } else {
-        vec![args.plant.clone()]
-    };
-    let seeds: Vec<u64> = (1..=args.seeds).collect();
+    let plants = args.cases.plants();
+    let seeds = args.cases.seeds();
     let mut summaries = Vec::new();
     for p in &plants {
         match run_plant(p, &seeds) {

@@ -15,9 +15,9 @@ use std::time::Instant;
 
 use clap::Parser;
 use pump_sim::baseline::optimal::demo_steps;
-use pump_sim::baseline::table::{lung_label, run_plant, PlantSummary};
+use pump_sim::baseline::table::{lung_label, run_plant, Cases, PlantSummary};
 use pump_sim::baseline::Controller;
-use pump_sim::{Blower, Outlet, PlantArgs};
+use pump_sim::PlantArgs;
 use ridge_pump_firmware::setpoint::DEMO_STEPS;
 
 /// Prints, per plant, the least step IAE of any duty sequence and the controllers' IAE on
@@ -25,16 +25,10 @@ use ridge_pump_firmware::setpoint::DEMO_STEPS;
 #[derive(Debug, Parser)]
 #[command(name = "step-optimum")]
 struct Args {
-    /// The plant of a single case (ignored with `--all`).
+    /// Which plants and seeds (each seed's start flow and preview give the optimum's first
+    /// step and lead).
     #[command(flatten)]
-    plant: PlantArgs,
-    /// Every blower preset × every outlet preset.
-    #[arg(long, conflicts_with_all = ["plant", "lung", "compliance", "resistance", "peep", "valve_resistance"])]
-    all: bool,
-    /// Sensor-noise seeds 1..=N of the controllers' runs (each seed's start flow and preview
-    /// give the optimum's first step and lead); figures are means over them.
-    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
-    seeds: u64,
+    cases: Cases,
     /// Overshoot cap of the optimum, percent of the step.
     #[arg(long, value_name = "PCT", default_value_t = 10.0)]
     overshoot: f64,
@@ -73,15 +67,8 @@ fn row(plant: &PlantArgs, seeds: &[u64], cap: Option<f64>) -> Result<Row, String
 fn main() -> ExitCode {
     let args = Args::parse();
     let start = Instant::now();
-    let plants: Vec<PlantArgs> = if args.all {
-        Blower::ALL
-            .iter()
-            .flat_map(|&b| Outlet::ALL.iter().map(move |&o| PlantArgs::preset(b, o)))
-            .collect()
-    } else {
-        vec![args.plant.clone()]
-    };
-    let seeds: Vec<u64> = (1..=args.seeds).collect();
+    let plants = args.cases.plants();
+    let seeds = args.cases.seeds();
     let cap = (!args.no_cap).then_some(args.overshoot / 100.0);
     // Two workers: the machine's two cores.
     let rows: Vec<Result<Row, String>> = std::thread::scope(|s| {
