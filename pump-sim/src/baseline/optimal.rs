@@ -301,11 +301,12 @@ pub const FREE_TICKS: usize = 60;
 /// Linear programs per start.
 pub const ITERATIONS: usize = 60;
 
-/// The open-loop optimum of the first `count` steps of [`DEMO_STEPS`] on the noise-free `plant`, the first
-/// from `start` slm, each from rest at the previous level, with `lead` intervals of preview
-/// (scored as [`score`](super::experiment::score) scores a controller with that preview), the
-/// firmware's limits ([`DutyLimits::firmware`]) and the overshoot cap `overshoot`. An error
-/// when the plant options are invalid or a level is out of the limits' reach.
+/// The open-loop optimum of the first `count` steps of [`DEMO_STEPS`] on the noise-free
+/// `plant`, the first from `start` slm, each from rest at the previous level, with `lead`
+/// intervals of preview (scored as [`score`](super::experiment::score) scores a controller
+/// with that preview), the firmware's limits ([`DutyLimits::firmware`]) and the overshoot cap
+/// `overshoot`. An error when the plant options are invalid or a level is out of the limits'
+/// reach.
 pub fn demo_steps(
     plant: &PlantArgs,
     start: f64,

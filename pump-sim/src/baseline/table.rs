@@ -190,8 +190,8 @@ pub fn summarise(runs: &[CaseRun], c: Controller) -> Option<Summary> {
     })
 }
 
-/// Runs `plant` for every seed in `seeds` (ZN tuning once, then [`run_case`](super::run_case) per seed) and
-/// summarises it.
+/// Runs `plant` for every seed in `seeds` (ZN tuning once, then
+/// [`run_case`](super::run_case) per seed) and summarises it.
 pub fn run_plant(plant: &PlantArgs, seeds: &[u64]) -> Result<PlantSummary, ExperimentError> {
     run_plant_with(plant, seeds, &EXPERIMENT_CONFIG)
 }
