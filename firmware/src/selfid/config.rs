@@ -136,6 +136,8 @@ impl ControlConfig {
     /// The design settings these give: ridge-core's defaults at the loop's [`TS_S`] with this
     /// speed knob and observer (the reference model is set after the design, see
     /// [`REFERENCE_POLE`](super::REFERENCE_POLE)).
+    // Out of line: smaller ATmega2560 image (measured by trying each function).
+    #[inline(never)]
     pub fn spec(&self) -> Spec<f32> {
         Spec {
             tau: self.tau,
