@@ -315,10 +315,10 @@ impl Report {
     /// reference model time constant (s, `null` without one) and `gamma` the setpoint
     /// response's pole (`e^{−Ts/reference_s}`, else `alpha`); `kept` model poles kept in `P`;
     /// `tries` designs made; `mean_delay_samples` of the setpoint response; `r`, `s`, `t` the
-    /// controller `R u_{t+1} = T r'_{t+1} − S y_t` (`r'` the setpoint through the reference
-    /// model, `ridge_core::control::Rst::set_reference`) and `ao` its anti-windup observer
-    /// polynomial, ascending powers of `q⁻¹`; `poles` the roots of
-    /// `P = A R + q^{−d−1} B S`, by decreasing `|z|`), and for a refused one
+    /// controller `R u_{t+1} = T r_{t+1} − S y_t` with the reference model multiplied in
+    /// ([`conventions`](crate::control::conventions): `R` and `S` carry its `1 − γ q⁻¹`) and
+    /// `ao` its anti-windup observer polynomial, ascending powers of `q⁻¹`; `poles` the roots
+    /// of `P = A R + q^{−d−1} B S`, by decreasing `|z|`), and for a refused one
     /// `{"refused": "reason", "check": "unstable"|"gain"|…, "tries", "ts_s"}` (see
     /// [`crate::control::Check::name`]; `tries` is 0 when the model check failed).
     pub fn to_json(&self) -> serde_json::Value {
