@@ -4,6 +4,7 @@
 //! plant, and the firmware's own run mode replayed by a plain board loop.
 
 use pump_sim::baseline::experiment::{identify, run_case, score, tune_zn, Controller};
+use pump_sim::baseline::knobs::{design_with, run_design, Knobs};
 use pump_sim::baseline::pid::{DutyLimits, Pid, PidGains};
 use pump_sim::baseline::plant::{ArxPlant, Plant};
 use pump_sim::baseline::simc::{fit_fopdt, simc_pi};
@@ -229,6 +230,46 @@ impl NaivePi {
         let hi = self.limits.max.min(self.u + self.limits.max_step);
         self.u = v.clamp(lo, hi);
         self.u
+    }
+}
+
+/// The knob study's loop (`ridge_core`'s controller fed as the firmware feeds it) with the
+/// firmware's own knobs is the firmware's run mode to the duty, on a plant whose design needed
+/// no retry and on one where the firmware retried slower; other knobs change the run.
+#[test]
+fn the_firmware_knobs_reproduce_the_firmwares_run() {
+    let c = &DEFAULT_CONFIG.control;
+    for (blower, outlet, retried) in [
+        (Blower::Default, Outlet::Adult, false),
+        (Blower::Small, Outlet::Stiff, true),
+    ] {
+        let plant = PlantArgs::preset(blower, outlet);
+        let zn = tune_zn(&plant).unwrap();
+        let case = run_case(&plant, 1, &zn).unwrap();
+        let (rig, _, sw) = identify(&plant, 1).unwrap();
+        let d = design_with(&sw, c, Knobs::FIRMWARE).unwrap();
+        let (trace, preview) = run_design(&mut rig.clone(), &sw, c, c.program, &d).unwrap();
+        assert_eq!(
+            d.spec.slowdown > 1.0,
+            retried,
+            "{blower:?}/{outlet:?}: retry"
+        );
+        assert_eq!(preview, sw.preview, "{blower:?}/{outlet:?}");
+        let firmware = &case.trace(Controller::Rst).duty;
+        assert_eq!(trace.duty.len(), firmware.len());
+        let first = trace.duty.iter().zip(firmware).position(|(a, b)| a != b);
+        assert_eq!(first, None, "{blower:?}/{outlet:?}: first differing duty");
+        let slower = Knobs {
+            tau_x: 2.0,
+            ..Knobs::FIRMWARE
+        };
+        let d2 = design_with(&sw, c, slower).unwrap();
+        assert!((d2.tau - 2.0 * d.tau).abs() < 1e-6 * d.tau);
+        let (other, _) = run_design(&mut rig.clone(), &sw, c, c.program, &d2).unwrap();
+        assert!(
+            other.duty != trace.duty,
+            "{blower:?}/{outlet:?}: τ × 2 changed nothing"
+        );
     }
 }
 

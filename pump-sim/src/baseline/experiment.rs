@@ -354,7 +354,7 @@ pub fn identify_with(
 /// Runs one controller for [`run_ticks`] intervals from `rig` at the switch-over: `next(k,
 /// raw)` gets the sensor word at the end of interval `k − 1` and returns the duty of interval
 /// `k`.
-fn run_loop(
+pub fn run_loop(
     rig: &mut Rig,
     sw: &Switchover,
     program: Program,

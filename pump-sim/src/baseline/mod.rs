@@ -9,6 +9,7 @@
 //!   integration and bumpless start;
 //! - [`zn`]: Ziegler–Nichols tuning from the ultimate gain and period of the noise-free plant;
 //! - [`simc`]: SIMC PI tuning from an FOPDT fit of the identified model;
+//! - [`knobs`]: the firmware's design with its time constants chosen per plant in hindsight;
 //! - [`metrics`]: step metrics, RMS tracking error, duty total variation;
 //! - [`optimal`]: the open-loop optimum of a step, the least IAE of any duty sequence;
 //! - [`experiment`]: one plant and seed, the three controllers from the same switch-over;
@@ -16,6 +17,7 @@
 //!   prints).
 
 pub mod experiment;
+pub mod knobs;
 pub mod metrics;
 pub mod optimal;
 pub mod pid;

@@ -133,6 +133,14 @@ fn noise_sigma(flow: f64) -> f64 {
     Sfm3300Params::default().noise_std(flow)
 }
 
+/// The quality targets, as the tables check them: step IAE at most this fraction of
+/// the ZN PID's ...
+pub const IAE_RATIO_TARGET: f64 = 0.5;
+/// ... largest step overshoot, percent of the step ...
+pub const OVERSHOOT_TARGET_PCT: f64 = 10.0;
+/// ... breath RMS tracking error with a lung, percent of the breath's peak flow.
+pub const BREATH_TARGET_PCT: f64 = 5.0;
+
 fn mean(v: &[f64]) -> f64 {
     if v.is_empty() {
         f64::NAN
@@ -450,7 +458,7 @@ fn targets(o: &mut String, plants: &[PlantSummary], peak: f64) {
         "≤ 0.50",
         plants
             .iter()
-            .map(|p| (name(p), iae_ratio(p), iae_ratio(p) <= 0.5))
+            .map(|p| (name(p), iae_ratio(p), iae_ratio(p) <= IAE_RATIO_TARGET))
             .collect(),
     );
     bullet(
@@ -462,7 +470,7 @@ fn targets(o: &mut String, plants: &[PlantSummary], peak: f64) {
                 (
                     name(p),
                     rst(p).overshoot_max_pct,
-                    rst(p).overshoot_max_pct <= 10.0,
+                    rst(p).overshoot_max_pct <= OVERSHOOT_TARGET_PCT,
                 )
             })
             .collect(),
@@ -474,7 +482,7 @@ fn targets(o: &mut String, plants: &[PlantSummary], peak: f64) {
             .iter()
             .map(|p| {
                 let v = rst(p).overshoot_noisy_max_pct;
-                (name(p), v, v <= 10.0)
+                (name(p), v, v <= OVERSHOOT_TARGET_PCT)
             })
             .collect(),
     );
@@ -486,7 +494,7 @@ fn targets(o: &mut String, plants: &[PlantSummary], peak: f64) {
             .filter(|p| matches!(p.plant.lung(), Ok(Some(_))))
             .map(|p| {
                 let v = 100.0 * rst(p).breath_rms / peak;
-                (name(p), v, v <= 5.0)
+                (name(p), v, v <= BREATH_TARGET_PCT)
             })
             .collect(),
     );
