@@ -248,7 +248,7 @@ fn the_firmware_knobs_reproduce_the_firmwares_run() {
         let case = run_case(&plant, 1, &zn).unwrap();
         let (rig, _, sw) = identify(&plant, 1).unwrap();
         let d = design_with(&sw, c, Knobs::FIRMWARE).unwrap();
-        let (trace, preview) = run_design(&mut rig.clone(), &sw, c, c.program, &d).unwrap();
+        let (trace, preview) = run_design(&mut rig.clone(), &sw, c, &d).unwrap();
         assert_eq!(
             d.spec.slowdown > 1.0,
             retried,
@@ -265,7 +265,7 @@ fn the_firmware_knobs_reproduce_the_firmwares_run() {
         };
         let d2 = design_with(&sw, c, slower).unwrap();
         assert!((d2.tau - 2.0 * d.tau).abs() < 1e-6 * d.tau);
-        let (other, _) = run_design(&mut rig.clone(), &sw, c, c.program, &d2).unwrap();
+        let (other, _) = run_design(&mut rig.clone(), &sw, c, &d2).unwrap();
         assert!(
             other.duty != trace.duty,
             "{blower:?}/{outlet:?}: τ × 2 changed nothing"

@@ -26,10 +26,12 @@
 //! `k`, whose programmed setpoint is `value(program, start, k)`. [`Trace`] index `k` is
 //! interval `k`: the duty applied during it, the flow at its end and its setpoint.
 
-use ridge_core::control::design_slower_on_failure;
+use ridge_core::control::{design_slower_on_failure, Design};
 use ridge_core::ArxModel;
 use ridge_pump_firmware::event::{Event, LINE_MAX};
-use ridge_pump_firmware::selfid::{preview_ticks, Config, SelfIdentification, State, SLOWDOWN};
+use ridge_pump_firmware::selfid::{
+    preview_ticks, Config, ControlConfig, SelfIdentification, State, SLOWDOWN,
+};
 use ridge_pump_firmware::setpoint::{self, Program, DEMO_BREATH, DEMO_HOLD_TICKS, DEMO_STEPS};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
 use ridge_pump_firmware::units::DUTY_FULL_SCALE;
@@ -181,15 +183,19 @@ pub fn tune_zn(plant: &PlantArgs) -> Result<ZnTuning, ExperimentError> {
     })
 }
 
-/// The preview the firmware's controller would have without its reference model (see
-/// [`Switchover::baseline_preview`]): the same design (`ridge_core`, `f32`, the settings'
-/// [`ControlConfig::spec`](ridge_pump_firmware::selfid::ControlConfig::spec), the firmware's
-/// retries) and its mean delay in the firmware's [`preview_ticks`]; 0 if the design fails (it
-/// did not: run mode started).
-pub fn regulation_preview(model: &ArxModel<f32>, config: &Config) -> u8 {
-    let c = &config.control;
+/// The firmware's design for `model` before its reference model is set: `ridge_core`'s, in
+/// `f32`, from the settings' [`ControlConfig::spec`] with the firmware's retries; `None` when
+/// refused.
+pub fn firmware_design(model: &ArxModel<f32>, c: &ControlConfig) -> Option<Design<f32>> {
     let (design, _) = design_slower_on_failure(model, &c.spec(), c.tries, SLOWDOWN, || {});
-    design.map_or(0, |d| preview_ticks(d.mean_delay(model)))
+    design.ok()
+}
+
+/// The preview the firmware's controller would have without its reference model (see
+/// [`Switchover::baseline_preview`]): [`firmware_design`]'s mean delay in the firmware's
+/// [`preview_ticks`]; 0 if the design fails (it did not: run mode started).
+pub fn regulation_preview(model: &ArxModel<f32>, config: &Config) -> u8 {
+    firmware_design(model, &config.control).map_or(0, |d| preview_ticks(d.mean_delay(model)))
 }
 
 /// The state at the switch-over to run mode.
@@ -455,7 +461,17 @@ pub fn run_case_with(
     zn: &ZnTuning,
     config: &'static Config,
 ) -> Result<CaseRun, ExperimentError> {
-    let (rig, sm, sw) = identify_with(plant, seed, config)?;
+    run_identified(plant, seed, zn, identify_with(plant, seed, config)?)
+}
+
+/// [`run_case`] from a switch-over already reached ([`identify`]'s result for the same
+/// `plant` and `seed`), for callers that also run other controllers from it.
+pub fn run_identified(
+    plant: &PlantArgs,
+    seed: u64,
+    zn: &ZnTuning,
+    (rig, sm, sw): (Rig, SelfIdentification, Switchover),
+) -> Result<CaseRun, ExperimentError> {
     let fopdt = fit_model(&sw.model, TS_S).ok_or(ExperimentError::Fopdt)?;
     let simc = simc_pi(&fopdt, TS_S).ok_or(ExperimentError::Fopdt)?;
     let traces = run_all(&rig, &sm, &sw, zn.gains, simc.gains)?;

@@ -17,11 +17,13 @@
 
 use ridge_core::control::{design_slower_on_failure, Controller, Design, Limits};
 use ridge_pump_firmware::selfid::{preview_ticks, ControlConfig, REFERENCE_POLE, SLOWDOWN};
-use ridge_pump_firmware::setpoint::{self, Program};
+use ridge_pump_firmware::setpoint;
 use ridge_pump_firmware::sfm3300::raw_to_counts;
 use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FRACTION_PER_DUTY, SLM_PER_COUNT};
 
-use super::experiment::{noise_free_sensor, run_loop, score, Scores, Switchover, Trace};
+use super::experiment::{
+    firmware_design, noise_free_sensor, run_loop, score, Scores, Switchover, Trace,
+};
 use crate::{Rig, Sfm3300, TS_S};
 
 /// The three time constants of a design, relative to the firmware's own.
@@ -61,8 +63,9 @@ impl Knobs {
 /// refusal, as the firmware retries); `None` when refused.
 pub fn design_with(sw: &Switchover, c: &ControlConfig, knobs: Knobs) -> Option<Design<f32>> {
     let model = &sw.model;
-    let (base, _) = design_slower_on_failure(model, &c.spec(), c.tries, SLOWDOWN, || {});
-    let base = base.ok()?;
+    let base = firmware_design(model, c)?;
+    // Unscaled knobs keep the firmware's design itself (its spec and retries as they were),
+    // not a redesign from its resolved time constants.
     let mut d = if knobs.tau_x == 1.0 && knobs.observer_x == 1.0 {
         base
     } else {
@@ -81,15 +84,15 @@ pub fn design_with(sw: &Switchover, c: &ControlConfig, knobs: Knobs) -> Option<D
 }
 
 /// `ridge_core`'s controller with `design` from the switch-over `sw` on `rig` for the
-/// experiment's run ([`run_loop`]), given `program` `preview` ticks ahead (the design's mean
-/// delay, as the firmware); returns the trace and the preview.
+/// experiment's run ([`run_loop`]), given the settings' program `preview` ticks ahead (the
+/// design's mean delay, as the firmware); returns the trace and the preview.
 pub fn run_design(
     rig: &mut Rig,
     sw: &Switchover,
     c: &ControlConfig,
-    program: Program,
     design: &Design<f32>,
 ) -> Option<(Trace, u8)> {
+    let program = c.program;
     // Limits and start as the firmware's run mode computes them (× FRACTION_PER_DUTY, not
     // ÷ full scale: the rate limit's last bit decides a rounding now and then).
     let full = f32::from(DUTY_FULL_SCALE);
@@ -121,11 +124,10 @@ pub fn score_design(
     design: &Design<f32>,
     seed: u64,
 ) -> Option<(Scores, Scores)> {
-    let program = c.program;
-    let (noisy, preview) = run_design(&mut rig.clone(), sw, c, program, design)?;
+    let (noisy, preview) = run_design(&mut rig.clone(), sw, c, design)?;
     let mut quiet = rig.clone();
     quiet.sensor = Sfm3300::new(noise_free_sensor(), seed);
-    let (clean, _) = run_design(&mut quiet, sw, c, program, design)?;
+    let (clean, _) = run_design(&mut quiet, sw, c, design)?;
     let p = u32::from(preview);
     Some((score(&noisy, false, p)?, score(&clean, false, p)?))
 }

@@ -455,7 +455,7 @@ fn targets(o: &mut String, plants: &[PlantSummary], peak: f64) {
     };
     bullet(
         "Step IAE of the RST / ZN PID's",
-        "≤ 0.50",
+        &format!("≤ {IAE_RATIO_TARGET:.2}"),
         plants
             .iter()
             .map(|p| (name(p), iae_ratio(p), iae_ratio(p) <= IAE_RATIO_TARGET))
@@ -463,7 +463,7 @@ fn targets(o: &mut String, plants: &[PlantSummary], peak: f64) {
     );
     bullet(
         "RST largest overshoot, noise-free, %",
-        "≤ 10",
+        &format!("≤ {OVERSHOOT_TARGET_PCT}"),
         plants
             .iter()
             .map(|p| {
@@ -477,7 +477,7 @@ fn targets(o: &mut String, plants: &[PlantSummary], peak: f64) {
     );
     bullet(
         "RST largest overshoot with sensor noise, %",
-        "≤ 10",
+        &format!("≤ {OVERSHOOT_TARGET_PCT}"),
         plants
             .iter()
             .map(|p| {
@@ -488,7 +488,7 @@ fn targets(o: &mut String, plants: &[PlantSummary], peak: f64) {
     );
     bullet(
         "RST breath RMS with a lung, % of peak",
-        "≤ 5",
+        &format!("≤ {BREATH_TARGET_PCT}"),
         plants
             .iter()
             .filter(|p| matches!(p.plant.lung(), Ok(Some(_))))

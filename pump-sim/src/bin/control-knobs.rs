@@ -14,10 +14,10 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::Parser;
-use pump_sim::baseline::experiment::identify;
+use pump_sim::baseline::experiment::{identify, run_identified, tune_zn};
 use pump_sim::baseline::knobs::{grid, score_knobs, KnobScore, Knobs};
 use pump_sim::baseline::table::{
-    lung_label, run_plant, Cases, BREATH_TARGET_PCT, IAE_RATIO_TARGET, OVERSHOOT_TARGET_PCT,
+    lung_label, summarise, Cases, BREATH_TARGET_PCT, IAE_RATIO_TARGET, OVERSHOOT_TARGET_PCT,
 };
 use pump_sim::baseline::Controller;
 use pump_sim::PlantArgs;
@@ -77,13 +77,18 @@ fn knobs_label(k: &Knobs) -> String {
 }
 
 fn run(plant: &PlantArgs, seeds: &[u64], grid: &[Knobs]) -> Result<PlantRun, String> {
-    let summary = run_plant(plant, seeds).map_err(|e| e.to_string())?;
-    let zn_iae = summary.rows[Controller::ZnPid.index()].iae;
+    let zn = tune_zn(plant).map_err(|e| e.to_string())?;
+    // One identification per seed: the knobs and the comparison's ZN PID run from it.
     let mut cases = Vec::new();
+    let mut runs = Vec::new();
     for &seed in seeds {
-        let (rig, _, sw) = identify(plant, seed).map_err(|e| e.to_string())?;
-        cases.push((rig, sw, seed));
+        let identified = identify(plant, seed).map_err(|e| e.to_string())?;
+        cases.push((identified.0.clone(), identified.2.clone(), seed));
+        runs.push(run_identified(plant, seed, &zn, identified).map_err(|e| e.to_string())?);
     }
+    let zn_iae = summarise(&runs, Controller::ZnPid)
+        .ok_or("a ZN PID trace cannot be scored")?
+        .iae;
     let c = &DEFAULT_CONFIG.control;
     let scores = grid
         .iter()
