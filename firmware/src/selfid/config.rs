@@ -1,13 +1,13 @@
 //! [`Config`]: the settings of the self-identification state machine and their defaults.
 
-use ridge_core::control::{ModelLimits, Spec};
+use ridge_core::control::{Limits, ModelLimits, Spec};
 use ridge_core::Search;
 
 use crate::excitation::Record;
 use crate::monitor::MonitorConfig;
 use crate::setpoint::Program;
 use crate::tracking::TrackingConfig;
-use crate::units::TS_S;
+use crate::units::{DUTY_FULL_SCALE, FRACTION_PER_DUTY, TS_S};
 
 /// The no-flow check's fraction of the expected flow, as a right shift: a flow below
 /// `expected >> LOSS_SHIFT` (a quarter) is missing (see [`Config::loss_ticks`]). A quarter,
@@ -143,6 +143,17 @@ impl ControlConfig {
             tau: self.tau,
             observer: self.observer,
             ..Spec::new(TS_S)
+        }
+    }
+
+    /// The controller's duty limits as fractions 0..1 of full scale: `duty_min`, `duty_max`
+    /// (at most full scale) and `duty_step` per tick, each `× FRACTION_PER_DUTY`.
+    #[inline]
+    pub fn limits(&self) -> Limits<f32> {
+        Limits {
+            min: f32::from(self.duty_min) * FRACTION_PER_DUTY,
+            max: f32::from(self.duty_max.min(DUTY_FULL_SCALE)) * FRACTION_PER_DUTY,
+            max_step: f32::from(self.duty_step) * FRACTION_PER_DUTY,
         }
     }
 

@@ -1,7 +1,7 @@
 //! Run mode: the flow controller tracking the setpoint program, with the model monitor and the
 //! tracking figures.
 
-use ridge_core::control::{Controller, Design, Limits};
+use ridge_core::control::{Controller, Design};
 use ridge_core::ArxModel;
 
 use crate::event::Event;
@@ -39,12 +39,7 @@ impl RunMode {
         counts: i16,
     ) -> Self {
         let c = &cfg.control;
-        let limits = Limits {
-            min: f32::from(c.duty_min) * FRACTION_PER_DUTY,
-            max: f32::from(c.duty_max.min(DUTY_FULL_SCALE)) * FRACTION_PER_DUTY,
-            max_step: f32::from(c.duty_step) * FRACTION_PER_DUTY,
-        };
-        let mut ctrl = Controller::new(design.rst, limits);
+        let mut ctrl = Controller::new(design.rst, c.limits());
         let y0 = f32::from(counts) * SLM_PER_COUNT;
         ctrl.start(f32::from(applied) * FRACTION_PER_DUTY, y0);
         RunMode {

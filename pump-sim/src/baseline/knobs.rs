@@ -15,7 +15,7 @@
 //! 1/10 000); with [`Knobs::FIRMWARE`] its duties equal the firmware's run mode's (test
 //! `the_firmware_knobs_reproduce_the_firmwares_run` in `pump-sim/tests/baseline.rs`).
 
-use ridge_core::control::{design_slower_on_failure, Controller, Design, Limits};
+use ridge_core::control::{design_slower_on_failure, Controller, Design};
 use ridge_pump_firmware::selfid::{preview_ticks, ControlConfig, REFERENCE_POLE, SLOWDOWN};
 use ridge_pump_firmware::setpoint;
 use ridge_pump_firmware::sfm3300::raw_to_counts;
@@ -93,16 +93,11 @@ pub fn run_design(
     design: &Design<f32>,
 ) -> Option<(Trace, u8)> {
     let program = c.program;
-    // Limits and start as the firmware's run mode computes them (× FRACTION_PER_DUTY, not
-    // ÷ full scale: the rate limit's last bit decides a rounding now and then).
-    let full = f32::from(DUTY_FULL_SCALE);
-    let limits = Limits {
-        min: f32::from(c.duty_min) * FRACTION_PER_DUTY,
-        max: f32::from(c.duty_max.min(DUTY_FULL_SCALE)) * FRACTION_PER_DUTY,
-        max_step: f32::from(c.duty_step) * FRACTION_PER_DUTY,
-    };
     let preview = preview_ticks(design.mean_delay(&sw.model));
-    let mut ctrl = Controller::new(design.rst, limits);
+    // The firmware's own duty limits; the start, the reading and the duty's rounding convert
+    // as its run mode does (a function for the rounding cost the ATmega2560 16 B).
+    let full = f32::from(DUTY_FULL_SCALE);
+    let mut ctrl = Controller::new(design.rst, c.limits());
     ctrl.start(f32::from(sw.duty) * FRACTION_PER_DUTY, sw.flow);
     let trace = run_loop(rig, sw, program, |k, raw| {
         let ahead = setpoint::value(program, sw.flow, k.saturating_add(u32::from(preview)));
