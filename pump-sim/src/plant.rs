@@ -123,6 +123,11 @@ impl PlantArgs {
         self.plant.params()
     }
 
+    /// Whether the outlet feeds a valid lung (not the open outlet, no parameter out of range).
+    pub fn has_lung(&self) -> bool {
+        matches!(self.lung(), Ok(Some(_)))
+    }
+
     /// The lung with the overrides applied, `None` for an open outlet; an error names a
     /// parameter out of range.
     pub fn lung(&self) -> Result<Option<LungParams>, String> {

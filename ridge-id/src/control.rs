@@ -274,17 +274,11 @@ pub fn denominator(theta: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// `a · b` (polynomial product, ascending powers).
+/// `a · b` (polynomial product, ascending powers), every coefficient kept: ridge-core's
+/// [`poly::mul`](ridge_core::control::poly::mul) into a vector of the product's length.
 pub fn mul(a: &[f64], b: &[f64]) -> Vec<f64> {
-    if a.is_empty() || b.is_empty() {
-        return Vec::new();
-    }
-    let mut out = vec![0.0; a.len() + b.len() - 1];
-    for (i, x) in a.iter().enumerate() {
-        for (j, y) in b.iter().enumerate() {
-            out[i + j] += x * y;
-        }
-    }
+    let mut out = vec![0.0; (a.len() + b.len()).saturating_sub(1)];
+    ridge_core::control::poly::mul(a, b, &mut out);
     out
 }
 
@@ -967,6 +961,20 @@ mod tests {
         assert!(roots(&[0.0, 1.0], 0.0).is_none());
         assert!(roots(&[1.0, f64::NAN], 0.0).is_none());
         assert_eq!(roots(&[2.0], 0.0), Some(vec![]));
+    }
+
+    #[test]
+    fn products_of_known_factors() {
+        // (1 − 0.5 q⁻¹)(1 − 0.25 q⁻¹) = 1 − 0.75 q⁻¹ + 0.125 q⁻².
+        assert_eq!(mul(&[1.0, -0.5], &[1.0, -0.25]), vec![1.0, -0.75, 0.125]);
+        // (1 + q⁻¹)³ = 1 + 3 q⁻¹ + 3 q⁻² + q⁻³, every coefficient kept.
+        assert_eq!(
+            mul(&mul(&[1.0, 1.0], &[1.0, 1.0]), &[1.0, 1.0]),
+            vec![1.0, 3.0, 3.0, 1.0]
+        );
+        assert_eq!(mul(&[2.0], &[0.0, 0.0, 3.0]), vec![0.0, 0.0, 6.0]);
+        assert!(mul(&[], &[]).is_empty());
+        assert_eq!(mul(&[], &[1.0, 2.0]), vec![0.0]);
     }
 
     fn model(theta: &[f64], phi: &[f64], d: u8) -> ArxModel<f64> {

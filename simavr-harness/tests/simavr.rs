@@ -17,6 +17,7 @@
 //! breath RMS within the targets (10 %, 5 % of peak) or, where the design is known to
 //! miss them (stiff lung), within a regression bound said at the test.
 
+use pump_sim::baseline::table::breath_pct;
 use pump_sim::sfm3300::flow_to_raw;
 use pump_sim::PumpParams;
 use ridge_pump_firmware::excitation::Record;
@@ -995,11 +996,11 @@ fn assert_tracks(
     println!(
         "{what}: largest overshoot {over:.1} %, largest |e_ss| {ss:.3} slm, breath RMS {:.2} slm ({:.2} % of peak), duty TV {:.0} %/s",
         sc.breath_rms,
-        100.0 * sc.breath_rms / 60.0,
+        breath_pct(sc.breath_rms),
         100.0 * sc.duty_tv
     );
     let sensor = pump_sim::sfm3300::Sfm3300Params::default();
-    let sigma = |level: f64| (sensor.noise_rel * level).hypot(sensor.noise_floor_slm);
+    let sigma = |level: f64| sensor.noise_std(level);
     for (m, level) in sc.steps.iter().zip(&sc.levels) {
         let m = m
             .as_ref()
@@ -1016,7 +1017,7 @@ fn assert_tracks(
             m.overshoot_pct
         );
     }
-    let breath = 100.0 * sc.breath_rms / 60.0;
+    let breath = breath_pct(sc.breath_rms);
     assert!(
         breath <= breath_max,
         "{what}: breath RMS {breath:.2} % of peak > {breath_max} %"

@@ -138,8 +138,16 @@ fn noise_sigma(flow: f64) -> f64 {
 pub const IAE_RATIO_TARGET: f64 = 0.5;
 /// ... largest step overshoot, percent of the step ...
 pub const OVERSHOOT_TARGET_PCT: f64 = 10.0;
-/// ... breath RMS tracking error with a lung, percent of the breath's peak flow.
+/// ... breath RMS tracking error with a lung, percent of the breath's peak flow
+/// ([`breath_pct`]) ...
 pub const BREATH_TARGET_PCT: f64 = 5.0;
+/// ... and the largest |steady-state error| at most this many sensor noise σ.
+pub const SS_RATIO_TARGET: f64 = 1.0;
+
+/// A breath RMS tracking error of `rms` slm as percent of the demo breath's peak flow.
+pub fn breath_pct(rms: f64) -> f64 {
+    100.0 * rms / f64::from(DEMO_BREATH.peak)
+}
 
 fn mean(v: &[f64]) -> f64 {
     if v.is_empty() {
@@ -369,7 +377,6 @@ pub fn markdown(plants: &[PlantSummary], command: &str) -> String {
         o,
         "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
-    let peak = f64::from(DEMO_BREATH.peak);
     for p in plants {
         let zn_iae = p.rows[Controller::ZnPid.index()].iae;
         for r in &p.rows {
@@ -394,7 +401,7 @@ pub fn markdown(plants: &[PlantSummary], command: &str) -> String {
                 r.iae,
                 r.iae / zn_iae,
                 r.breath_rms,
-                100.0 * r.breath_rms / peak,
+                breath_pct(r.breath_rms),
                 r.duty_tv_pct
             );
         }
@@ -426,12 +433,12 @@ pub fn markdown(plants: &[PlantSummary], command: &str) -> String {
         }
     }
     let _ = writeln!(o, "\n### Targets (RST designed on the device)\n");
-    targets(&mut o, plants, peak);
+    targets(&mut o, plants);
     o
 }
 
 /// The target checks, one bullet each with every miss named.
-fn targets(o: &mut String, plants: &[PlantSummary], peak: f64) {
+fn targets(o: &mut String, plants: &[PlantSummary]) {
     let name = |p: &PlantSummary| format!("{}/{}", p.plant.plant.name(), lung_label(&p.plant));
     let rst = |p: &PlantSummary| p.rows[Controller::Rst.index()].clone();
     let mut bullet = |title: &str, limit: &str, vals: Vec<(String, f64, bool)>| {
@@ -491,19 +498,22 @@ fn targets(o: &mut String, plants: &[PlantSummary], peak: f64) {
         &format!("≤ {BREATH_TARGET_PCT}"),
         plants
             .iter()
-            .filter(|p| matches!(p.plant.lung(), Ok(Some(_))))
+            .filter(|p| p.plant.has_lung())
             .map(|p| {
-                let v = 100.0 * rst(p).breath_rms / peak;
+                let v = breath_pct(rst(p).breath_rms);
                 (name(p), v, v <= BREATH_TARGET_PCT)
             })
             .collect(),
     );
     bullet(
         "RST largest |steady-state error| / sensor noise σ",
-        "≤ 1",
+        &format!("≤ {SS_RATIO_TARGET}"),
         plants
             .iter()
-            .map(|p| (name(p), rst(p).ss_ratio_max, rst(p).ss_ratio_max <= 1.0))
+            .map(|p| {
+                let v = rst(p).ss_ratio_max;
+                (name(p), v, v <= SS_RATIO_TARGET)
+            })
             .collect(),
     );
     let _ = writeln!(

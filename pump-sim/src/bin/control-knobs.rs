@@ -17,12 +17,12 @@ use clap::Parser;
 use pump_sim::baseline::experiment::{identify, run_identified, tune_zn};
 use pump_sim::baseline::knobs::{grid, score_knobs, KnobScore, Knobs};
 use pump_sim::baseline::table::{
-    lung_label, summarise, Cases, BREATH_TARGET_PCT, IAE_RATIO_TARGET, OVERSHOOT_TARGET_PCT,
+    breath_pct, lung_label, summarise, Cases, BREATH_TARGET_PCT, IAE_RATIO_TARGET,
+    OVERSHOOT_TARGET_PCT,
 };
 use pump_sim::baseline::Controller;
 use pump_sim::PlantArgs;
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
-use ridge_pump_firmware::setpoint::DEMO_BREATH;
 
 /// Prints, per plant, the firmware's design and the best knobs of the grid, then the best
 /// knobs shared by every plant (markdown).
@@ -46,14 +46,10 @@ impl PlantRun {
         format!("{} | {}", self.plant.plant.name(), lung_label(&self.plant))
     }
 
-    fn has_lung(&self) -> bool {
-        matches!(self.plant.lung(), Ok(Some(_)))
-    }
-
     /// The targets other than the IAE: overshoot (noise-free) and, with a lung, breath RMS.
     fn admissible(&self, s: &KnobScore) -> bool {
         s.overshoot_pct <= OVERSHOOT_TARGET_PCT
-            && (!self.has_lung() || breath_pct(s) <= BREATH_TARGET_PCT)
+            && (!self.plant.has_lung() || breath_pct(s.breath_rms) <= BREATH_TARGET_PCT)
     }
 
     fn ratio(&self, s: &KnobScore) -> f64 {
@@ -63,10 +59,6 @@ impl PlantRun {
     fn find(&self, k: &Knobs) -> Option<&KnobScore> {
         self.scores.iter().find(|s| s.knobs == *k)
     }
-}
-
-fn breath_pct(s: &KnobScore) -> f64 {
-    100.0 * s.breath_rms / f64::from(DEMO_BREATH.peak)
 }
 
 fn knobs_label(k: &Knobs) -> String {
@@ -109,10 +101,10 @@ fn row(p: &PlantRun, s: &KnobScore) -> String {
         p.ratio(s),
         s.overshoot_pct,
         s.overshoot_noisy_pct,
-        if p.has_lung() {
-            format!("{:.1}", breath_pct(s))
+        if p.plant.has_lung() {
+            format!("{:.1}", breath_pct(s.breath_rms))
         } else {
-            format!("({:.1})", breath_pct(s))
+            format!("({:.1})", breath_pct(s.breath_rms))
         }
     )
 }

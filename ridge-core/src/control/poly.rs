@@ -14,8 +14,9 @@ use crate::real::Real;
 /// `P = A R + q^{−d−1} B S` has degree at most `p + q + d ≤ 18`.
 pub const POLY_LEN: usize = crate::P_MAX + crate::Q_MAX + crate::D_MAX + 1;
 
-/// `out[..n] = a · b` with `n = a.len() + b.len() − 1` (0 when a factor is empty), the
-/// product's coefficients beyond `out.len()` dropped; the rest of `out` is left alone.
+/// `out[..n] = a · b` with `n = a.len() + b.len() − 1` (0 when both factors are empty; an
+/// empty factor, the zero polynomial, gives `n` zeros), the product's coefficients beyond
+/// `out.len()` dropped; the rest of `out` is left alone.
 /// Returns `n` capped at `out.len()`.
 pub fn mul<T: Real>(a: &[T], b: &[T], out: &mut [T]) -> usize {
     let n = (a.len() + b.len()).saturating_sub(1).min(out.len());

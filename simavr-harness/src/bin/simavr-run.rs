@@ -481,7 +481,7 @@ fn print_tracking(args: &Args, out: &Outcome) -> bool {
                 "  breaths 2-6 (square, 20/min, peak {} slm): RMS error {:.3} slm = {:.1} % of peak",
                 peak,
                 sc.breath_rms,
-                100.0 * sc.breath_rms / f64::from(peak)
+                pump_sim::baseline::table::breath_pct(sc.breath_rms)
             );
             println!("  duty total variation {:.0} %/s", 100.0 * sc.duty_tv);
         }
