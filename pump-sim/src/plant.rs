@@ -9,11 +9,11 @@ use crate::{LungParams, PumpParams, Rig, Sfm3300Params};
 /// A blower preset ([`PumpParams`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Blower {
-    /// [`PumpParams::default`]: τ 0.15 s, 150 slm, 3 samples of delay.
+    /// τ 0.15 s, 150 slm, 3 samples of delay (`PumpParams::default`).
     Default,
-    /// [`PumpParams::small`]: τ 0.08 s up / 0.10 s down, 120 slm, 2 samples of delay.
+    /// τ 0.08 s up / 0.10 s down, 120 slm, 2 samples of delay (`PumpParams::small`).
     Small,
-    /// [`PumpParams::sluggish`]: τ 0.30 s up / 0.45 s down, 5 samples of delay.
+    /// τ 0.30 s up / 0.45 s down, 5 samples of delay (`PumpParams::sluggish`).
     Sluggish,
 }
 
@@ -45,9 +45,9 @@ impl Blower {
 pub enum Outlet {
     /// An open outlet: the flow is the blower's open-outlet flow.
     Open,
-    /// [`LungParams::adult`]: C 50 mL/cmH₂O, R 5 cmH₂O/(L/s).
+    /// C 50 mL/cmH₂O, R 5 cmH₂O/(L/s) (`LungParams::adult`).
     Adult,
-    /// [`LungParams::stiff`]: C 15 mL/cmH₂O, R 30 cmH₂O/(L/s).
+    /// C 15 mL/cmH₂O, R 30 cmH₂O/(L/s) (`LungParams::stiff`).
     Stiff,
 }
 
