@@ -3,7 +3,9 @@
 //! response, FOPDT parameters of plants built from them, a PID's closed loop on a linear
 //! plant, and the firmware's own run mode replayed by a plain board loop.
 
-use pump_sim::baseline::experiment::{identify, run_case, score, tune_zn, Controller};
+use pump_sim::baseline::experiment::{
+    identify, run_case, run_identified, score, tune_zn, Controller,
+};
 use pump_sim::baseline::knobs::{design_with, run_design, Knobs};
 use pump_sim::baseline::pid::{DutyLimits, Pid, PidGains};
 use pump_sim::baseline::plant::{ArxPlant, Plant};
@@ -245,8 +247,9 @@ fn the_firmware_knobs_reproduce_the_firmwares_run() {
     ] {
         let plant = PlantArgs::preset(blower, outlet);
         let zn = tune_zn(&plant).unwrap();
-        let case = run_case(&plant, 1, &zn).unwrap();
-        let (rig, _, sw) = identify(&plant, 1).unwrap();
+        // One identification: the firmware's run and the knob study's loop start from it.
+        let (rig, sm, sw) = identify(&plant, 1).unwrap();
+        let case = run_identified(&plant, 1, &zn, (rig.clone(), sm, sw.clone())).unwrap();
         let d = design_with(&sw, c, Knobs::FIRMWARE).unwrap();
         let (trace, preview) = run_design(&mut rig.clone(), &sw, c, &d).unwrap();
         assert_eq!(
