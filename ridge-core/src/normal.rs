@@ -19,10 +19,20 @@
 
 use crate::cholesky::{backward, factor_in_place, forward, packed, packed_len};
 use crate::error::{Error, Result};
-use crate::gram::Col;
 use crate::real::Real;
 use crate::structure::{Offset, Structure};
 use crate::{L_MAX, PARAMS_MAX, P_MAX};
+
+/// One column of the full lag Gram: an output lag, an input lag or the constant 1.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Col {
+    /// `y_{t-k}`, `k ∈ 0..=P_MAX` (`k = 0` is the regression target).
+    Y(u8),
+    /// `u_{t-k}`, `k ∈ 0..L_MAX`.
+    U(u8),
+    /// The constant 1 of the intercept.
+    One,
+}
 
 /// The 19 columns of the lag Gram other than the pivot `y_{t-1}`:
 /// `y_{t-2} … y_{t-P}`, `u_t … u_{t-L+1}`, `1`, `y_t` (target, last).
