@@ -41,6 +41,7 @@ use ridge_core::control::{
 use ridge_core::ArxModel;
 
 use crate::error::IdError;
+use crate::numfmt::{list, num};
 
 /// Designs made before the controller is refused: the firmware's default
 /// (`ControlConfig::DEFAULT.tries` in `firmware/src/selfid/config.rs`; ridge-core has no
@@ -779,17 +780,10 @@ pub fn simulate_step(
     })
 }
 
-/// `[1.000000, -0.500000]`.
-fn list(v: &[f64]) -> String {
-    let items: Vec<String> = v.iter().map(|x| crate::report::num(*x)).collect();
-    format!("[{}]", items.join(", "))
-}
-
 impl ControlReport {
     /// The readable section of the report (appended to the identification's).
     pub fn to_text(&self) -> String {
         let mut o = String::new();
-        let num = crate::report::num;
         let ts = self.options.ts;
         let _ = writeln!(
             o,

@@ -63,6 +63,7 @@ pub mod eval;
 pub mod export;
 pub mod initial;
 pub mod input;
+pub mod numfmt;
 pub mod options;
 pub mod plot;
 pub mod refine;
@@ -75,16 +76,17 @@ pub use control::{ControlOptions, ControlReport};
 pub use error::IdError;
 pub use eval::{evaluate_file, read_record, read_record_with, Figures, RecordStats, Trace};
 pub use initial::Initial;
+pub use options::Hyper;
 pub use options::Options;
-pub use report::{Hyper, Report, SearchInfo};
+pub use report::{Report, SearchInfo};
 
 use ridge_core_host::{
     ArxModel, Criterion, Error as CoreError, Grid, MethodKind, Normal, Rls, Search, Structure,
 };
 
 use input::{evaluate_input, Input};
-use refine::{Refine, Select};
-use warnings::number;
+use numfmt::typed;
+use options::{Refine, Select};
 
 /// Where `--plot OUT.png` puts the closed-loop step of `--control`: `OUT-control.png`, next
 /// to it.
@@ -253,14 +255,14 @@ fn run_rls(
                     "with --lambda {} the covariance grows by 1/lambda = {} a sample in \
                      the directions the data do not excite: use a lambda closer to 1 (e.g. \
                      0.98 to 1), or a smaller --delta (now {})",
-                    number(opts.hyper.lambda),
-                    number(1.0 / opts.hyper.lambda),
-                    number(opts.hyper.delta)
+                    typed(opts.hyper.lambda),
+                    typed(1.0 / opts.hyper.lambda),
+                    typed(opts.hyper.delta)
                 )
             } else {
                 format!(
                     "try a smaller --delta (now {}: P0 = delta I)",
-                    number(opts.hyper.delta)
+                    typed(opts.hyper.delta)
                 )
             };
             IdError::line(
@@ -284,7 +286,7 @@ fn run_rls(
 pub fn run(opts: &Options) -> Result<Report, IdError> {
     opts.check()?;
     if let Some(p) = &opts.plot {
-        input::check_output(p)?;
+        plot::check_output(p)?;
     }
     let grid = opts.effective_grid();
     let initial = opts.hyper.initial.samples(&grid);
@@ -525,7 +527,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         }
         if !rows.is_empty() {
             let out = residuals_plot_path(path);
-            residuals::write_png(&out, &rows)?;
+            plot::write_residuals_png(&out, &rows)?;
             residuals_plot = Some(out);
         }
     }

@@ -10,46 +10,11 @@ use serde::Serialize;
 use crate::control::ControlReport;
 use crate::eval::Figures;
 use crate::initial::Initial;
-use crate::refine::{Refinement, Select};
+use crate::numfmt::{list, num, typed as hp};
+use crate::options::{Hyper, Select};
+use crate::refine::Refinement;
 use crate::segment::SegmentInfo;
 use crate::warnings::Warning;
-
-/// Hyper-parameters of a run (all of them, whether the method uses them or not).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Hyper {
-    /// Ridge / Ridge-M regularisation γ (default 1000).
-    pub gamma: f64,
-    /// Ridge-M momentum β (default 0.01).
-    pub beta: f64,
-    /// Penalty weight α of the `paper` and `aic` criteria (default 12).
-    pub alpha: f64,
-    /// Ridge-M maximum iterates (default 200).
-    pub max_iter: u32,
-    /// Ridge-M stopping tolerance ε (default 1e-6).
-    pub tol: f64,
-    /// RLS forgetting factor λ ∈ (0, 1] (default 1).
-    pub lambda: f64,
-    /// RLS initial covariance δ > 0, `P₀ = δI` (default 1e3).
-    pub delta: f64,
-    /// Initial conditions of the regression (default [`Initial::Measured`]).
-    pub initial: Initial,
-}
-
-impl Default for Hyper {
-    /// The paper's values (the `ridge-id` defaults).
-    fn default() -> Self {
-        Hyper {
-            gamma: 1000.0,
-            beta: 0.01,
-            alpha: 12.0,
-            max_iter: 200,
-            tol: 1e-6,
-            lambda: 1.0,
-            delta: 1e3,
-            initial: Initial::Measured,
-        }
-    }
-}
 
 /// How the structure was found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -265,29 +230,6 @@ impl<'a> From<&'a ControlReport> for JsonControl<'a> {
                 ts_s: c.options.ts,
             },
         }
-    }
-}
-
-/// `1.234568`, `-1.2e-7`: six significant digits, plain or scientific.
-pub(crate) fn num(v: f64) -> String {
-    if !v.is_finite() {
-        return format!("{v}");
-    }
-    let a = v.abs();
-    if a != 0.0 && !(1e-3..1e6).contains(&a) {
-        format!("{v:.5e}")
-    } else {
-        format!("{v:.6}")
-    }
-}
-
-/// A hyper-parameter as typed: `1000`, `0.01`, `1e-6`.
-fn hp(v: f64) -> String {
-    let a = v.abs();
-    if a != 0.0 && !(1e-3..1e7).contains(&a) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
     }
 }
 
@@ -524,9 +466,8 @@ impl Report {
         );
         let _ = writeln!(o);
         let _ = writeln!(o, "  {}", self.equation());
-        let list = |v: &[f64]| v.iter().map(|x| num(*x)).collect::<Vec<_>>().join(", ");
-        let _ = writeln!(o, "  theta = [{}]", list(m.theta()));
-        let _ = writeln!(o, "  phi   = [{}]", list(m.phi()));
+        let _ = writeln!(o, "  theta = {}", list(m.theta()));
+        let _ = writeln!(o, "  phi   = {}", list(m.phi()));
         if m.offset() == Offset::Intercept {
             let _ = writeln!(o, "  offset = {}", num(m.intercept()));
         }

@@ -20,6 +20,7 @@ use ridge_core_host::{ArxModel, Estimator, MethodKind, Normal, Offset, Ols, Regr
 
 use crate::control::{denominator, roots};
 use crate::eval::Figures;
+use crate::numfmt::typed;
 use crate::options::Options;
 
 /// Rows per coefficient below which a record is too short for a structure (a rule of
@@ -221,16 +222,6 @@ pub fn little_excitation(normal: &Normal<f64>, model: &ArxModel<f64>) -> Option<
     })
 }
 
-/// A hyper-parameter as typed: `1000`, `0.01`, `1e-6`, `1e300`.
-pub(crate) fn number(v: f64) -> String {
-    let a = v.abs();
-    if a != 0.0 && !(1e-3..1e7).contains(&a) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
-}
-
 /// `(θ, φ, c)` of a model as one vector.
 fn coefficients(m: &ArxModel<f64>) -> Vec<f64> {
     let mut w: Vec<f64> = m.theta().iter().chain(m.phi()).copied().collect();
@@ -273,7 +264,7 @@ pub fn non_move(
         why.push(format!(
             "gamma {} is {:.1e} times the mean diagonal of XᵀX ({diag:.2e}): rescale the \
              data or lower --gamma",
-            number(h.gamma),
+            typed(h.gamma),
             h.gamma / diag
         ));
     }
@@ -292,7 +283,7 @@ pub fn non_move(
             "ridge-m stopped after {iterations} iteration(s) on a step below --tol {}, but \
              still {:.0} % (relative distance) from its fixed point, the least-squares fit: it \
              barely moved, it did not converge; {}",
-            number(h.tol),
+            typed(h.tol),
             100.0 * gap.min(1e6),
             why.join("; ")
         ),

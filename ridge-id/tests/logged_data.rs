@@ -513,7 +513,7 @@ fn adaptive_lasso_default_converges_on_real_records() {
 #[test]
 fn select_free_run_is_the_best_candidate_on_validation() {
     use ridge_core_host::{Grid, OrderRange};
-    use ridge_id::refine::Select;
+    use ridge_id::options::Select;
     for record in RECORDS {
         // Zero history: a candidate fitted alone has the same rows as in the search.
         let mut o = options(record, MethodKind::Ols, Offset::Intercept);
@@ -549,7 +549,7 @@ fn select_free_run_is_the_best_candidate_on_validation() {
 /// validation figure is then the refined model's.
 #[test]
 fn output_error_refinement_is_kept_only_where_it_helps_on_validation() {
-    use ridge_id::refine::Refine;
+    use ridge_id::options::Refine;
     for record in RECORDS {
         let mut o = options(record, MethodKind::Ols, Offset::Intercept);
         o.hyper.initial = Initial::Measured;

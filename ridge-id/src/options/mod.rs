@@ -1,57 +1,26 @@
-//! What an identification run does: [`Options`], and the parsers of the order ranges and
-//! structures of the command line. The names of estimators, criteria and offsets are
-//! ridge-core's ([`MethodKind`], [`Criterion`], [`Offset`]: `name()` and `FromStr`).
+//! What an identification run does: [`Options`] and the settings beside it ([`Hyper`], the
+//! choices [`Select`] and [`Refine`], the parsers of order ranges and structures). The names of
+//! estimators, criteria and offsets are ridge-core's ([`MethodKind`], [`Criterion`],
+//! [`Offset`]: `name()` and `FromStr`).
 
 use std::path::PathBuf;
 
+mod choices;
+mod hyper;
+mod parse;
+
+pub use choices::{Refine, Select};
+pub use hyper::Hyper;
+pub use parse::{parse_range, parse_structure};
+
 use ridge_core_host::{
-    AdaptiveLasso, Criterion, Grid, Method as CoreMethod, MethodKind, Offset, OrderRange, Ridge,
-    RidgeM, Structure, D_MAX, P_MAX, Q_MAX,
+    AdaptiveLasso, Criterion, Grid, Method as CoreMethod, MethodKind, Offset, Ridge, RidgeM,
+    Structure,
 };
 
 use crate::control::ControlOptions;
 use crate::error::IdError;
-use crate::refine::{Refine, Select};
-use crate::report::Hyper;
 use crate::segment::SegmentOptions;
-
-/// Parses an inclusive order range: `1..=6` or a single number `3`, checked against
-/// `lo..=hi`.
-pub fn parse_range(s: &str, lo: u8, hi: u8) -> Result<OrderRange, String> {
-    let num = |t: &str| -> Result<u8, String> {
-        let t = t.trim();
-        t.parse::<u8>()
-            .ok()
-            .filter(|v| (lo..=hi).contains(v))
-            .ok_or_else(|| format!("{t:?} is not a whole number in {lo}..={hi}"))
-    };
-    let r = if let Some((a, b)) = s.split_once("..=") {
-        OrderRange::new(num(a)?, num(b)?)
-    } else if s.contains("..") {
-        return Err(format!(
-            "{s:?}: write an inclusive range as a..=b (e.g. {lo}..={hi}) or a single number"
-        ));
-    } else {
-        let v = num(s)?;
-        OrderRange::new(v, v)
-    };
-    if r.min > r.max {
-        return Err(format!("{s:?} is an empty range"));
-    }
-    Ok(r)
-}
-
-/// Parses a fixed structure `P,Q,D`, e.g. `2,2,3`.
-pub fn parse_structure(s: &str) -> Result<Structure, String> {
-    let parts: Vec<&str> = s.split(',').collect();
-    let [p, q, d] = parts.as_slice() else {
-        return Err(format!("{s:?}: expected P,Q,D (three numbers, e.g. 2,2,3)"));
-    };
-    let p = parse_range(p, 1, P_MAX as u8)?.min;
-    let q = parse_range(q, 1, Q_MAX as u8)?.min;
-    let d = parse_range(d, 0, D_MAX as u8)?.min;
-    Structure::new(p, q, d).map_err(|e| format!("{s:?}: {e}"))
-}
 
 /// Largest `--max-iter` accepted. Each Ridge-M iterate costs ~0.16 µs (p = q = 6, two
 /// triangular solves), so the worst case — all 252 candidates of the default grid
@@ -229,28 +198,6 @@ impl Options {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn ranges() {
-        assert_eq!(parse_range("1..=6", 1, 6), Ok(OrderRange::new(1, 6)));
-        assert_eq!(parse_range("3", 1, 6), Ok(OrderRange::new(3, 3)));
-        assert_eq!(parse_range(" 0 ..= 2", 0, 6), Ok(OrderRange::new(0, 2)));
-        assert!(parse_range("1..6", 1, 6).unwrap_err().contains("a..=b"));
-        assert!(parse_range("0", 1, 6).is_err());
-        assert!(parse_range("7", 1, 6).is_err());
-        assert!(parse_range("4..=2", 1, 6).unwrap_err().contains("empty"));
-        assert!(parse_range("x", 1, 6).is_err());
-    }
-
-    #[test]
-    fn structures() {
-        assert_eq!(
-            parse_structure("2,2,3"),
-            Structure::new(2, 2, 3).map_err(|e| e.to_string())
-        );
-        assert!(parse_structure("2,2").is_err());
-        assert!(parse_structure("0,1,0").is_err());
-    }
 
     #[test]
     fn core_method_is_the_method_and_ridge_m_for_rls() {
