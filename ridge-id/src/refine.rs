@@ -222,7 +222,9 @@ pub struct Refinement {
     pub kept: bool,
 }
 
-/// Applies [`Refine::Oe`](crate::options::Refine::Oe) to `model` (estimation record `input`, validation record `val`).
+/// Applies [`Refine::Oe`] to `model` (estimation record `input`, validation record `val`).
+///
+/// [`Refine::Oe`]: crate::options::Refine::Oe
 pub fn refine(
     model: ArxModel<f64>,
     input: &Input,

@@ -8,8 +8,10 @@ pub enum Refine {
     /// The estimator's (ARX, equation-error) model as it is. The default.
     #[default]
     None,
-    /// [`output_error`](crate::refine::output_error) from it; with a validation record kept only when it lowers the
+    /// [`output_error`] from it; with a validation record kept only when it lowers the
     /// validation free-run RMSE.
+    ///
+    /// [`output_error`]: crate::refine::output_error
     Oe,
 }
 
