@@ -17,8 +17,8 @@ use crate::error::IdError;
 use crate::initial::Initial;
 use crate::options::{parse_range, parse_structure, Options, MAX_ITER_LIMIT};
 use crate::options::{Hyper, Refine, Select};
+use crate::phase::{OperatingPoint, SegmentOptions};
 use crate::run;
-use crate::segment::{OperatingPoint, SegmentOptions};
 use ridge_core::control::Spec;
 
 /// `ridge-id`: identify an ARX model from a logged CSV record.
@@ -355,7 +355,7 @@ impl IdentifyArgs {
     /// The library options of these arguments.
     ///
     /// Errors: `--device` with firmware settings ridge-id cannot express (see
-    /// [`crate::device::apply`]).
+    /// [`crate::device_check::apply`]).
     pub fn options(&self) -> Result<Options, IdError> {
         let mut opts = Options {
             input: self.input.clone(),
@@ -399,7 +399,7 @@ impl IdentifyArgs {
             }),
         };
         if self.device {
-            crate::device::apply(&mut opts)?;
+            crate::device_check::apply(&mut opts)?;
             if let Some(seg) = &mut opts.segment {
                 seg.attempt = self.attempt.or(seg.attempt);
                 if let Some(op) = self.operating_point {

@@ -38,10 +38,10 @@
 //! - [`input::Input`]: a regular file (streamed for every pass) or input that can be read only
 //!   once (`--input -`, a pipe, a FIFO: read once into memory, at most
 //!   [`input::MEMORY_ROWS`] rows).
-//! - [`segment`] (`--phase`, `--attempt`, `--operating-point`): one segment of a pump's log
+//! - [`phase`] (`--phase`, `--attempt`, `--operating-point`): one segment of a pump's log
 //!   capture (rows of one `phase`, `#` comment lines with the pump's `EXCITE` and `ID` lines)
-//!   as the estimation record, around the pump's operating point; [`device`] (`--device`):
-//!   the firmware's identification settings (docs/real-logs.md, "Check the pump's
+//!   as the estimation record, around the pump's operating point; [`device_check`]
+//!   (`--device`): the firmware's identification settings (docs/real-logs.md, "Check the pump's
 //!   identification on the PC"). Tested against the firmware itself in
 //!   `host-tests/tests/device_log.rs`.
 //! - [`warnings`]: what should not be trusted about a model (unstable, negative fit, too
@@ -57,7 +57,7 @@ pub mod capture;
 pub mod cli;
 pub mod control;
 pub mod csv;
-pub mod device;
+pub mod device_check;
 pub mod error;
 pub mod eval;
 pub mod export;
@@ -65,12 +65,18 @@ pub mod initial;
 pub mod input;
 pub mod numfmt;
 pub mod options;
+pub mod phase;
 pub mod plot;
 pub mod refine;
 pub mod report;
 pub mod residuals;
-pub mod segment;
 pub mod warnings;
+
+/// The former name of [`device_check`], kept while the workspace's other crates (host-tests,
+/// simavr-harness) name `ridge_id::device::DEVICE_OPTIONS`; remove once they use
+/// `device_check`.
+#[doc(hidden)]
+pub use device_check as device;
 
 pub use control::{ControlOptions, ControlReport};
 pub use error::IdError;
@@ -291,11 +297,11 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
     let grid = opts.effective_grid();
     let initial = opts.hyper.initial.samples(&grid);
     // --phase: the estimation record is one segment of a pump's capture, its statistics
-    // taken around the operating point (src/segment.rs).
+    // taken around the operating point (src/phase/).
     let segment = opts
         .segment
         .as_ref()
-        .map(|s| segment::read(&opts.input, s))
+        .map(|s| phase::read(&opts.input, s))
         .transpose()?;
     let (est_in, val_in) = match &segment {
         Some(seg) => {
@@ -307,10 +313,10 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
     let shift = segment.as_ref().and_then(|s| s.operating_point);
     // Statistics of the lags the grid's candidates use only (exactly theirs).
     let gram = || ridge_core_host::MeasuredGram::for_grid(initial, &grid);
-    let est = segment::read_shifted(&est_in, gram(), shift)?;
+    let est = phase::read_shifted(&est_in, gram(), shift)?;
     let val = val_in
         .as_ref()
-        .map(|v| segment::read_shifted(v, gram(), shift))
+        .map(|v| phase::read_shifted(v, gram(), shift))
         .transpose()?;
     check_rows(&est, &grid, opts.offset)?;
     let est_normal = est.normal()?;
@@ -376,7 +382,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
     // model reported and scored is the absolute one.
     let fitted = model;
     let model = match shift {
-        Some(op) => segment::absolute_model(&model, op)
+        Some(op) => phase::absolute_model(&model, op)
             .map_err(|e| IdError::file(est_in.name(), format!("absolute model: {e}")))?,
         None => model,
     };

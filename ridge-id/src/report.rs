@@ -12,8 +12,8 @@ use crate::eval::Figures;
 use crate::initial::Initial;
 use crate::numfmt::{list, num, typed as hp};
 use crate::options::{Hyper, Select};
+use crate::phase::SegmentInfo;
 use crate::refine::Refinement;
-use crate::segment::SegmentInfo;
 use crate::warnings::Warning;
 
 /// How the structure was found.

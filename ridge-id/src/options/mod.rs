@@ -20,7 +20,7 @@ use ridge_core_host::{
 
 use crate::control::ControlOptions;
 use crate::error::IdError;
-use crate::segment::SegmentOptions;
+use crate::phase::SegmentOptions;
 
 /// Largest `--max-iter` accepted. Each Ridge-M iterate costs ~0.16 µs (p = q = 6, two
 /// triangular solves), so the worst case — all 252 candidates of the default grid
@@ -63,7 +63,7 @@ pub struct Options {
     /// Output-error refinement of the chosen model (default none; [`Refine`]).
     pub refine: Refine,
     /// The estimation record is one segment of a pump's log capture (`--phase`, see
-    /// [`crate::segment`]); `None`: the whole of [`Options::input`].
+    /// [`crate::phase`]); `None`: the whole of [`Options::input`].
     pub segment: Option<SegmentOptions>,
 }
 

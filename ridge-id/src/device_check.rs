@@ -19,7 +19,7 @@ use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use crate::error::IdError;
 use crate::initial::Initial;
 use crate::options::Options;
-use crate::segment::{SegmentOptions, EXCITE_PHASE};
+use crate::phase::{SegmentOptions, EXCITE_PHASE};
 
 /// The command-line options `--device` stands for, as they would be typed (for messages and
 /// the docs; `device_options_are_the_documented_ones` checks the two agree).
