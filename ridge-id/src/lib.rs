@@ -20,9 +20,9 @@
 //! - [`Options`] (`src/options.rs`): what a run does; estimators, criteria and offsets are
 //!   ridge-core's [`ridge_core_host::MethodKind`], [`ridge_core_host::Criterion`] and
 //!   [`ridge_core_host::Offset`], named by their `name()` on the command line and in reports.
-//! - [`run`]: the whole identification of [`Options`] → [`Report`] (`src/report.rs`: text
-//!   or JSON); every failure is an [`IdError`] (`src/error.rs`), one line naming the file,
-//!   the line and the problem.
+//! - [`run`]: the whole identification of [`Options`] → [`Report`] (`src/outcome.rs`; text or
+//!   JSON by [`printer`]); every failure is an [`IdError`] (`src/error.rs`), one line naming
+//!   the file, the line and the problem.
 //! - [`control`] (`--control`): the firmware's controller design (ridge-core's pole placement
 //!   with integral action, in `f64`) for the identified model, its checks, closed-loop poles
 //!   and a simulated setpoint step ([`control::simulate_step`], [`plot::write_step_png`]). A
@@ -65,10 +65,11 @@ pub mod initial;
 pub mod input;
 pub mod numfmt;
 pub mod options;
+pub mod outcome;
 pub mod phase;
 pub mod plot;
+pub mod printer;
 pub mod refine;
-pub mod report;
 pub mod residuals;
 pub mod warnings;
 
@@ -84,7 +85,7 @@ pub use eval::{evaluate_file, read_record, read_record_with, Figures, RecordStat
 pub use initial::Initial;
 pub use options::Hyper;
 pub use options::Options;
-pub use report::{Report, SearchInfo};
+pub use outcome::{Report, SearchInfo};
 
 use ridge_core_host::{
     ArxModel, Criterion, Error as CoreError, Grid, MethodKind, Normal, Rls, Search, Structure,
