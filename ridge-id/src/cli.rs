@@ -18,7 +18,7 @@ use crate::initial::Initial;
 use crate::options::{parse_range, parse_structure, Options, MAX_ITER_LIMIT};
 use crate::options::{Hyper, Refine, Select};
 use crate::phase::{OperatingPoint, SegmentOptions};
-use crate::run;
+use crate::pipeline::run;
 use ridge_core::control::Spec;
 
 /// `ridge-id`: identify an ARX model from a logged CSV record.

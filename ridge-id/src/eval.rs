@@ -239,6 +239,9 @@ pub(crate) fn too_short_to_score(path: &Path, model: &ArxModel<f64>) -> IdError 
     )
 }
 
+/// Points a [`Trace`] of a run keeps per signal for the plot.
+pub const PLOT_POINTS: usize = 2000;
+
 /// A bounded picture of one signal for plotting: every sample while the record has at
 /// most `max_points` samples, otherwise the minimum and maximum of each of
 /// `max_points / 2` equal buckets (a min/max envelope, so spikes stay visible).

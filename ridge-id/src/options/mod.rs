@@ -54,7 +54,7 @@ pub struct Options {
     /// Constant term (default none, the paper's model).
     pub offset: Offset,
     /// Write a PNG of measured, one-step and free-run output here (with `control`, also the
-    /// simulated closed-loop step to [`crate::control_plot_path`] of it).
+    /// simulated closed-loop step to [`crate::plot::control_plot_path`] of it).
     pub plot: Option<PathBuf>,
     /// Design a controller for the identified model (`--control`; see [`crate::control`]).
     pub control: Option<ControlOptions>,

@@ -14,7 +14,7 @@ pub use fit::{write_png, Panel};
 pub use residuals::write_residuals_png;
 pub use step::write_step_png;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::error::IdError;
 
@@ -51,4 +51,28 @@ pub fn check_output(path: &Path) -> Result<(), IdError> {
         let _ = std::fs::remove_file(path);
     }
     Ok(())
+}
+
+/// Where `--plot OUT.png` puts the closed-loop step of `--control`: `OUT-control.png`, next
+/// to it.
+pub fn control_plot_path(plot: &Path) -> PathBuf {
+    beside(plot, "control")
+}
+
+/// Where `--plot OUT.png` puts the residual analysis: `OUT-residuals.png`, next to it.
+pub fn residuals_plot_path(plot: &Path) -> PathBuf {
+    beside(plot, "residuals")
+}
+
+/// `OUT-{what}.png` next to `OUT.png` (the extension, if any, kept).
+fn beside(plot: &Path, what: &str) -> PathBuf {
+    let stem = plot
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = plot
+        .extension()
+        .map(|e| format!(".{}", e.to_string_lossy()))
+        .unwrap_or_default();
+    plot.with_file_name(format!("{stem}-{what}{ext}"))
 }
