@@ -11,7 +11,7 @@ use super::score::Scored;
 use crate::error::IdError;
 use crate::eval::Figures;
 use crate::options::Options;
-use crate::plot::{self, control_plot_path, residuals_plot_path, Panel};
+use crate::plot::{self, control_plot_path, residuals_plot_path, Axes, Panel};
 
 /// The PNGs written besides `--plot OUT.png` itself.
 #[derive(Debug, Default)]
@@ -45,6 +45,11 @@ pub(super) fn render(
         return Ok(plots);
     };
     let s = model.structure();
+    // A capture's units are the pump's; a plain CSV's are unknown: its columns are named.
+    let axes = match opts.segment {
+        Some(_) => Axes::pump(),
+        None => Axes::columns(),
+    };
     if let (Some(step), Some(designed)) =
         (&ctl.step, ctl.report.as_ref().and_then(|r| r.designed()))
     {
@@ -60,7 +65,7 @@ pub(super) fn render(
             d.modulus_margin
         );
         let out = control_plot_path(path);
-        plot::write_step_png(&out, &title, step)?;
+        plot::write_control_png(&out, &axes, &title, step)?;
         plots.control = Some(out);
     }
     let Some(et) = &scored.est_trace else {
@@ -88,7 +93,7 @@ pub(super) fn render(
             trace: vt,
         });
     }
-    plot::write_png(path, &panels)?;
+    plot::write_fit_png(path, &axes, &panels)?;
     let mut rows = Vec::new();
     for (what, f) in [
         ("estimation", Some(&scored.estimation)),

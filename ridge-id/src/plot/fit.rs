@@ -1,10 +1,11 @@
 //! The fit plot: measured vs one-step vs free-run output, one panel per record
-//! ([`write_png`]).
+//! ([`write_fit_png`]).
 
 use std::path::Path;
 
 use plotters::prelude::*;
 
+use super::axes::Axes;
 use super::fonts::register_fonts;
 use crate::error::IdError;
 use crate::eval::Trace;
@@ -35,10 +36,17 @@ fn y_range(trace: &Trace) -> (f64, f64) {
     (a - pad, b + 4.0 * pad)
 }
 
-/// Writes `panels` stacked vertically into the PNG file `path` (1200 px wide, 420 px per
-/// panel). Values outside a panel's axis range are clipped to its edge. A decimated
-/// trace is drawn as two outlines per signal: the bucket minima and maxima.
+/// [`write_fit_png`] with the axes of before the plots named their units (`output y`, time in
+/// samples): the simavr harness's plots, until it names the pump's units ([`Axes::pump`]).
 pub fn write_png(path: &Path, panels: &[Panel<'_>]) -> Result<(), IdError> {
+    write_fit_png(path, &Axes::unnamed(), panels)
+}
+
+/// Writes `panels` stacked vertically into the PNG file `path` (1200 px wide, 420 px per
+/// panel), the output axis labelled `axes.output`, time in samples or, with `axes.ts`, in
+/// seconds. Values outside a panel's axis range are clipped to its edge. A decimated trace is
+/// drawn as two outlines per signal: the bucket minima and maxima.
+pub fn write_fit_png(path: &Path, axes: &Axes, panels: &[Panel<'_>]) -> Result<(), IdError> {
     register_fonts();
     let err = |e: &dyn std::fmt::Display| IdError::Plot {
         path: path.to_path_buf(),
@@ -61,13 +69,18 @@ pub fn write_png(path: &Path, panels: &[Panel<'_>]) -> Result<(), IdError> {
             .map_err(|e| err(&e))?;
         chart
             .configure_mesh()
-            .x_desc(if t.decimated() {
-                "sample (decimated: min and max of each bucket)"
-            } else {
-                "sample"
+            .x_desc(match (axes.ts.is_some(), t.decimated()) {
+                (false, true) => "sample (decimated: min and max of each bucket)",
+                (false, false) => "sample",
+                (true, true) => "time, s (decimated: min and max of each bucket)",
+                (true, false) => "time, s",
             })
-            .y_desc("output y")
-            .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_desc(&axes.output)
+            .x_label_formatter(&|x| match axes.ts {
+                // The chart counts samples; its labels say their time.
+                Some(ts) => format!("{}", (x * ts * 1e6).round() / 1e6),
+                None => format!("{x:.0}"),
+            })
             .label_style(("sans-serif", 15))
             .axis_desc_style(("sans-serif", 16))
             .light_line_style(WHITE.mix(0.0))

@@ -1,18 +1,21 @@
-//! PNG plots of a run: the fit ([`write_png`]), the residual analysis
+//! PNG plots of a run: the fit ([`write_fit_png`]), the residual analysis
 //! ([`write_residuals_png`]) and the simulated closed-loop step of `--control`
-//! ([`write_step_png`]); every drawing of ridge-id is here.
+//! ([`write_control_png`]), their axes naming the quantities and, when known, the units
+//! ([`Axes`]); every drawing of ridge-id is here.
 //!
 //! Drawn with `plotters` (bitmap backend, PNG encoder) and text rendered by `ab_glyph` from
 //! the DejaVu Sans font embedded by the `dejavu` crate.
 
+mod axes;
 mod fit;
 mod fonts;
 mod residuals;
 mod step;
 
-pub use fit::{write_png, Panel};
+pub use axes::Axes;
+pub use fit::{write_fit_png, write_png, Panel};
 pub use residuals::write_residuals_png;
-pub use step::write_step_png;
+pub use step::{write_control_png, write_step_png};
 
 use std::path::{Path, PathBuf};
 

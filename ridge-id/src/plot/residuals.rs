@@ -63,12 +63,14 @@ pub fn write_residuals_png(path: &Path, rows: &[(String, &Residuals)]) -> Result
                 )
                 .margin(10)
                 .x_label_area_size(30)
-                .y_label_area_size(50)
+                .y_label_area_size(64)
                 .build_cartesian_2d(-1i32..LAGS as i32 + 1, -top..top)
                 .map_err(|e| err(&e))?;
             chart
                 .configure_mesh()
-                .x_desc("lag k")
+                .x_desc("lag k, samples")
+                .y_desc(["r_k, no unit", "c_k, no unit"][j])
+                .axis_desc_style(("sans-serif", 13))
                 .label_style(("sans-serif", 13))
                 .light_line_style(WHITE.mix(0.0))
                 .draw()

@@ -1,10 +1,11 @@
 //! The closed-loop plot of `--control`: the simulated setpoint step, output and input
-//! ([`write_step_png`]).
+//! ([`write_control_png`]).
 
 use std::path::Path;
 
 use plotters::prelude::*;
 
+use super::axes::Axes;
 use super::fonts::register_fonts;
 use crate::control::StepResponse;
 use crate::error::IdError;
@@ -27,10 +28,36 @@ fn padded_range<'a>(series: impl IntoIterator<Item = &'a [f64]>) -> (f64, f64) {
     (lo - pad, hi + 4.0 * pad)
 }
 
-/// Writes the simulated closed-loop setpoint response `step` of `--control` into the PNG
-/// file `path` (1200 × 840 px): setpoint and output on top, the input with its limits below,
-/// time in seconds. Every sample is drawn (a step response is short: at most ~6000 samples).
+/// [`write_control_png`] with the labels of before the plots named their units (`output`,
+/// `input u`): the simavr harness's plot, until it names the pump's units ([`Axes::pump`]).
 pub fn write_step_png(path: &Path, title: &str, step: &StepResponse) -> Result<(), IdError> {
+    let a = Axes::unnamed();
+    draw(path, title, step, "output", &a.output, &a.input)
+}
+
+/// Writes the simulated closed-loop setpoint response `step` of `--control` into the PNG
+/// file `path` (1200 × 840 px): setpoint and output on top (labelled `axes.output`), the input
+/// with its limits below (`axes.input`), time in seconds. Every sample is drawn (a step
+/// response is short: at most ~6000 samples).
+pub fn write_control_png(
+    path: &Path,
+    axes: &Axes,
+    title: &str,
+    step: &StepResponse,
+) -> Result<(), IdError> {
+    draw(path, title, step, &axes.output, &axes.output, &axes.input)
+}
+
+/// The plot of [`write_control_png`], the output's axis labelled `output_axis`, its line
+/// `output`, the input's axis and line `input`.
+fn draw(
+    path: &Path,
+    title: &str,
+    step: &StepResponse,
+    output_axis: &str,
+    output: &str,
+    input: &str,
+) -> Result<(), IdError> {
     register_fonts();
     let err = |e: &dyn std::fmt::Display| IdError::Plot {
         path: path.to_path_buf(),
@@ -55,16 +82,16 @@ pub fn write_step_png(path: &Path, title: &str, step: &StepResponse) -> Result<(
     let panels = [
         (
             &top,
-            "output",
+            output_axis,
             vec![
                 ("setpoint r", &step.r[..], RGBColor(110, 110, 110)),
-                ("output y", &step.y[..], RGBColor(225, 50, 20)),
+                (output, &step.y[..], RGBColor(225, 50, 20)),
             ],
         ),
         (
             &bottom,
-            "input u",
-            vec![("input u", &step.u[..], RGBColor(20, 90, 220))],
+            input,
+            vec![(input, &step.u[..], RGBColor(20, 90, 220))],
         ),
     ];
     for (k, (area, y_desc, lines)) in panels.into_iter().enumerate() {
