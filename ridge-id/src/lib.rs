@@ -78,9 +78,10 @@ pub use control::{ControlOptions, ControlReport};
 pub use error::IdError;
 pub use eval::{
     evaluate_file, read_record, read_record_with, Figures, RecordStats, Trace, PLOT_POINTS,
+    TINY_PRODUCT,
 };
 pub use initial::Initial;
 pub use options::{Hyper, Options};
 pub use outcome::{Report, SearchInfo};
-pub use pipeline::{rows_needed, run, TINY_PRODUCT};
+pub use pipeline::{rows_needed, run};
 pub use plot::{control_plot_path, residuals_plot_path};

@@ -27,6 +27,18 @@ pub struct SearchInfo {
     pub fixed: bool,
 }
 
+/// A setting the run chose for the user (a default that depends on the data, or one that a
+/// newcomer would not expect), and why.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Choice {
+    /// The option it stands for, without dashes: `gamma`, `offset`, `select`, `refine`.
+    pub setting: &'static str,
+    /// What was chosen, e.g. `free-run`.
+    pub value: String,
+    /// Why, in one line.
+    pub why: String,
+}
+
 /// Everything an identification run produced.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Report {
@@ -63,7 +75,7 @@ pub struct Report {
     pub plot: Option<PathBuf>,
     /// The PNG of the residual analysis written (`--plot`), if any.
     pub residuals_plot: Option<PathBuf>,
-    /// How the structure was chosen.
+    /// How the structure was chosen (resolved: never [`Select::Auto`]).
     pub select: Select,
     /// What `--refine oe` did, if asked.
     pub refinement: Option<Refinement>,
@@ -80,4 +92,10 @@ pub struct Report {
     /// The segment of a pump's capture used as the estimation record (`--phase`), with the
     /// pump's own result for it.
     pub segment: Option<SegmentInfo>,
+    /// The standard deviations `(σ_u, σ_y)` of the estimation record the estimator divided
+    /// the records by ([`crate::options::GammaScale::Standardised`]); `None`: it ran on the
+    /// data as they are.
+    pub standardised: Option<(f64, f64)>,
+    /// The settings the run chose for the user, and why ([`Choice`]).
+    pub choices: Vec<Choice>,
 }

@@ -16,5 +16,5 @@ mod trace;
 
 pub(crate) use score::too_short_to_score;
 pub use score::{evaluate, evaluate_file, Figures};
-pub use stats::{read_record, read_record_with, read_samples, RecordStats};
+pub use stats::{read_record, read_record_with, read_samples, RecordStats, TINY_PRODUCT};
 pub use trace::{Envelope, Trace, PLOT_POINTS};

@@ -5,8 +5,11 @@
 /// `--refine`: the output-error refinement of the chosen model, or none.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Refine {
-    /// The estimator's (ARX, equation-error) model as it is. The default.
+    /// [`Refine::Oe`] when a validation record can judge it, else [`Refine::None`]
+    /// ([`Options::refine_choice`](super::Options::refine_choice)). The default.
     #[default]
+    Auto,
+    /// The estimator's (ARX, equation-error) model as it is.
     None,
     /// [`output_error`] from it; with a validation record kept only when it lowers the
     /// validation free-run RMSE.
@@ -18,12 +21,18 @@ pub enum Refine {
 /// `--select`: how the structure is chosen.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Select {
-    /// By the `--criterion` (the search). The default.
+    /// [`Select::FreeRun`] when a validation record can judge the candidates, else
+    /// [`Select::Criterion`] ([`Options::select_choice`](super::Options::select_choice)). The
+    /// default.
     #[default]
+    Auto,
+    /// By the `--criterion` (the search).
     Criterion,
     /// Every candidate of the grid fitted by the estimator, the one with the lowest free-run
-    /// RMSE on the validation record chosen (needs `--validate`; the validation figures then
-    /// no longer test the model on unseen data).
+    /// RMSE on the validation record chosen among those whose input lags the estimation record
+    /// excites, RMSEs within 1 % a tie that the criterion breaks
+    /// ([`best_free_run`](crate::refine::best_free_run); needs `--validate`; the validation
+    /// figures then no longer test the model on unseen data).
     FreeRun,
 }
 
@@ -59,10 +68,12 @@ macro_rules! names {
 }
 
 names!(Refine, "refinement",
+    Refine::Auto => "auto", "oe with --validate, unless --method, --criterion, --gamma or --structure asks for a particular model (not with --phase); else none";
     Refine::None => "none", "The estimator's ARX model as it is";
     Refine::Oe => "oe", "Output-error fit (Gauss-Newton on the free-run error) from it; with --validate kept only if it lowers the validation free-run RMSE";
 );
 names!(Select, "structure selection",
+    Select::Auto => "auto", "free-run with --validate, unless --method, --criterion, --gamma or --structure asks for a particular model (not with --phase); else criterion";
     Select::Criterion => "criterion", "By --criterion (the search)";
-    Select::FreeRun => "free-run", "Lowest free-run RMSE on the --validate record over all candidates";
+    Select::FreeRun => "free-run", "Lowest free-run RMSE on the --validate record over the candidates the estimation record excites, within 1 % the criterion's pick";
 );

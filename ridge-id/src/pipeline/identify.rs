@@ -4,21 +4,17 @@
 //! and why no candidate could be fitted.
 
 use ridge_core_host::{
-    ArxModel, Error as CoreError, Grid, MethodKind, Normal, Rls, Search, Structure,
+    ArxModel, Error as CoreError, Grid, MethodKind, Normal, Rls, Scale, Search, Structure,
 };
 
 use super::read::Records;
 use crate::error::IdError;
-use crate::eval::RecordStats;
+use crate::eval::{RecordStats, TINY_PRODUCT};
 use crate::input::Input;
 use crate::numfmt::typed;
 use crate::options::Options;
 use crate::outcome::SearchInfo;
 use crate::phase;
-
-/// Products of two samples below this are too small for `f64` statistics: near the
-/// subnormal range (2.2e-308) sums of squares lose their precision.
-pub const TINY_PRODUCT: f64 = 1e-280;
 
 /// The model the estimator found, and how.
 #[derive(Debug)]
@@ -28,7 +24,7 @@ pub(super) struct Identified {
     /// Its statistics.
     pub info: SearchInfo,
     /// The model of the statistics (of the deviations from the operating point with
-    /// `--phase`), for the warnings.
+    /// `--phase`), in the data's units, for the warnings.
     pub fitted: ArxModel<f64>,
     /// The model reported and scored: the absolute one.
     pub model: ArxModel<f64>,
@@ -55,24 +51,29 @@ pub(super) fn identify(opts: &Options, rec: &Records) -> Result<Identified, IdEr
         method: opts.core_method(),
         prune: true,
     };
-    let sel = search
-        .run(&rec.est_normal, rec.val_normal.as_ref())
-        .map_err(|e| match e {
-            CoreError::NoCandidate => match (&rec.val, &rec.val_normal) {
-                (Some(v), Some(vn)) if no_fit_on(vn, &grid, opts) => {
-                    no_candidate(v, vn, &grid, opts)
-                }
-                _ => no_candidate(&rec.est, &rec.est_normal, &grid, opts),
-            },
-            other => IdError::Usage(format!("structure search: {other}")),
-        })?;
+    let (est_normal, val_normal) = rec.search_normals();
+    let sel = search.run(est_normal, val_normal).map_err(|e| match e {
+        CoreError::NoCandidate => match (&rec.val, &rec.val_normal) {
+            (Some(v), Some(vn)) if no_fit_on(vn, &grid, opts) => no_candidate(v, vn, &grid, opts),
+            _ => no_candidate(&rec.est, &rec.est_normal, &grid, opts),
+        },
+        other => IdError::Usage(format!("structure search: {other}")),
+    })?;
     let (fitted, iterations, rss, score) = match opts.method {
         MethodKind::Rls => {
             let (model, samples) = run_rls(opts, &rec.est_in, sel.structure())?;
             let (rss, score) = rescore(opts, rec, &model, "the RLS model")?;
             (model, samples, rss, score)
         }
-        _ => (sel.fit.model(), sel.fit.iterations, sel.fit.rss, sel.score),
+        _ => match &rec.standard {
+            Some(st) => {
+                // Fitted on the standardised record: back to the data's units, scored there.
+                let model = in_data_units(&sel.fit.model(), st.scale)?;
+                let (rss, score) = rescore(opts, rec, &model, "the model")?;
+                (model, sel.fit.iterations, rss, score)
+            }
+            None => (sel.fit.model(), sel.fit.iterations, sel.fit.rss, sel.score),
+        },
     };
     let model = match rec.shift {
         Some(op) => phase::absolute_model(&fitted, op)
@@ -93,6 +94,23 @@ pub(super) fn identify(opts: &Options, rec: &Records) -> Result<Identified, IdEr
         rss,
         score,
     })
+}
+
+/// `model`, fitted on samples times `scale` (e.g. the standardised record), in the data's
+/// units: the same θ and delay, `φ` times `scale.u / scale.y`, the intercept divided by
+/// `scale.y`.
+///
+/// Errors: coefficients that leave `f64` ([`ridge_core_host::Error::NonFinite`]).
+pub(super) fn in_data_units(model: &ArxModel<f64>, scale: Scale) -> Result<ArxModel<f64>, IdError> {
+    let phi: Vec<f64> = model.phi().iter().map(|f| f * scale.u / scale.y).collect();
+    ArxModel::new(
+        model.theta(),
+        &phi,
+        model.structure().d,
+        model.offset(),
+        model.intercept() / scale.y,
+    )
+    .map_err(|e| IdError::Usage(format!("the model in the data's units: {e}")))
 }
 
 /// The RSS of `model` on the estimation statistics and its criterion value, scored as the
@@ -185,9 +203,8 @@ fn no_candidate(rec: &RecordStats, normal: &Normal<f64>, grid: &Grid, opts: &Opt
             _ => {}
         }
     }
-    let big = |r: (f64, f64)| r.0.abs().max(r.1.abs());
-    let (u, y) = (big(rec.u_range), big(rec.y_range));
-    let tiny = (u * u).min(u * y).min(y * y) < TINY_PRODUCT;
+    let (u, y) = rec.largest();
+    let tiny = rec.tiny();
     let smallest_k = grid
         .iter()
         .map(|s| s.params(offset) + usize::from(s.d))

@@ -14,6 +14,7 @@
 //!
 //! then the warnings, and the [`Report`] that the printers render ([`crate::printer`]).
 
+mod choices;
 mod controller;
 mod identify;
 mod read;
@@ -21,7 +22,6 @@ mod render;
 mod score;
 mod tune;
 
-pub use identify::TINY_PRODUCT;
 pub use read::rows_needed;
 
 use crate::error::IdError;
@@ -54,14 +54,12 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
     let warnings = warnings::warnings(&warnings::Run {
         opts,
         normal: &rec.est_normal,
-        // The model of the statistics (of the deviations with --phase): the one whose
-        // coefficients the statistics judge.
-        model: if rec.shift.is_some() {
-            &id.fitted
-        } else {
-            &model
-        },
-        iterations: id.iterations,
+        model: &model,
+        // The estimator's fit (of the deviations with --phase): the one whose coefficients
+        // the statistics judge.
+        fitted: &tuned.fitted,
+        iterations: tuned.iterations,
+        std: (rec.est.u_std, rec.est.y_std),
         estimation: (rec.est_in.name(), &scored.estimation),
         validation: rec
             .val_in
@@ -78,7 +76,7 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         criterion: opts.criterion,
         model,
         score: tuned.score,
-        iterations: id.iterations,
+        iterations: tuned.iterations,
         rss: tuned.rss,
         hyper: opts.hyper,
         search: id.info,
@@ -86,12 +84,17 @@ pub fn run(opts: &Options) -> Result<Report, IdError> {
         validation: scored.validation,
         plot: opts.plot.clone(),
         initial_samples: rec.initial,
-        select: opts.select,
+        select: tuned.select.0,
         refinement: tuned.refinement,
         residuals_plot: plots.residuals,
         control: ctl.report,
         control_plot: plots.control,
         warnings,
+        standardised: rec
+            .standard
+            .as_ref()
+            .map(|_| (rec.est.u_std, rec.est.y_std)),
+        choices: choices::choices(opts, &rec, &tuned),
         segment: rec.segment.map(|s| s.info(&opts.segment)),
     })
 }

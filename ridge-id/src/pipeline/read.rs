@@ -2,7 +2,7 @@
 //! [`Records`]), the estimation record a `--phase` segment when asked, each checked long
 //! enough and excited.
 
-use ridge_core_host::{Criterion, Grid, MeasuredGram, Normal, Offset, Structure};
+use ridge_core_host::{Criterion, Grid, MeasuredGram, Normal, Offset, Scale, Structure};
 
 use crate::error::IdError;
 use crate::eval::RecordStats;
@@ -33,6 +33,32 @@ pub(super) struct Records {
     pub est_normal: Normal<f64>,
     /// The validation record's normal equations, for `--criterion validation` only.
     pub val_normal: Option<Normal<f64>>,
+    /// The scale the estimator runs on (the estimation record standardised, see
+    /// [`Options::standardises`]), with the normal equations of both records on it; `None`:
+    /// the data as they are.
+    pub standard: Option<Standard>,
+}
+
+/// The records standardised for the estimator: both divided by the estimation record's
+/// standard deviations.
+#[derive(Debug)]
+pub(super) struct Standard {
+    /// `u / σ_u`, `y / σ_y`.
+    pub scale: Scale,
+    /// The estimation record's normal equations on that scale.
+    pub est_normal: Normal<f64>,
+    /// The validation record's, for `--criterion validation` only.
+    pub val_normal: Option<Normal<f64>>,
+}
+
+impl Records {
+    /// The normal equations the estimator runs on: `(estimation, validation)`.
+    pub fn search_normals(&self) -> (&Normal<f64>, Option<&Normal<f64>>) {
+        match &self.standard {
+            Some(s) => (&s.est_normal, s.val_normal.as_ref()),
+            None => (&self.est_normal, self.val_normal.as_ref()),
+        }
+    }
 }
 
 /// Regression rows a structure needs on a record: `m` seed samples, one per coefficient, plus
@@ -121,6 +147,17 @@ pub(super) fn read(opts: &Options) -> Result<Records, IdError> {
         }
         (None, _) => None,
     };
+    let standard = match est.standard_scale().filter(|_| opts.standardises()) {
+        Some(scale) => Some(Standard {
+            scale,
+            est_normal: est.normal_scaled(scale)?,
+            val_normal: match (&val, &val_normal) {
+                (Some(v), Some(_)) => Some(v.normal_scaled(scale)?),
+                _ => None,
+            },
+        }),
+        None => None,
+    };
     Ok(Records {
         grid,
         initial,
@@ -132,5 +169,6 @@ pub(super) fn read(opts: &Options) -> Result<Records, IdError> {
         val,
         est_normal,
         val_normal,
+        standard,
     })
 }

@@ -19,12 +19,26 @@ struct JsonStructure {
 #[derive(Serialize)]
 struct JsonHyper {
     gamma: f64,
+    gamma_scale: &'static str,
     beta: f64,
     alpha: f64,
     max_iter: u32,
     tol: f64,
     initial: &'static str,
     select: &'static str,
+}
+
+#[derive(Serialize)]
+struct JsonStandardised {
+    sigma_u: f64,
+    sigma_y: f64,
+}
+
+#[derive(Serialize)]
+struct JsonChoice<'a> {
+    setting: &'a str,
+    value: &'a str,
+    why: &'a str,
 }
 
 #[derive(Serialize)]
@@ -85,6 +99,9 @@ struct Json<'a> {
     score: f64,
     iterations: u32,
     hyper: JsonHyper,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    standardised: Option<JsonStandardised>,
+    choices: Vec<JsonChoice<'a>>,
     estimation: JsonFigures,
     #[serde(skip_serializing_if = "Option::is_none")]
     validation: Option<JsonFigures>,
@@ -161,7 +178,10 @@ impl Report {
     /// The JSON object of `ridge-id --json`:
     /// `{"method", "criterion", "structure": {"p","q","d"}, "theta", "phi", "offset",
     /// "score", "iterations",
-    /// "hyper": {"gamma","beta","alpha","max_iter","tol","initial","select"},
+    /// "hyper": {"gamma","gamma_scale","beta","alpha","max_iter","tol","initial","select"},
+    /// "standardised": {"sigma_u","sigma_y"} (only when the estimator ran on the standardised
+    /// record), "choices": [{"setting","value","why"}, …] (what the run chose for the user, see
+    /// [`crate::outcome::Choice`]; always present),
     /// "estimation": {"n","rmse_one_step","rmse_free_run","fit_free_run","residuals"},
     /// "validation": {…} (only with a validation record), "refine": {"method": "oe", "steps",
     /// "kept", "estimation_rmse_free_run": [before, after], "validation_rmse_free_run":
@@ -214,6 +234,7 @@ impl Report {
             iterations: self.iterations,
             hyper: JsonHyper {
                 gamma: self.hyper.gamma,
+                gamma_scale: self.hyper.gamma_scale.name(),
                 beta: self.hyper.beta,
                 alpha: self.hyper.alpha,
                 max_iter: self.hyper.max_iter,
@@ -221,6 +242,18 @@ impl Report {
                 initial: self.hyper.initial.name(),
                 select: self.select.name(),
             },
+            standardised: self
+                .standardised
+                .map(|(sigma_u, sigma_y)| JsonStandardised { sigma_u, sigma_y }),
+            choices: self
+                .choices
+                .iter()
+                .map(|c| JsonChoice {
+                    setting: c.setting,
+                    value: &c.value,
+                    why: &c.why,
+                })
+                .collect(),
             estimation: JsonFigures::from(&self.estimation),
             validation: self.validation.as_ref().map(JsonFigures::from),
             refine: self.refinement.map(|r| JsonRefine {

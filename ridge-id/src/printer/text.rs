@@ -56,21 +56,24 @@ impl Report {
             self.input.display(),
             self.input_rows
         );
+        // γ on the standardised record says so; in the data's units it reads as typed.
+        let gamma = match self.standardised {
+            Some(_) => format!("{} on the standardised record", hp(h.gamma)),
+            None => hp(h.gamma),
+        };
         let method = match self.method {
             MethodKind::RidgeM => format!(
-                "ridge-m (gamma {}, beta {}, tol {}, max-iter {})",
-                hp(h.gamma),
+                "ridge-m (gamma {gamma}, beta {}, tol {}, max-iter {})",
                 hp(h.beta),
                 hp(h.tol),
                 h.max_iter
             ),
-            MethodKind::Ridge => format!("ridge (gamma {})", hp(h.gamma)),
+            MethodKind::Ridge => format!("ridge (gamma {gamma})"),
             MethodKind::Ols => "ols (least squares)".to_string(),
             MethodKind::Rls => format!(
-                "rls (lambda {}, delta {}); structure from a ridge-m search (gamma {}, beta {}, tol {}, max-iter {})",
+                "rls (lambda {}, delta {}); structure from a ridge-m search (gamma {gamma}, beta {}, tol {}, max-iter {})",
                 hp(h.lambda),
                 hp(h.delta),
-                hp(h.gamma),
                 hp(h.beta),
                 hp(h.tol),
                 h.max_iter
@@ -115,11 +118,30 @@ impl Report {
             )
         };
         let _ = writeln!(o, "  search      {search}");
+        // The choices made for the user: γ and the offset here, `auto` on the select and
+        // refine lines.
+        let auto = |setting: &str| {
+            self.choices
+                .iter()
+                .find(|c| c.setting == setting)
+                .map(|c| format!(" (auto: {})", c.why))
+                .unwrap_or_default()
+        };
+        let chosen = self
+            .choices
+            .iter()
+            .filter(|c| !matches!(c.setting, "select" | "refine"));
+        for (k, c) in chosen.enumerate() {
+            let lead = if k == 0 { "chosen" } else { "" };
+            let _ = writeln!(o, "  {lead:<11} {} {}: {}", c.setting, c.value, c.why);
+        }
         if self.select == Select::FreeRun {
             let _ = writeln!(
                 o,
-                "  select      free-run: the candidate with the lowest validation free-run RMSE \
-                 (the validation figures below are then not an independent test)"
+                "  select      free-run{}: the candidate with the lowest validation free-run RMSE \
+                 (within 1 %: the criterion's pick) among those the estimation record excites \
+                 (the validation figures below are then not an independent test)",
+                auto("select")
             );
         }
         if let Some(r) = &self.refinement {
@@ -129,7 +151,8 @@ impl Report {
                 .unwrap_or_default();
             let _ = writeln!(
                 o,
-                "  refine      oe: {} Gauss-Newton steps, free-run RMSE estimation {} -> {}{val}: {}",
+                "  refine      oe{}: {} Gauss-Newton steps, free-run RMSE estimation {} -> {}{val}: {}",
+                auto("refine"),
                 r.steps,
                 num(r.estimation.0),
                 num(r.estimation.1),
