@@ -275,3 +275,53 @@ fn stopping_short_of_least_squares_warns() {
     assert!(kinds(&ols).is_empty());
     assert!(kinds(&Options::new(&est)).is_empty());
 }
+
+/// The device keeps its settings (`--device`: γ = 1000 in its data's units, duty fraction and
+/// slm, zero history): its data are at the pump's scale, where that γ fits as well as the
+/// scale-free default. On logs of pump-sim's three blowers (A-Multistep estimation, B-Multistep
+/// validation, three noise seeds; absolute samples, so both with the intercept, as
+/// `simavr-harness/tests/record.rs` runs the device's options on such logs), each estimator
+/// alone (the structure by the criterion, no refinement): validation free-run fits within
+/// 0.5 points of each other. `--nocapture` prints the table.
+#[test]
+fn at_the_pumps_scale_the_devices_gamma_fits_as_the_scale_free_default() {
+    use pump_sim::PumpParams;
+    use ridge_id::Initial;
+    use ridge_pump_firmware::excitation::Record;
+    println!("| blower | seed | device's settings: structure, fit % | default: structure, fit % |");
+    println!("|---|---|---|---|");
+    for (name, pump) in [
+        ("default", PumpParams::default()),
+        ("small", PumpParams::small()),
+        ("sluggish", PumpParams::sluggish()),
+    ] {
+        for seed in 1..=3u64 {
+            let (est, val) = (tmp("pump-est.csv"), tmp("pump-val.csv"));
+            pump_sim::record(Record::AMultistep, &pump, 100 + seed)
+                .write_csv(&est)
+                .unwrap();
+            pump_sim::record(Record::BMultistep, &pump, 200 + seed)
+                .write_csv(&val)
+                .unwrap();
+            let mut scale_free = Options::new(&est);
+            scale_free.validate = Some(val.clone());
+            scale_free.select = Select::Criterion;
+            scale_free.refine = Refine::None;
+            let mut device = scale_free.clone();
+            device.hyper = Hyper {
+                initial: Initial::Zero,
+                ..Hyper::paper()
+            };
+            let fit = |o: &Options| {
+                let r = run(o).unwrap();
+                (r.model.structure(), r.validation.unwrap().fit_free_run)
+            };
+            let ((sd, fd), (ss, fs)) = (fit(&device), fit(&scale_free));
+            println!(
+                "| {name} | {seed} | ({},{},{}) {fd:.2} | ({},{},{}) {fs:.2} |",
+                sd.p, sd.q, sd.d, ss.p, ss.q, ss.d
+            );
+            assert!((fd - fs).abs() <= 0.5, "{name} {seed}: {fd} vs {fs}");
+        }
+    }
+}
