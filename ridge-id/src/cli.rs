@@ -247,7 +247,8 @@ pub struct IdentifyArgs {
     pub json: bool,
     /// Exit with status 1 when the report has warnings (an unstable model, a negative fit,
     /// a record too short or too little excited for the structure, a Ridge-M run that
-    /// stopped without converging); the report is printed all the same.
+    /// stopped without converging, Ridge or LASSO coefficients shrunk); the report is printed
+    /// all the same.
     #[arg(long)]
     pub strict: bool,
     /// The model for the pump: --eeprom, --record, --stm32-slot (src/export.rs).
