@@ -5,6 +5,8 @@
 //! without the line terminator: a keyword, then `key=value` fields separated by single spaces.
 //! Numbers use [`crate::report`]: flows in slm with 3 decimals, duties in percent with 2
 //! decimals, fit in percent with 1 decimal, coefficients with 6 decimals, lists comma-separated.
+//! The host tools read them back with the parsers of `lines` (host builds only), which the
+//! round-trip test `tests/lines.rs` checks against every event kind printed here.
 //!
 //! | Event | Line |
 //! |---|---|

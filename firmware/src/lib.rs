@@ -15,6 +15,7 @@
 //! | [`slots`] | two slots for that record: a write cut at any byte keeps the previous model |
 //! | [`resets`] | reset loops: watchdog and brown-out resets counted across boots |
 //! | [`event`], [`report`] | report lines and their fixed-point formatting (ufmt) |
+//! | `lines` | host builds only: the report lines' parsers, for the host tools and tests |
 //! | [`command`], [`console`] | the operator's console: command lines, their answers, the CSV log |
 //! | [`units`] | the rig's units: duty scale, SFM3300 encoding, loop rate, [`units::SCALE`] |
 //! | [`excitation`] | the pump's excitation presets ([`excitation::Record`]) |
@@ -27,6 +28,10 @@ pub mod command;
 pub mod console;
 pub mod event;
 pub mod excitation;
+// Host-side parsing of the report lines (std); no board target has an OS, so neither image
+// contains it.
+#[cfg(not(target_os = "none"))]
+pub mod lines;
 pub mod monitor;
 pub mod persist;
 pub mod pump;

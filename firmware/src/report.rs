@@ -14,10 +14,11 @@
 //!   decimals → percent.
 //! - [`Int`]: an unsigned integer (counts, orders).
 //!
-//! Output format (stable, for host-side parsers): an optional `-`, the integer part without
-//! leading zeros (at least one digit), then `.` and the fractional digits when there are any.
-//! No `+`, no exponent, no negative zero (a value that rounds to zero prints unsigned). Special
-//! values of [`Fixed`] print as `nan`, `inf`, `-inf` and `ovf` (see there).
+//! Output format (stable, for host-side parsers; `lines::number` reads it): an optional `-`,
+//! the integer part without leading zeros (at least one digit), then `.` and the fractional
+//! digits when there are any. No `+`, no exponent, no negative zero (a value that rounds to
+//! zero prints unsigned). Special values of [`Fixed`] print as `nan`, `inf`, `-inf` and `ovf`
+//! (see there).
 //!
 //! All arithmetic is 32-bit at most where it divides: a printed number, without its point, is
 //! below 2³² ([`FIXED_LIMIT`]). A [`Fixed`] that would need more prints with fewer fractional
