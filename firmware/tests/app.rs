@@ -18,6 +18,7 @@ use std::rc::Rc;
 use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, NoAcknowledgeSource, Operation};
 use embedded_hal::pwm::{self, SetDutyCycle};
 use ridge_pump_firmware::app::{App, Board, Console, ANSWER_ROOM, START_TICKS};
+use ridge_pump_firmware::lines::ParsedLine;
 use ridge_pump_firmware::persist;
 use ridge_pump_firmware::pump::Pump;
 use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, DEFAULT_CONFIG};
@@ -335,13 +336,12 @@ fn count(lines: &[String], prefix: &str) -> usize {
     lines.iter().filter(|l| l.starts_with(prefix)).count()
 }
 
-fn field<'a>(line: &'a str, key: &str) -> &'a str {
-    let pat = format!("{key}=");
-    let at = line
-        .split(' ')
-        .find_map(|w| w.strip_prefix(pat.as_str()))
-        .unwrap_or_else(|| panic!("{key} in {line}"));
-    at
+/// The text of field `key` in a report line (the firmware's parser).
+fn field(line: &str, key: &str) -> String {
+    ParsedLine::parse(line)
+        .get(key)
+        .unwrap_or_else(|| panic!("{key} in {line}"))
+        .to_owned()
 }
 
 /// A whole power-up identification, in either search mode: the expected lines in order,

@@ -26,10 +26,12 @@ use clap::Parser;
 use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, NoAcknowledgeSource, Operation};
 use embedded_hal::pwm::{self, SetDutyCycle};
 use pump_sim::{PumpParams, Rig, Sfm3300Params};
+use ridge_core::Offset;
 use ridge_id::cli::{Cli, Command};
 use ridge_id::device::DEVICE_OPTIONS;
 use ridge_id::Report;
 use ridge_pump_firmware::app::{App, Board, Console};
+use ridge_pump_firmware::lines::{IdLine, PrintedModel};
 use ridge_pump_firmware::pump::Pump;
 use ridge_pump_firmware::selfid::{SelfIdentification, State, DEFAULT_CONFIG};
 use ridge_pump_firmware::sfm3300::{crc8, Sfm3300, ADDRESS};
@@ -264,49 +266,37 @@ fn ridge_id(path: &std::path::Path, args: &str) -> Report {
     ridge_id::run(&a.options().unwrap()).unwrap_or_else(|e| panic!("ridge-id: {e}"))
 }
 
-/// A model as the pump's `ID` line prints it.
-#[derive(Debug, PartialEq)]
-struct IdLine {
-    structure: (u8, u8, u8),
-    offset: bool,
-    theta: Vec<f64>,
-    phi: Vec<f64>,
-    c: f64,
+/// The model of the pump's `ID` line (the firmware's own parser).
+fn id_line(line: &str) -> PrintedModel {
+    IdLine::parse(line)
+        .unwrap_or_else(|e| panic!("{e}: {line}"))
+        .model
 }
 
-fn id_line(line: &str) -> IdLine {
-    let field = |k: &str| {
-        line.split(' ')
-            .find_map(|w| w.strip_prefix(k)?.strip_prefix('='))
-            .unwrap_or_else(|| panic!("{k} in {line}"))
-    };
-    let list = |k: &str| -> Vec<f64> { field(k).split(',').map(|v| v.parse().unwrap()).collect() };
-    IdLine {
-        structure: (
-            field("p").parse().unwrap(),
-            field("q").parse().unwrap(),
-            field("d").parse().unwrap(),
-        ),
-        offset: field("off") == "1",
-        theta: list("theta"),
-        phi: list("phi"),
-        c: field("c").parse().unwrap(),
-    }
-}
-
-fn id_of(m: &ridge_core_host::ArxModel<f64>) -> IdLine {
+/// ridge-id's model in the same form.
+fn id_of(m: &ridge_core_host::ArxModel<f64>) -> PrintedModel {
     let s = m.structure();
-    IdLine {
-        structure: (s.p, s.q, s.d),
-        offset: m.offset() == ridge_core_host::Offset::Intercept,
+    PrintedModel {
+        p: s.p,
+        q: s.q,
+        d: s.d,
+        offset: match m.offset() {
+            ridge_core_host::Offset::Intercept => Offset::Intercept,
+            ridge_core_host::Offset::None => Offset::None,
+        },
         theta: m.theta().to_vec(),
         phi: m.phi().to_vec(),
         c: m.intercept(),
     }
 }
 
+/// Orders and delay.
+fn structure(m: &PrintedModel) -> (u8, u8, u8) {
+    (m.p, m.q, m.d)
+}
+
 /// Largest differences `(θ, φ relative, c)` of ridge-id's model from the pump's.
-fn differences(host: &IdLine, pump: &IdLine) -> (f64, f64, f64) {
+fn differences(host: &PrintedModel, pump: &PrintedModel) -> (f64, f64, f64) {
     let max = |a: &[f64], b: &[f64], rel: bool| {
         a.iter()
             .zip(b)
@@ -335,22 +325,22 @@ fn check<const TICKING: bool>(name: &str, pump: PumpParams, seed: u64) {
     let path = write_capture(&format!("{name}.csv"), &capture(&s.lines));
     // The last identification (the default), against the model the pump holds (exact f32).
     let report = ridge_id(&path, "--device --json");
-    let pump_last = IdLine {
-        structure: {
-            let st = s.last_model.structure();
-            (st.p, st.q, st.d)
-        },
-        offset: true,
+    let st = s.last_model.structure();
+    let pump_last = PrintedModel {
+        p: st.p,
+        q: st.q,
+        d: st.d,
+        offset: Offset::Intercept,
         theta: s.last_model.theta().iter().map(|&v| f64::from(v)).collect(),
         phi: s.last_model.phi().iter().map(|&v| f64::from(v)).collect(),
         c: f64::from(s.last_model.intercept()),
     };
     let printed = id_line(ids[1]);
-    assert_eq!(printed.structure, pump_last.structure);
+    assert_eq!(structure(&printed), structure(&pump_last));
     let host = id_of(&report.model);
     assert_eq!(
-        (host.structure, host.offset),
-        (pump_last.structure, pump_last.offset),
+        (structure(&host), host.offset),
+        (structure(&pump_last), pump_last.offset),
         "{name}: ridge-id {host:?}, pump {}",
         ids[1]
     );
@@ -358,13 +348,14 @@ fn check<const TICKING: bool>(name: &str, pump: PumpParams, seed: u64) {
     println!(
         "{name} (last): {:?} |dtheta| {dt:.2e}, |dphi|/max(1,|phi|) {dp:.2e}, |dc| {dc:.2e} slm \
          (phi {:?})",
-        host.structure, pump_last.phi
+        structure(&host),
+        pump_last.phi
     );
     within_f32_tolerance(name, (dt, dp, dc), 0.0);
     // The report names the pump's line and agrees with it.
     let seg = report.segment.as_ref().unwrap();
     let dev = seg.device.as_ref().unwrap();
-    assert_eq!((dev.p, dev.q, dev.d), printed.structure);
+    assert_eq!((dev.p, dev.q, dev.d), structure(&printed));
     assert_eq!(
         (&dev.theta, &dev.phi, dev.c),
         (&printed.theta, &printed.phi, printed.c)
@@ -372,7 +363,7 @@ fn check<const TICKING: bool>(name: &str, pump: PumpParams, seed: u64) {
     assert_eq!((seg.index, seg.count), (2, 2));
     // The same with every option spelled out as the docs name them.
     let spelled = id_of(&ridge_id(&path, DEVICE_OPTIONS).model);
-    assert_eq!(spelled.structure, host.structure);
+    assert_eq!(structure(&spelled), structure(&host));
     let (a, b, c) = differences(&spelled, &host);
     assert!(
         a.max(b).max(c) < 1e-9,
@@ -382,8 +373,8 @@ fn check<const TICKING: bool>(name: &str, pump: PumpParams, seed: u64) {
     let first = id_of(&ridge_id(&path, "--device --attempt 1").model);
     let printed = id_line(ids[0]);
     assert_eq!(
-        (first.structure, first.offset),
-        (printed.structure, printed.offset),
+        (structure(&first), first.offset),
+        (structure(&printed), printed.offset),
         "{name}: ridge-id {first:?}, pump {}",
         ids[0]
     );
@@ -391,7 +382,7 @@ fn check<const TICKING: bool>(name: &str, pump: PumpParams, seed: u64) {
     println!(
         "{name} (attempt 1, vs the printed line): {:?} |dtheta| {dt1:.2e}, \
          |dphi|/max(1,|phi|) {dp1:.2e}, |dc| {dc1:.2e} slm",
-        first.structure
+        structure(&first)
     );
     // The ID line prints 6 decimals: half a unit of the last one more.
     within_f32_tolerance(name, (dt1, dp1, dc1), 5e-7);

@@ -12,8 +12,9 @@
 //! - [`bench`](mod@bench): the bench ([`bench::Bench`]): the simulated MCU wired to the simulated plant,
 //!   closed loop, with the timing meter. (The plant alone, stepped once per sample without an
 //!   MCU, is `pump_sim::Rig`.)
-//! - [`report`]: the UART transcript: [`report::Line`] (text and cycle stamp) and
-//!   [`report::ParsedLine`] (keyword, words, `key=value` fields).
+//! - [`report`]: the UART transcript: [`report::Line`] (text and cycle stamp), split into
+//!   keyword, words and `key=value` fields by the firmware's own parser
+//!   (`ridge_pump_firmware::lines`, beside the lines' writer).
 //! - [`firmware`]: locating/building the ELF and its section sizes.
 //! - [`session`]: a whole power-up identification run and its figures (what `simavr-run`
 //!   prints and the tests check).

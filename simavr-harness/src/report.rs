@@ -1,8 +1,8 @@
-//! Parsing of the firmware's report lines (`firmware/src/event.rs`): a keyword, then words
-//! and `key=value` fields separated by single spaces, e.g.
-//! `ID p=2 q=2 d=3 off=1 theta=1.2,-0.3 phi=0.1,0.2 c=-0.1 score=-1234.5 eval=14/252`.
+//! The firmware's UART transcript: its bytes split into lines, each with the core cycle of its
+//! terminator. The lines themselves are parsed by the firmware's own parser
+//! (`ridge_pump_firmware::lines`, beside their writer).
 
-use std::collections::BTreeMap;
+use ridge_pump_firmware::lines::ParsedLine;
 
 /// One UART line with the core cycle at which its terminating `\n` was sent.
 #[derive(Clone, Debug, PartialEq)]
@@ -14,82 +14,9 @@ pub struct Line {
 }
 
 impl Line {
-    /// The line split into keyword, words and fields.
+    /// The line split into keyword, words and fields (the firmware's parser).
     pub fn parsed(&self) -> ParsedLine {
         ParsedLine::parse(&self.text)
-    }
-}
-
-/// One report line split into its keyword, its bare words and its `key=value` fields (no
-/// cycle stamp: that stays with the [`Line`]).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct ParsedLine {
-    /// First word, e.g. `ID`, `FAULT`, `STACK`.
-    pub keyword: String,
-    /// Words without `=`, after the keyword (e.g. `A-Multistep`, `persist`, `stall`).
-    pub words: Vec<String>,
-    /// `key=value` fields.
-    pub fields: BTreeMap<String, String>,
-}
-
-impl ParsedLine {
-    /// Splits `text` on whitespace.
-    pub fn parse(text: &str) -> Self {
-        let mut it = text.split_whitespace();
-        let keyword = it.next().unwrap_or("").to_string();
-        let mut words = Vec::new();
-        let mut fields = BTreeMap::new();
-        for w in it {
-            match w.split_once('=') {
-                Some((k, v)) => {
-                    fields.insert(k.to_string(), v.to_string());
-                }
-                None => words.push(w.to_string()),
-            }
-        }
-        Self {
-            keyword,
-            words,
-            fields,
-        }
-    }
-
-    /// Raw text of field `key`.
-    pub fn get(&self, key: &str) -> Option<&str> {
-        self.fields.get(key).map(String::as_str)
-    }
-
-    /// Field `key` as a number (the part before any `<`, `/`, `%`).
-    pub fn num(&self, key: &str) -> Option<f64> {
-        let v = self.get(key)?;
-        let v = v.split(['<', '/', '%']).next()?;
-        v.parse().ok()
-    }
-
-    /// Field `key` as an integer.
-    pub fn int(&self, key: &str) -> Option<i64> {
-        let v = self.get(key)?;
-        v.split(['<', '/', '%']).next()?.parse().ok()
-    }
-
-    /// Field `key` as a comma-separated list of numbers (empty field → empty list).
-    pub fn list(&self, key: &str) -> Option<Vec<f64>> {
-        let v = self.get(key)?;
-        if v.is_empty() || v == "-" {
-            return Some(Vec::new());
-        }
-        v.split(',').map(|x| x.parse().ok()).collect()
-    }
-
-    /// `a/b` field as a pair (e.g. `eval=14/252`, `attempt=1/3`).
-    pub fn ratio(&self, key: &str) -> Option<(i64, i64)> {
-        let (a, b) = self.get(key)?.split_once('/')?;
-        Some((a.parse().ok()?, b.parse().ok()?))
-    }
-
-    /// Whether the line contains the bare word `w`.
-    pub fn has_word(&self, w: &str) -> bool {
-        self.words.iter().any(|x| x == w)
     }
 }
 
@@ -128,19 +55,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn parses_event_lines() {
-        let r = ParsedLine::parse(
-            "ID p=1 q=1 d=3 off=1 theta=0.935000 phi=6.500000,-1.25 c=-0.125000 score=-1234.5 eval=14/252 skip=0 iters=200",
-        );
-        assert_eq!(r.keyword, "ID");
-        assert_eq!(r.int("p"), Some(1));
-        assert_eq!(r.list("phi"), Some(vec![6.5, -1.25]));
-        assert_eq!(r.ratio("eval"), Some((14, 252)));
-        let f = ParsedLine::parse("FAULT stall duty=45.00 flow=0.125");
-        assert!(f.has_word("stall"));
-        assert_eq!(f.num("duty"), Some(45.0));
-        let j = ParsedLine::parse("REJECT fit=42.1<70.0 attempt=1/3");
-        assert_eq!(j.num("fit"), Some(42.1));
+    fn splits_lines_at_their_terminator() {
         let mut s = LineSplitter::default();
         let mut out = Vec::new();
         for (i, b) in b"A x=1\r\nB\n".iter().enumerate() {

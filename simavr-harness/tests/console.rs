@@ -33,13 +33,14 @@ use pump_sim::sfm3300::raw_to_flow;
 use pump_sim::{Blower, Outlet, PlantArgs, Sfm3300Params};
 use ridge_id::capture::{classify, Kind};
 use ridge_id::cli::{Cli, Command};
+use ridge_pump_firmware::lines::IdLine;
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use ridge_pump_firmware::slots::{self, SLOT_LEN, STORE_LEN};
 use simavr_harness::bench::{Bench, BenchConfig, RunEnd};
 use simavr_harness::machine::IoWrite;
 use simavr_harness::pwm::Channel;
-use simavr_harness::session::{duty_counts, IdLine, TICK_CYCLES};
+use simavr_harness::session::{duty_counts, TICK_CYCLES};
 use simavr_harness::uart::{SendId, UartTiming};
 use simavr_harness::{capture, firmware};
 
@@ -621,7 +622,7 @@ fn commands_on_the_running_pump() {
     let m = b.lines[i].parsed();
     assert_eq!(m.keyword, "MODEL");
     let keys =
-        |p: &simavr_harness::report::ParsedLine| p.fields.keys().cloned().collect::<Vec<_>>();
+        |p: &ridge_pump_firmware::lines::ParsedLine| p.fields.keys().cloned().collect::<Vec<_>>();
     assert_eq!(keys(&m), keys(&loaded), "MODEL vs LOADED fields");
     for k in ["p", "q", "d", "off", "theta", "phi", "c", "fit"] {
         assert_eq!(m.get(k), loaded.get(k), "MODEL {k}= vs LOADED");
@@ -742,7 +743,7 @@ fn identification_on_the_log_matches_ridge_id() {
         .next()
         .map(|(i, _)| i)
         .unwrap_or_else(|| panic!("no ID line:\n{}", transcript(b)));
-    let id = IdLine::parse(&b.lines[id_at].parsed()).expect("ID line");
+    let id = IdLine::parse(&b.lines[id_at].text).expect("ID line").model;
     assert!(accept_fit.is_some(), "no ACCEPT:\n{}", transcript(b));
 
     // MODEL after ACCEPT: the ID line's model, in the ID line's fields and digits.
