@@ -2,7 +2,8 @@
 #![warn(missing_docs)]
 #![deny(unsafe_code)]
 //! ridge-pump firmware: everything the pump runs, as a `no_std` library that is tested on the
-//! host, plus thin board images (`src/bin/`, board glue in `src/board/`).
+//! host, plus thin board images (`src/bin/`, board glue in `src/board/`). The diagnostic images
+//! (measurements, the arithmetic check, the QEMU console test) are the crate `firmware-diag`.
 //!
 //! | module | what |
 //! |---|---|
@@ -20,10 +21,8 @@
 //! | [`units`] | the rig's units: duty scale, SFM3300 encoding, loop rate, [`units::SCALE`] |
 //! | [`excitation`] | the pump's excitation presets ([`excitation::Record`]) |
 //! | [`ring`] | the lock-free UART queues (the crate's only `unsafe`) |
-//! | [`arith`] | a fixed computation for `scripts/avr-arith-check` |
 
 pub mod app;
-pub mod arith;
 pub mod command;
 pub mod console;
 pub mod event;

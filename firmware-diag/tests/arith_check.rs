@@ -1,4 +1,4 @@
-//! Prints the host's values of `arith::write` (compare with the AVR image's UART output).
+//! Prints the host's values of `arith_check::write` (compare with the AVR image's UART output).
 #[test]
 fn host_arith_lines() {
     struct S(String);
@@ -10,7 +10,7 @@ fn host_arith_lines() {
         }
     }
     let mut s = S(String::new());
-    ridge_pump_firmware::arith::write(&mut s);
+    firmware_diag::arith_check::write(&mut s);
     std::fs::write("/tmp/arith/host.txt", &s.0).ok();
     assert!(s.0.ends_with("end\n"));
 }
