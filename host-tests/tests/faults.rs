@@ -6,7 +6,7 @@
 //!
 //! The search and the controller design run the blocking way of the ATmega2560: meanwhile a copy
 //! of the tick's checks (`SelfIdentification::guard`) reads the sensor at every tick boundary
-//! with the pump holding its duty, as `app::Watch` does, and a fault it finds is handed to
+//! with the pump holding its duty, as `app::Keepalive` does (firmware/src/app/jobs.rs), and a fault it finds is handed to
 //! `SelfIdentification::fault_detected` (the watch stops the pump itself).
 //!
 //! The bounds asserted are the documented ones (`Config::frozen_ticks`, `Config::loss_ticks`,
@@ -141,7 +141,7 @@ impl Loop {
         }
     }
 
-    /// The blocking job's tick boundaries, as `app::Watch`: the pump holds its duty, a copy of
+    /// The blocking job's tick boundaries, as `app::Keepalive`: the pump holds its duty, a copy of
     /// the checks reads the sensor. `false` when it found a fault (latched, pump stopped).
     fn watch(&mut self, ticks: usize) -> bool {
         let mut guard = self.sm.guard();
