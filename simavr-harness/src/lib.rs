@@ -21,7 +21,8 @@
 //! - [`tracking`]: run mode rebuilt tick by tick from the bench (setpoint, duty, flow),
 //!   checked against the firmware's `TRACK` lines and scored ([`tracking::RunTrace`]).
 //! - [`uart`]: a serial line into USART0 (commands to the firmware's console at 115 200
-//!   baud, scheduled at a cycle or after a line the firmware printed); [`Bench::send_at`](bench::Bench::send_at),
+//!   baud, scheduled at a cycle or after a line the firmware printed), down to the UART's
+//!   receiver ([`uart::UartInput`]); [`Bench::send_at`](bench::Bench::send_at),
 //!   [`Bench::send_after`](bench::Bench::send_after).
 //! - [`capture`]: the firmware's UART output as the CSV `ridge-id capture` writes (its log).
 //! - [`stack`]: worst-case stack from the image's call graph ([`stack::StackAnalysis`], what
