@@ -15,7 +15,7 @@
 //! | [`persist`] | the stored model record (magic, version, CRC-32) |
 //! | [`slots`] | two slots for that record: a write cut at any byte keeps the previous model |
 //! | [`resets`] | reset loops: watchdog and brown-out resets counted across boots |
-//! | [`event`], [`report`] | report lines and their fixed-point formatting (ufmt) |
+//! | [`event`], [`numfmt`] | report lines and their fixed-point number formatting (ufmt) |
 //! | `lines` | host builds only: the report lines' parsers, for the host tools and tests |
 //! | [`command`], [`console`] | the operator's console: command lines, their answers, the CSV log |
 //! | [`units`] | the rig's units: duty scale, SFM3300 encoding, loop rate, [`units::SCALE`] |
@@ -32,9 +32,9 @@ pub mod excitation;
 #[cfg(not(target_os = "none"))]
 pub mod lines;
 pub mod monitor;
+pub mod numfmt;
 pub mod persist;
 pub mod pump;
-pub mod report;
 pub mod resets;
 // The one module with `unsafe`: a lock-free SPSC byte queue for UART interrupts.
 #[allow(unsafe_code)]

@@ -15,7 +15,7 @@
 //! Errors ([`LineError`]) name the field that is missing or malformed; the caller adds the
 //! file and line number.
 //!
-//! Numbers follow the writers' grammar ([`crate::report`]): an optional `-`, at least one
+//! Numbers follow the writers' grammar ([`crate::numfmt`]): an optional `-`, at least one
 //! digit, then optionally `.` and at least one digit; or `nan`, `inf`, `-inf`. Nothing else
 //! (no `+`, no exponent; `ovf` is no number).
 
@@ -142,7 +142,7 @@ fn head(v: &str) -> &str {
     v.split(['<', '/', '%']).next().unwrap_or(v)
 }
 
-/// Reads a number as the firmware prints it ([`crate::report`]): `-?D+(.D+)?`, `nan`, `inf` or
+/// Reads a number as the firmware prints it ([`crate::numfmt`]): `-?D+(.D+)?`, `nan`, `inf` or
 /// `-inf`; `None` for anything else (`+1`, `1e3`, `.5`, `5.`, `ovf`, an empty string).
 ///
 /// ```

@@ -302,7 +302,7 @@ fn fault_during_the_blocking_search(fault: impl FnOnce(&mut World)) -> (u64, u64
     (stop, searched, fault)
 }
 
-/// A sensor that freezes at its current reading while the blocking search runs: the watch's
+/// A sensor that freezes at its current reading while the blocking search runs: the keepalive's
 /// guard sees `frozen_ticks` identical readings and stops the pump within them (plus the
 /// boundary in progress), before the search returns.
 #[test]
@@ -314,7 +314,7 @@ fn frozen_sensor_during_the_blocking_search_stops_the_pump() {
 }
 
 /// A pump that gives no flow any more (the plant's reading drops to 0 at once) while the
-/// blocking search holds the 30 % base duty, below the 40 % stall duty: the watch's guard
+/// blocking search holds the 30 % base duty, below the 40 % stall duty: the keepalive's guard
 /// expects the settled operating point (about 20 slm) and stops the pump after `loss_ticks`
 /// ticks below a quarter of it.
 #[test]
@@ -591,7 +591,7 @@ fn stop_during_the_blocking_search_stops_the_pump_at_the_next_tick_boundary() {
         .find(|&&(_, d)| d == 0)
         .map(|&(t, _)| t);
     let t_sent = w.borrow().pwm_log.first().map(|&(t, _)| t).unwrap();
-    let t_stop = t_stop.expect("the watch stopped the pump");
+    let t_stop = t_stop.expect("the keepalive stopped the pump");
     assert!(
         t_stop <= t_sent + 25_000 + TICK_US + POLL_US,
         "stopped {} µs after the search began",

@@ -35,8 +35,8 @@ use std::rc::Rc;
 use crate::bus::{self, BusState, SdaHold};
 use crate::machine::{Halt, IrqEvent, Machine, UartByte};
 use crate::pwm::{self, Channel};
-use crate::report::{Line, LineSplitter};
 use crate::sensor::{Fault, SensorState, Sfm3300Slave};
+use crate::transcript::{Line, LineSplitter};
 use crate::uart::{SendId, SerialLine, Transmission, UartInput, UartTiming, BAUD};
 use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
 

@@ -12,7 +12,7 @@
 //! - [`bench`](mod@bench): the bench ([`bench::Bench`]): the simulated MCU wired to the simulated plant,
 //!   closed loop, with the timing meter. (The plant alone, stepped once per sample without an
 //!   MCU, is `pump_sim::Rig`.)
-//! - [`report`]: the UART transcript: [`report::Line`] (text and cycle stamp), split into
+//! - [`transcript`]: the UART transcript: [`transcript::Line`] (text and cycle stamp), split into
 //!   keyword, words and `key=value` fields by the firmware's own parser
 //!   (`ridge_pump_firmware::lines`, beside the lines' writer).
 //! - [`firmware`]: locating/building the ELF and its section sizes.
@@ -35,9 +35,9 @@ pub mod firmware;
 pub mod machine;
 pub mod pwm;
 pub mod relax;
-pub mod report;
 pub mod sensor;
 pub mod session;
 pub mod stack;
 pub mod tracking;
+pub mod transcript;
 pub mod uart;

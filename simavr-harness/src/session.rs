@@ -18,7 +18,7 @@ use ridge_core::{ArxModel, Evaluation, IntGram, Real, Search};
 
 use crate::bench::{Bench, BenchConfig, RunEnd, TickTiming, SUBSTEPS};
 use crate::firmware::{self, Sizes};
-use crate::report::Line;
+use crate::transcript::Line;
 use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
 use ridge_id::eval::Trace;
 use ridge_id::plot::{write_png, Panel};
@@ -36,9 +36,9 @@ pub const TICK_CYCLES: u64 = 160_000;
 /// The controller design's budget: 100 ms at 16 MHz, cycles.
 pub const DESIGN_BUDGET_CYCLES: u64 = 1_600_000;
 
-/// Timer count (`OCR4A + 1`, 0 = off) the board writes for a duty in 1/10 000: the pump
-/// driver's [`duty_to_counts`] with `max_duty_cycle() = PWM_MAX`.
-pub fn duty_counts(duty: u16) -> u32 {
+/// The ATmega2560 board's PWM timer count (`OCR4A + 1`, 0 = off) for a duty in 1/10 000: the
+/// pump driver's [`duty_to_counts`] with `max_duty_cycle() = PWM_MAX`.
+pub fn pwm_counts(duty: u16) -> u32 {
     u32::from(duty_to_counts(duty, PWM_MAX as u16))
 }
 
@@ -281,7 +281,7 @@ pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
         }
     }
     // Every controller design: it runs blocking in the main loop and ends with its line; its
-    // budget is 100 ms (the firmware's watch reads the sensor at each tick boundary meanwhile).
+    // budget is 100 ms (the firmware's keepalive reads the sensor at each tick boundary meanwhile).
     let design_windows: Vec<(u64, u64)> = bench
         .lines
         .iter()
@@ -431,7 +431,7 @@ pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
         let ok = gen
             .iter()
             .enumerate()
-            .all(|(i, &g)| counts_at(frames[k + i].0) == duty_counts(g));
+            .all(|(i, &g)| counts_at(frames[k + i].0) == pwm_counts(g));
         if ok {
             let y0_frames = (k >= 50).then(|| {
                 let sum: i32 = frames[k - 50..k]
@@ -564,7 +564,7 @@ pub fn fresh_record(
     let mut pump = Pump::new(p);
     let mut lung = lung.cloned().map(Lung::new);
     let mut sfm = Sfm3300::new(sensor.clone(), seed);
-    let frac = |d: u16| duty_counts(d) as f64 / f64::from(PWM_MAX);
+    let frac = |d: u16| pwm_counts(d) as f64 / f64::from(PWM_MAX);
     // One 0.5 ms plant step at duty `d`: the flow at its end.
     let mut step = |d: u16| {
         let open = pump.step(frac(d));

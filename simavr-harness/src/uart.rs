@@ -41,7 +41,7 @@ use std::rc::Rc;
 
 use simavr_ffi as ffi;
 
-use crate::report::Line;
+use crate::transcript::Line;
 
 /// The line's rate, baud (the firmware's and `ridge-id capture`'s default).
 pub const BAUD: u32 = 115_200;

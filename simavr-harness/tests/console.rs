@@ -40,7 +40,7 @@ use ridge_pump_firmware::slots::{self, SLOT_LEN, STORE_LEN};
 use simavr_harness::bench::{Bench, BenchConfig, RunEnd};
 use simavr_harness::machine::IoWrite;
 use simavr_harness::pwm::Channel;
-use simavr_harness::session::{duty_counts, TICK_CYCLES};
+use simavr_harness::session::{pwm_counts, TICK_CYCLES};
 use simavr_harness::uart::{SendId, UartTiming};
 use simavr_harness::{capture, firmware};
 
@@ -212,7 +212,7 @@ fn check_rows(b: &Bench, rows: &[Row]) -> Result<usize, String> {
             let Some((cycle, raw)) = frame_of(b, j0 + i) else {
                 continue 'candidate;
             };
-            let u_counts = duty_counts((r.u * 10_000.0).round() as u16);
+            let u_counts = pwm_counts((r.u * 10_000.0).round() as u16);
             if (r.y - raw_to_flow(raw)).abs() > 0.5e-5 + 1e-9 || u_counts != counts_at(b, cycle) {
                 continue 'candidate;
             }
@@ -366,7 +366,7 @@ fn commands_on_the_running_pump() {
     // The duty written in this tick, before the answer (the bench logs the pin at its 0.5 ms
     // plant steps: one step after the answer started, and 9 ms before the next write).
     assert_eq!(
-        duty_counts(duty),
+        pwm_counts(duty),
         counts_at(&b, at + TICK_CYCLES / 20),
         "{}",
         b.lines[i].text
@@ -675,7 +675,7 @@ fn commands_on_the_running_pump() {
     let end = b.run_until(b.time_s() + 2.5, |l| l.text.starts_with("EXCITE"));
     assert!(matches!(end, RunEnd::Line(_)), "{}", transcript(&b));
     let settle = counts_at(&b, b.machine.cycle() - TICK_CYCLES);
-    assert_eq!(settle, duty_counts(DEFAULT_CONFIG.base_duty), "settle duty");
+    assert_eq!(settle, pwm_counts(DEFAULT_CONFIG.base_duty), "settle duty");
     figures.push(format!(
         "REID: EXCITE {:.3} s after the line",
         (b.line_starts[b.lines.len() - 1] - reid_end) as f64 / 16e6

@@ -20,8 +20,8 @@
 
 use super::{serve, App, Board};
 use crate::event::{Event, FaultReason, SensorFault};
+use crate::numfmt::Int;
 use crate::pump::Pump;
-use crate::report::Int;
 use crate::selfid::{Guard, SelfIdentification, Settings};
 use crate::sfm3300::Sfm3300;
 use embedded_hal::i2c::I2c;

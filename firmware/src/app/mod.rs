@@ -35,8 +35,8 @@ pub use serve::{Console, ANSWER_ROOM};
 
 use crate::console::{LogRow, LOG_ROW_MAX};
 use crate::event::{Event, SensorFault};
+use crate::numfmt::Int;
 use crate::pump::Pump;
-use crate::report::Int;
 use crate::selfid::{Config, SelfIdentification, Settings};
 use crate::sfm3300::Sfm3300;
 use embedded_hal::i2c::I2c;
