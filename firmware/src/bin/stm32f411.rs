@@ -22,9 +22,9 @@ mod image {
     use super::board::blackpill_f411::{self as bp, FlashStore, Ticker, WATCHDOG_MS};
     use cortex_m_rt::entry;
     use ridge_pump_firmware::app::{App, Board, Console};
+    use ridge_pump_firmware::numfmt::Int;
     use ridge_pump_firmware::persist::RECORD_LEN;
     use ridge_pump_firmware::pump::Pump;
-    use ridge_pump_firmware::report::Int;
     use ridge_pump_firmware::selfid::{Defaults, SelfIdentification};
     use ridge_pump_firmware::sfm3300::Sfm3300;
     use stm32f4xx_hal::i2c::{I2c, Mode};
