@@ -23,7 +23,7 @@ use firmware_testkit::{self as testkit, FakeBoard, FakePwm, FakeSensor, Uart};
 use pump_sim::{PumpParams, Rig, Sfm3300Params};
 use ridge_core::Offset;
 use ridge_id::cli::{Cli, Command};
-use ridge_id::device::DEVICE_OPTIONS;
+use ridge_id::device_check::DEVICE_OPTIONS;
 use ridge_id::Report;
 use ridge_pump_firmware::app::App;
 use ridge_pump_firmware::lines::{IdLine, PrintedModel};

@@ -21,7 +21,7 @@ use crate::firmware::{self, Sizes};
 use crate::transcript::Line;
 use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
 use ridge_id::eval::Trace;
-use ridge_id::plot::{write_png, Panel};
+use ridge_id::plot::{write_fit_png, Axes, Panel};
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::lines::{ExciteLine, IdLine, ParsedLine, PrintedModel, ValidateLine};
 use ridge_pump_firmware::pump::duty_to_counts;
@@ -632,5 +632,5 @@ pub fn plot(path: &Path, panels: &[(String, Trace)]) -> Result<(), String> {
             trace: tr,
         })
         .collect();
-    write_png(path, &p).map_err(|e| e.to_string())
+    write_fit_png(path, &Axes::pump(), &p).map_err(|e| e.to_string())
 }

@@ -512,7 +512,12 @@ fn print_tracking(args: &Args, out: &Outcome) -> bool {
         "ATmega2560 in simavr, {}: setpoint vs true flow (slm), duty below",
         args.plant.describe()
     );
-    match ridge_id::plot::write_step_png(&args.track_png, &title, &step) {
+    match ridge_id::plot::write_control_png(
+        &args.track_png,
+        &ridge_id::plot::Axes::pump(),
+        &title,
+        &step,
+    ) {
         Ok(()) => println!("  plot: {}", args.track_png.display()),
         Err(e) => println!("  plot failed: {e}"),
     }
