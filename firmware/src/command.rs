@@ -8,6 +8,7 @@
 //! | `START` | leaves the stop (or a latched fault) and starts as after a reset (`OK start`) |
 //! | `SET flow=<slm>` | run mode tracks a constant flow (`OK set`) |
 //! | `PROFILE <square\|ramp> [peak=<slm>] [bias=<slm>] [rate=<1/min>] [ie=<x>] [rise=<s>]` | run mode tracks breaths; a key left out keeps the demo breath's value (`OK profile`) |
+//! | `VENT vt=<mL> rate=<1/min> [ti=<s>\|ie=<x>] [wave=square\|ramp] [peep=<cmH₂O>] [bias=<slm>] [rise=<s>] [trim=on\|off]` | run mode ventilates: volume-controlled breaths, the exhalation valve driven ([`crate::ventilation`]; `OK vent`) |
 //! | `REID` | identifies again now (`OK reid`) |
 //! | `MODEL` | the model and the controller in use (`MODEL ...`, `RST ...`) |
 //! | `FORGET` | erases the stored model; the one in use stays until the next reset (`OK forget`) |
@@ -26,9 +27,11 @@ use crate::setpoint::Shape;
 /// is no part of a command.
 pub const LOST: u8 = 0;
 
-/// Longest accepted line, bytes without the terminator (the longest valid command with every
-/// key and 3 decimals is 72 bytes).
-pub const MAX_LINE: usize = 80;
+/// Longest accepted line, bytes without the terminator: the longest valid command, `VENT`
+/// with every key but one of `ti`/`ie`, each number at its largest with 3 decimals, is 95
+/// bytes (`VENT vt=2000.000 rate=60.000 ie=10.000 wave=square peep=30.000 bias=250.000
+/// rise=0.050 trim=off`; with `ti` one byte shorter).
+pub const MAX_LINE: usize = 100;
 
 /// Most fractional digits a number may have.
 pub const MAX_DECIMALS: u8 = 3;
@@ -57,6 +60,30 @@ pub struct ProfileArgs {
     pub rise: Option<Milli>,
 }
 
+/// A `VENT` line as typed: numbers in thousandths of their unit, `None` where the key was left
+/// out (see [`crate::ventilation::settings`] for the defaults and ranges).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct VentArgs {
+    /// Tidal volume, thousandths of a mL (required).
+    pub vt: Milli,
+    /// Breaths per minute, thousandths (required).
+    pub rate: Milli,
+    /// Inspiratory time, ms (at most one of `ti` and `ie`).
+    pub ti: Option<Milli>,
+    /// Expiratory part of the I:E ratio `1 : ie`, thousandths.
+    pub ie: Option<Milli>,
+    /// Inspiratory flow shape.
+    pub wave: Option<Shape>,
+    /// PEEP, thousandths of a cmH₂O.
+    pub peep: Option<Milli>,
+    /// Bias (expiratory) flow, milli-slm.
+    pub bias: Option<Milli>,
+    /// Rise time, ms.
+    pub rise: Option<Milli>,
+    /// Per-breath volume trim on (`true`) or off.
+    pub trim: Option<bool>,
+}
+
 /// A console command (see the [module docs](self)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Command {
@@ -70,6 +97,8 @@ pub enum Command {
     Set(Milli),
     /// `PROFILE ...`.
     Profile(ProfileArgs),
+    /// `VENT ...`.
+    Vent(VentArgs),
     /// `REID`.
     Reid,
     /// `MODEL`.
@@ -191,6 +220,8 @@ pub fn parse(line: &[u8]) -> Result<Command, CommandError> {
             *slot = Some(number(value)?);
         }
         Command::Profile(args)
+    } else if eq(keyword, b"VENT") {
+        Command::Vent(vent(words.by_ref())?)
     } else {
         return Err(CommandError::Unknown);
     };
@@ -198,6 +229,78 @@ pub fn parse(line: &[u8]) -> Result<Command, CommandError> {
         return Err(CommandError::BadField);
     }
     Ok(command)
+}
+
+/// The fields of a `VENT` line: `vt` and `rate` required ([`CommandError::Missing`]), at most
+/// one of `ti` and `ie` ([`CommandError::BadField`]), each key at most once.
+fn vent<'a>(fields: impl Iterator<Item = &'a [u8]>) -> Result<VentArgs, CommandError> {
+    let (mut vt, mut rate) = (None, None);
+    let mut args = VentArgs {
+        vt: 0,
+        rate: 0,
+        ti: None,
+        ie: None,
+        wave: None,
+        peep: None,
+        bias: None,
+        rise: None,
+        trim: None,
+    };
+    for field in fields {
+        let (key, value) = key_value(field)?;
+        if eq(key, b"WAVE") {
+            let shape = if eq(value, b"SQUARE") {
+                Shape::Square
+            } else if eq(value, b"RAMP") {
+                Shape::Ramp
+            } else {
+                return Err(CommandError::BadField);
+            };
+            if args.wave.replace(shape).is_some() {
+                return Err(CommandError::BadField);
+            }
+            continue;
+        }
+        if eq(key, b"TRIM") {
+            let on = if eq(value, b"ON") {
+                true
+            } else if eq(value, b"OFF") {
+                false
+            } else {
+                return Err(CommandError::BadField);
+            };
+            if args.trim.replace(on).is_some() {
+                return Err(CommandError::BadField);
+            }
+            continue;
+        }
+        let slot = if eq(key, b"VT") {
+            &mut vt
+        } else if eq(key, b"RATE") {
+            &mut rate
+        } else if eq(key, b"TI") {
+            &mut args.ti
+        } else if eq(key, b"IE") {
+            &mut args.ie
+        } else if eq(key, b"PEEP") {
+            &mut args.peep
+        } else if eq(key, b"BIAS") {
+            &mut args.bias
+        } else if eq(key, b"RISE") {
+            &mut args.rise
+        } else {
+            return Err(CommandError::BadField);
+        };
+        if slot.replace(number(value)?).is_some() {
+            return Err(CommandError::BadField);
+        }
+    }
+    if args.ti.is_some() && args.ie.is_some() {
+        return Err(CommandError::BadField);
+    }
+    args.vt = vt.ok_or(CommandError::Missing)?;
+    args.rate = rate.ok_or(CommandError::Missing)?;
+    Ok(args)
 }
 
 /// A blank inside a line: what separates words, besides a `\r` that [`Line`] takes as a line

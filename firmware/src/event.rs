@@ -20,6 +20,8 @@
 //! | [`Event::Control`] | `CTRL method=pole-placement tau=0.040 poles=0.779,0.900 kept=4 mm=0.571 tries=1 preview=8` |
 //! | [`Event::Track`] | `TRACK sp=40.000 flow=39.875 rms=0.512 max=1.250 duty=35.20 tick=1050` |
 //! | [`Event::Alarm`] | `ALARM track err=5.125 s=0.50` / `ALARM track clear` |
+//! | [`Event::Breath`] | `BREATH n=3 vt=500.0 peep=5.0 vd=497.2 cmd=512.3 peak=31.250 rms=1.234` |
+//! | [`Event::VolumeAlarm`] | `ALARM volume vd=612.5 vt=500.0` / `ALARM volume clear` |
 //! | [`Event::Residual`] | `RES rms=0.812 mean=-0.013 flow=50.125 n=100` |
 //! | [`Event::Drift`] | `DRIFT rms=3.200 mean=-2.997 flow=35.400 s=3 reid=0` |
 //! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125`, `FAULT sensor=frozen flow=19.058`, `FAULT noflow duty=30.00 flow=0.125 expect=19.058`, `FAULT control margin=0.412 tries=5`, `FAULT resets watchdog=2 brownout=1` |
@@ -352,8 +354,44 @@ pub enum Event {
         /// Whether re-identification was started.
         reidentify: bool,
     },
+    /// Volume-controlled ventilation, at each breath boundary: the breath that just ended
+    /// ([`crate::ventilation`]).
+    Breath(BreathSummary),
+    /// Volume-controlled ventilation: the delivered volume left the band
+    /// `±(4 mL + 15 %)` of the set volume for two breaths in a row (`on`, with the last
+    /// breath's volume), or came back for as many (`!on`).
+    VolumeAlarm {
+        /// Raised (`true`) or cleared.
+        on: bool,
+        /// The last breath's delivered volume, mL.
+        delivered: f32,
+        /// The set volume, mL.
+        tidal: f32,
+    },
     /// The pump was stopped (duty 0) and the state machine latched its fault state.
     Fault(FaultReason),
+}
+
+/// One volume-controlled breath as its `BREATH` line reports it: sums and counts, the means
+/// taken when printing (after the tick's PWM write).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BreathSummary {
+    /// The breath's number, from 1 when ventilation started.
+    pub number: u32,
+    /// Set tidal volume, mL.
+    pub tidal: f32,
+    /// Set PEEP, cmH₂O.
+    pub peep: f32,
+    /// Delivered volume: the readings integrated over the inspiration, mL.
+    pub delivered: f32,
+    /// The volume the breath was programmed for (set volume and trim), mL.
+    pub command: f32,
+    /// Largest reading of the inspiration, counts (1/120 slm).
+    pub peak: i16,
+    /// Σ (setpoint − reading)² over the breath, slm².
+    pub sum_sq: f32,
+    /// Ticks in the sum, ≥ 1.
+    pub samples: u16,
 }
 
 /// One monitor window's one-step prediction residuals (measured − predicted), as sums: the
@@ -804,6 +842,28 @@ impl uDisplay for Event {
                 residuals,
                 Int::from(*seconds),
                 Int(u32::from(*reidentify))
+            ),
+            Event::Breath(b) => ufmt::uwrite!(
+                f,
+                "BREATH n={} vt={} peep={} vd={} cmd={} peak={} rms={}",
+                Int::from(b.number),
+                Fixed::new(b.tidal, 1),
+                Fixed::new(b.peep, 1),
+                Fixed::new(b.delivered, 1),
+                Fixed::new(b.command, 1),
+                slm(b.peak),
+                Fixed::new(root(b.sum_sq / f32::from(b.samples.max(1))), 3)
+            ),
+            Event::VolumeAlarm { on: false, .. } => f.write_str("ALARM volume clear"),
+            Event::VolumeAlarm {
+                on: true,
+                delivered,
+                tidal,
+            } => ufmt::uwrite!(
+                f,
+                "ALARM volume vd={} vt={}",
+                Fixed::new(*delivered, 1),
+                Fixed::new(*tidal, 1)
             ),
             Event::Fault(reason) => ufmt::uwrite!(f, "FAULT {}", reason),
         }

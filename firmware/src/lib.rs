@@ -21,6 +21,7 @@
 //! | [`units`] | the rig's units: duty scale, SFM3300 encoding, loop rate, [`units::SCALE`] |
 //! | [`excitation`] | the pump's excitation presets ([`excitation::Record`]) |
 //! | [`ring`] | the lock-free UART queues (the crate's only `unsafe`) |
+//! | [`ventilation`] | volume-controlled breaths: `VENT` settings, the exhalation valve, per-breath volume, alarm and trim |
 
 pub mod app;
 pub mod command;
@@ -45,3 +46,4 @@ pub mod sfm3300;
 pub mod slots;
 pub mod tracking;
 pub mod units;
+pub mod ventilation;

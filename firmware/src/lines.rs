@@ -448,3 +448,78 @@ impl ValidateLine {
         })
     }
 }
+
+/// The `BREATH` line: one volume-controlled breath
+/// ([`Event::Breath`](crate::event::Event::Breath)), e.g. `BREATH n=3 vt=500.0 peep=5.0
+/// vd=497.2 cmd=512.3 peak=31.250 rms=1.234`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BreathLine {
+    /// The breath's number, from 1 (`n=`).
+    pub number: u32,
+    /// Set tidal volume, mL (`vt=`, 1 decimal).
+    pub tidal: f64,
+    /// Set PEEP, cmH₂O (`peep=`, 1 decimal).
+    pub peep: f64,
+    /// Delivered volume as the firmware measured it, mL (`vd=`, 1 decimal).
+    pub delivered: f64,
+    /// The volume the breath was programmed for, mL (`cmd=`, 1 decimal).
+    pub command: f64,
+    /// Largest reading of the inspiration, slm (`peak=`, 3 decimals).
+    pub peak: f64,
+    /// RMS of setpoint − reading over the breath, slm (`rms=`, 3 decimals).
+    pub rms: f64,
+}
+
+impl BreathLine {
+    /// Parses a `BREATH` line (every field required, finite).
+    pub fn parse(text: &str) -> Result<Self, LineError> {
+        let line = ParsedLine::parse(text);
+        line.expect("BREATH")?;
+        Ok(Self {
+            number: line.whole("n")?,
+            tidal: line.finite("vt")?,
+            peep: line.finite("peep")?,
+            delivered: line.finite("vd")?,
+            command: line.finite("cmd")?,
+            peak: line.finite("peak")?,
+            rms: line.finite("rms")?,
+        })
+    }
+}
+
+/// The `ALARM volume` line ([`Event::VolumeAlarm`](crate::event::Event::VolumeAlarm)):
+/// `ALARM volume vd=612.5 vt=500.0` (raised, with the last breath's delivered and the set
+/// volume, mL) or `ALARM volume clear`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum VolumeAlarmLine {
+    /// Raised.
+    On {
+        /// The last breath's delivered volume, mL.
+        delivered: f64,
+        /// The set volume, mL.
+        tidal: f64,
+    },
+    /// Cleared.
+    Clear,
+}
+
+impl VolumeAlarmLine {
+    /// Parses an `ALARM volume` line; another `ALARM` (the tracking's) is
+    /// [`LineError::Keyword`].
+    pub fn parse(text: &str) -> Result<Self, LineError> {
+        let line = ParsedLine::parse(text);
+        line.expect("ALARM")?;
+        if line.words.first().map(String::as_str) != Some("volume") {
+            return Err(LineError::Keyword {
+                expected: "ALARM volume",
+            });
+        }
+        if line.has_word("clear") {
+            return Ok(Self::Clear);
+        }
+        Ok(Self::On {
+            delivered: line.finite("vd")?,
+            tidal: line.finite("vt")?,
+        })
+    }
+}

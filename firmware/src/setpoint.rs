@@ -1,5 +1,6 @@
 //! Flow setpoints for run mode, one value per 10 ms tick, in slm: a constant, the demo's
-//! steps, and breath profiles (square or decelerating-ramp inspiratory flow).
+//! steps, breath profiles (square or decelerating-ramp inspiratory flow) and volume-controlled
+//! breaths (the same shapes sized to deliver a tidal volume, [`VolumeBreath`]).
 //!
 //! # Breath profile
 //! A breath of period `60 / rate` s is split by the I:E ratio `1 : ie` into an inspiration of
@@ -11,14 +12,29 @@
 //!   linearly to the bias flow at the end of the inspiration.
 //! - Expiration: the bias flow.
 //!
-//! The breath period is rounded to whole ticks. Every setpoint is a function of the tick count
+//! The breath period is rounded to whole ticks.
+//!
+//! # Volume-controlled breath
+//! A [`VolumeWave`] is defined in whole ticks: period `N`, inspiration `N_i` (phases
+//! `0..N_i`, while the exhalation valve is closed), rise `R`. During the inspiration the flow
+//! is `bias + amp · f_k` with
+//! - **square**: `f_k = min(1, (k + 1)/(R + 1))`;
+//! - **decelerating ramp**: `f_k = min((k + 1)/(R + 1), (N_i − k)/(N_i − R))`, falling to the
+//!   bias flow at the end of the inspiration;
+//!
+//! then the bias flow during the expiration. The setpoint summed over the inspiration is
+//! `bias · N_i + amp · S` with `S = Σ f_k` = `N_i − R/2` (square) or `(N_i + 1)/2` (ramp), exactly,
+//! so the amplitude for a volume `V` (mL) is `amp = (V / ML_PER_SLM_TICK − bias · N_i) / S`
+//! ([`VolumeWave::amplitude_for`]): the program delivers `V` over the inspiration's ticks.
+//!
+//! Every setpoint is a function of the tick count
 //! ([`value`]): the sequence is exactly repeatable, and a host tool regenerates it from the
 //! same code. [`Setpoint`] produces the same values incrementally (a phase counter instead of a
 //! modulo, [`BreathWave`] instead of divisions), cheap enough for the 100 Hz tick.
 
 use ridge_core::Real;
 
-use crate::units::{SAMPLE_RATE_HZ, TS_S};
+use crate::units::{ML_PER_SLM_TICK, SAMPLE_RATE_HZ, TS_S};
 
 /// The shape of the inspiratory flow.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -151,6 +167,9 @@ pub enum Program {
     /// The demonstration: 2 s holding the start flow, [`DEMO_STEPS`] once, then
     /// [`DEMO_BREATH`] for ever.
     Demo,
+    /// Volume-controlled breaths, repeated from the first tick (the `VENT` command; the
+    /// per-breath bookkeeping is [`crate::ventilation`]'s).
+    Volume(VolumeBreath),
 }
 
 /// A breath profile prepared for evaluation per tick: its period in whole ticks and the
@@ -230,6 +249,136 @@ impl BreathWave {
     }
 }
 
+/// A volume-controlled breath's flow program (see the module docs), in whole ticks, with the
+/// inspiratory amplitude for the volume it is to deliver. Built by
+/// [`ventilation::settings`](crate::ventilation::settings) from a `VENT` command.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VolumeWave {
+    /// Breath period `N`, ticks (at least 2).
+    period: u16,
+    /// Inspiration `N_i`, ticks (`1..period`).
+    insp: u16,
+    /// Rise `R`, ticks (`≤ N_i / 2`).
+    rise: u16,
+    shape: Shape,
+    /// `1 / (R + 1)`.
+    inv_rise: f32,
+    /// `1 / (N_i − R)` (ramp).
+    inv_fall: f32,
+    /// `1 / S`, the reciprocal of the shape's sum over the inspiration.
+    inv_sum: f32,
+    /// Bias flow (expiration; the inspiration's flow rises from it), slm.
+    bias: f32,
+    /// Inspiratory amplitude above the bias flow, slm.
+    amp: f32,
+}
+
+impl VolumeWave {
+    /// A wave of `period` ticks with an inspiration of `insp` ticks and a rise of `rise`
+    /// ticks, `shape`, bias flow `bias` (slm), sized for `volume` mL
+    /// ([`amplitude_for`](Self::amplitude_for)). The caller keeps `2 ≤ period`,
+    /// `1 ≤ insp < period` and `2 · rise ≤ insp` ([`ventilation::settings`] checks them); other
+    /// values give a finite wave.
+    ///
+    /// [`ventilation::settings`]: crate::ventilation::settings
+    pub fn new(period: u16, insp: u16, rise: u16, shape: Shape, bias: f32, volume: f32) -> Self {
+        let rise = rise.min(insp / 2);
+        let sum = match shape {
+            Shape::Square => f32::from(insp) - 0.5 * f32::from(rise),
+            Shape::Ramp => 0.5 * (f32::from(insp) + 1.0),
+        };
+        let mut w = VolumeWave {
+            period: period.max(1),
+            insp,
+            rise,
+            shape,
+            inv_rise: 1.0 / (f32::from(rise) + 1.0),
+            inv_fall: reciprocal(f32::from(insp - rise)),
+            inv_sum: reciprocal(sum),
+            bias,
+            amp: 0.0,
+        };
+        w.amp = w.amplitude_for(volume);
+        w
+    }
+
+    /// Breath period, ticks.
+    pub fn period(&self) -> u16 {
+        self.period
+    }
+
+    /// Inspiration, ticks: phases `0..inspiration()` are the inspiration.
+    pub fn inspiration(&self) -> u16 {
+        self.insp
+    }
+
+    /// Rise, ticks.
+    pub fn rise(&self) -> u16 {
+        self.rise
+    }
+
+    /// The inspiratory shape.
+    pub fn shape(&self) -> Shape {
+        self.shape
+    }
+
+    /// Bias flow, slm.
+    pub fn bias(&self) -> f32 {
+        self.bias
+    }
+
+    /// Inspiratory amplitude above the bias flow, slm (the peak flow is `bias + amp`).
+    pub fn amplitude(&self) -> f32 {
+        self.amp
+    }
+
+    /// Sets the inspiratory amplitude (the volume trim of [`crate::ventilation`]), slm.
+    pub fn set_amplitude(&mut self, amp: f32) {
+        self.amp = amp;
+    }
+
+    /// The amplitude (slm) that makes the inspiration's setpoints sum to `volume` mL:
+    /// `(volume / ML_PER_SLM_TICK − bias · N_i) / S` (module docs).
+    pub fn amplitude_for(&self, volume: f32) -> f32 {
+        (volume * (1.0 / ML_PER_SLM_TICK) - self.bias * f32::from(self.insp)) * self.inv_sum
+    }
+
+    /// The setpoint `phase` ticks into a breath (`phase < period`), slm.
+    pub fn at_phase(&self, phase: u32) -> f32 {
+        let insp = u32::from(self.insp);
+        if phase >= insp {
+            return self.bias;
+        }
+        let mut f = 1.0;
+        if phase < u32::from(self.rise) {
+            f = (phase + 1) as f32 * self.inv_rise;
+        }
+        if self.shape == Shape::Ramp {
+            let fall = (insp - phase) as f32 * self.inv_fall;
+            if fall < f {
+                f = fall;
+            }
+        }
+        self.bias + self.amp * f
+    }
+}
+
+/// The settings of volume-controlled ventilation ([`Program::Volume`], the `VENT` command):
+/// the set tidal volume and PEEP, whether the per-breath volume trim runs, and the flow
+/// program.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VolumeBreath {
+    /// Set tidal volume, mL.
+    pub tidal: f32,
+    /// PEEP set on the expiratory limb's PEEP valve, cmH₂O. The firmware has no pressure
+    /// sensor: it is checked and reported (`BREATH` lines), not controlled.
+    pub peep: f32,
+    /// Whether the per-breath volume trim runs ([`crate::ventilation`]).
+    pub trim: bool,
+    /// The flow program, sized for `tidal`.
+    pub wave: VolumeWave,
+}
+
 /// `1 / x` for `x > 0`, else 0.
 const fn reciprocal(x: f32) -> f32 {
     if x > 0.0 {
@@ -242,10 +391,34 @@ const fn reciprocal(x: f32) -> f32 {
 /// The demo's breaths, prepared.
 pub const DEMO_WAVE: BreathWave = BreathWave::new(&DEMO_BREATH);
 
+/// The repeated breath of a program: a profile or a volume-controlled breath.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Wave {
+    Profile(BreathWave),
+    Volume(VolumeWave),
+}
+
+impl Wave {
+    fn period(&self) -> u32 {
+        match self {
+            Wave::Profile(w) => w.period,
+            Wave::Volume(w) => u32::from(w.period),
+        }
+    }
+
+    fn at_phase(&self, phase: u32) -> f32 {
+        match self {
+            Wave::Profile(w) => w.at_phase(phase),
+            Wave::Volume(w) => w.at_phase(phase),
+        }
+    }
+}
+
 /// A [`Program`] running: one setpoint per tick.
 ///
-/// The breath part is evaluated from a [`BreathWave`] and a phase counter kept with the tick
-/// (no division per tick); the values equal [`value`]'s for every tick.
+/// The breath part is evaluated from a [`BreathWave`] (or a [`VolumeWave`]) and a phase
+/// counter kept with the tick (no division per tick); the values equal [`value`]'s for every
+/// tick (a volume program's while its amplitude is the one it was built with).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Setpoint {
     program: Program,
@@ -253,8 +426,9 @@ pub struct Setpoint {
     start: f32,
     /// Ticks since the start.
     tick: u32,
-    /// The breaths of the program ([`Program::Breath`], the demo's [`DEMO_BREATH`]).
-    wave: BreathWave,
+    /// The breaths of the program ([`Program::Breath`], [`Program::Volume`], the demo's
+    /// [`DEMO_BREATH`]).
+    wave: Wave,
     /// The tick the breaths start at (`u32::MAX`: none).
     breath_from: u32,
     /// Ticks into the current breath, once `tick ≥ breath_from`.
@@ -274,11 +448,15 @@ fn demo_steps_ticks() -> u32 {
 }
 
 /// The program's breaths and the tick they start at (`u32::MAX`: none).
-fn breaths(program: Program) -> (BreathWave, u32) {
+fn breaths(program: Program) -> (Wave, u32) {
     match program {
-        Program::Breath(w) => (w, 0),
-        Program::Demo => (DEMO_WAVE, DEMO_HOLD_TICKS + demo_steps_ticks()),
-        _ => (DEMO_WAVE, u32::MAX),
+        Program::Breath(w) => (Wave::Profile(w), 0),
+        Program::Volume(v) => (Wave::Volume(v.wave), 0),
+        Program::Demo => (
+            Wave::Profile(DEMO_WAVE),
+            DEMO_HOLD_TICKS + demo_steps_ticks(),
+        ),
+        _ => (Wave::Profile(DEMO_WAVE), u32::MAX),
     }
 }
 
@@ -318,7 +496,7 @@ impl Setpoint {
         } else {
             t - self.breath_from
         };
-        let n = self.wave.period;
+        let n = self.wave.period();
         while p >= n {
             p -= n;
         }
@@ -331,11 +509,40 @@ impl Setpoint {
         self.tick = self.tick.saturating_add(1);
         if self.tick > self.breath_from {
             self.phase += 1;
-            if self.phase >= self.wave.period {
+            if self.phase >= self.wave.period() {
                 self.phase = 0;
             }
         }
         v
+    }
+
+    /// For a volume program: whether the coming tick's interval is in the inspiration (the
+    /// exhalation valve closed), and its phase in the breath (ticks since the breath
+    /// started). `None` for every other program. Read before [`advance`](Self::advance).
+    pub fn volume_phase(&self) -> Option<(bool, u32)> {
+        match &self.wave {
+            Wave::Volume(w) if self.tick >= self.breath_from => {
+                Some((self.phase < u32::from(w.insp), self.phase))
+            }
+            _ => None,
+        }
+    }
+
+    /// The volume program's settings with its wave as it runs now (its amplitude trimmed),
+    /// `None` for every other program.
+    pub fn volume(&self) -> Option<VolumeBreath> {
+        match (self.program, &self.wave) {
+            (Program::Volume(b), Wave::Volume(w)) => Some(VolumeBreath { wave: *w, ..b }),
+            _ => None,
+        }
+    }
+
+    /// Sets a volume program's inspiratory amplitude (slm) from the next setpoint on (the
+    /// volume trim); nothing for other programs.
+    pub fn set_amplitude(&mut self, amp: f32) {
+        if let Wave::Volume(w) = &mut self.wave {
+            w.set_amplitude(amp);
+        }
     }
 }
 
@@ -346,13 +553,13 @@ pub fn value(program: Program, start: f32, tick: u32) -> f32 {
     if tick < from {
         return before_breaths(program, start, tick);
     }
-    wave.at_phase((tick - from) % wave.period)
+    wave.at_phase((tick - from) % wave.period())
 }
 
 /// [`value`] before the program's breaths.
 fn before_breaths(program: Program, start: f32, tick: u32) -> f32 {
     match program {
-        Program::Hold | Program::Breath(_) => start,
+        Program::Hold | Program::Breath(_) | Program::Volume(_) => start,
         Program::Constant(v) => v,
         Program::Demo => match tick.checked_sub(DEMO_HOLD_TICKS) {
             None => start,

@@ -9,6 +9,7 @@
 //! | flow | SFM3300 word `raw`, offset binary | slm | `(raw − FLOW_OFFSET) / FLOW_SCALE` |
 //! | flow counts | `raw − FLOW_OFFSET` (`i16`) | slm | `× SLM_PER_COUNT` |
 //! | time | ticks of 1/[`SAMPLE_RATE_HZ`] s | s | `× TS_S` |
+//! | volume | flow counts summed over ticks | mL | `× ML_PER_COUNT_TICK` |
 //!
 //! Sensor constants: Sensirion, *Datasheet SFM3300-AW / SFM3300-D* (specification table:
 //! "offset flow 32 768", "scale factor flow 120 (slm)⁻¹", measurement range ±250 slm), the same
@@ -42,6 +43,14 @@ pub const SLM_PER_COUNT: f32 = 1.0 / FLOW_SCALE as f32;
 
 /// Calibrated measurement range of the SFM3300, ± this many slm (datasheet): ±30 000 counts.
 pub const FLOW_RANGE_SLM: u16 = 250;
+
+/// Millilitres per slm held for one tick: `1000 / 60 · TS_S` = 1/6 mL (a standard litre a
+/// minute is 1000/60 mL/s).
+pub const ML_PER_SLM_TICK: f32 = 1000.0 / 60.0 * TS_S;
+
+/// Millilitres per flow count held for one tick: `ML_PER_SLM_TICK / FLOW_SCALE` = 1/720 mL
+/// (volumes the device integrates from its readings, exact in integer counts until printed).
+pub const ML_PER_COUNT_TICK: f32 = ML_PER_SLM_TICK / FLOW_SCALE as f32;
 
 /// Physical units per raw count of the device's statistics: duty units → fraction 0..1,
 /// flow counts → slm. Identified models are therefore in slm per duty fraction.

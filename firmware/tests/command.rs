@@ -3,7 +3,7 @@
 //! (deterministic byte-level fuzzing: no panic, every line answers).
 
 use ridge_pump_firmware::command::{
-    parse, Command, CommandError, Line, ProfileArgs, LOST, MAX_LINE,
+    parse, Command, CommandError, Line, ProfileArgs, VentArgs, LOST, MAX_LINE,
 };
 use ridge_pump_firmware::setpoint::Shape;
 
@@ -51,9 +51,51 @@ fn every_command_parses() {
                 ..profile(Shape::Square)
             }),
         ),
+        ("VENT vt=500 rate=20", Command::Vent(vent(500_000, 20_000))),
+        (
+            "vent RATE=12 Vt=300.5 ie=4 wave=RAMP peep=10 bias=2.5 rise=0.05 trim=off",
+            Command::Vent(VentArgs {
+                ie: Some(4_000),
+                wave: Some(Shape::Ramp),
+                peep: Some(10_000),
+                bias: Some(2_500),
+                rise: Some(50),
+                trim: Some(false),
+                ..vent(300_500, 12_000)
+            }),
+        ),
+        (
+            "VENT vt=200 rate=20 ti=1 wave=square trim=ON",
+            Command::Vent(VentArgs {
+                ti: Some(1_000),
+                wave: Some(Shape::Square),
+                trim: Some(true),
+                ..vent(200_000, 20_000)
+            }),
+        ),
     ];
     for (line, want) in cases {
         assert_eq!(parse(line.as_bytes()), Ok(*want), "{line:?}");
+    }
+    // The longest valid line fits.
+    let longest = "VENT vt=2000.000 rate=60.000 ie=10.000 wave=square peep=30.000 bias=250.000 \
+                   rise=0.050 trim=off";
+    assert_eq!(longest.len(), 95);
+    assert!(longest.len() <= MAX_LINE);
+    assert!(matches!(parse(longest.as_bytes()), Ok(Command::Vent(_))));
+}
+
+fn vent(vt: i32, rate: i32) -> VentArgs {
+    VentArgs {
+        vt,
+        rate,
+        ti: None,
+        ie: None,
+        wave: None,
+        peep: None,
+        bias: None,
+        rise: None,
+        trim: None,
     }
 }
 
@@ -84,6 +126,24 @@ fn malformed_lines_say_why() {
         (b"PROFILE", CommandError::Missing),
         (b"PROFILE sine", CommandError::BadField),
         (b"PROFILE ramp peak=60 tidal=5", CommandError::BadField),
+        (b"VENT", CommandError::Missing),
+        (b"VENT vt=500", CommandError::Missing),
+        (b"VENT rate=20", CommandError::Missing),
+        (b"VENT vt=500 rate=20 ti=1 ie=2", CommandError::BadField),
+        (b"VENT vt=500 rate=20 vt=400", CommandError::BadField),
+        (b"VENT vt=500 rate=20 wave=sine", CommandError::BadField),
+        (
+            b"VENT vt=500 rate=20 wave=ramp wave=ramp",
+            CommandError::BadField,
+        ),
+        (b"VENT vt=500 rate=20 trim=1", CommandError::BadField),
+        (
+            b"VENT vt=500 rate=20 trim=on trim=off",
+            CommandError::BadField,
+        ),
+        (b"VENT vt=500 rate=20 pip=30", CommandError::BadField),
+        (b"VENT vt=500 rate=20 peep", CommandError::BadField),
+        (b"VENT vt=5e2 rate=20", CommandError::BadNumber),
     ];
     for (line, want) in cases {
         assert_eq!(

@@ -10,12 +10,13 @@
 use ridge_core::control::{DesignError, ModelFault};
 use ridge_core::{ArxModel, Error as CoreError, Offset};
 use ridge_pump_firmware::event::{
-    core_error_name, ControlRefusal, Event, FaultReason, RejectReason, Residuals, SearchStats,
-    SensorFault, StoredReason, LINE_MAX,
+    core_error_name, BreathSummary, ControlRefusal, Event, FaultReason, RejectReason, Residuals,
+    SearchStats, SensorFault, StoredReason, LINE_MAX,
 };
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::lines::{
-    number, ExciteLine, IdLine, LineError, LoadedLine, ParsedLine, PrintedModel, ValidateLine,
+    number, BreathLine, ExciteLine, IdLine, LineError, LoadedLine, ParsedLine, PrintedModel,
+    ValidateLine, VolumeAlarmLine,
 };
 use ridge_pump_firmware::persist::PersistError;
 
@@ -377,10 +378,51 @@ fn expected(e: &Event) -> Expected {
             fields.extend([("s", int(seconds)), ("reid", int(u8::from(reidentify)))]);
             exp("DRIFT", &[], fields)
         }
+        Event::Breath(b) => exp(
+            "BREATH",
+            &[],
+            vec![
+                ("n", int(b.number)),
+                ("vt", f(b.tidal)),
+                ("peep", f(b.peep)),
+                ("vd", f(b.delivered)),
+                ("cmd", f(b.command)),
+                ("peak", slm(b.peak)),
+                (
+                    "rms",
+                    V::N((f64::from(b.sum_sq) / f64::from(b.samples)).sqrt()),
+                ),
+            ],
+        ),
+        Event::VolumeAlarm { on: false, .. } => exp("ALARM", &["volume", "clear"], vec![]),
+        Event::VolumeAlarm {
+            on: true,
+            delivered,
+            tidal,
+        } => exp(
+            "ALARM",
+            &["volume"],
+            vec![("vd", f(delivered)), ("vt", f(tidal))],
+        ),
         Event::Fault(r) => {
             let (words, fields) = fault(r);
             exp("FAULT", &words, fields)
         }
+    }
+}
+
+/// A breath on the printed grid: volumes in halves of a mL, the peak a multiple of 3 counts,
+/// the RMS 0.5 slm (Σ 4 · 0.25 over 4 ticks).
+fn breath() -> BreathSummary {
+    BreathSummary {
+        number: 17,
+        tidal: 500.0,
+        peep: 5.5,
+        delivered: 487.5,
+        command: 512.5,
+        peak: 3_771,
+        sum_sq: 1.0,
+        samples: 4,
     }
 }
 
@@ -484,6 +526,17 @@ fn events() -> Vec<Event> {
             seconds: 5,
             reidentify: true,
         },
+        Event::Breath(breath()),
+        Event::VolumeAlarm {
+            on: true,
+            delivered: 612.5,
+            tidal: 500.0,
+        },
+        Event::VolumeAlarm {
+            on: false,
+            delivered: 0.0,
+            tidal: 500.0,
+        },
     ];
     for e in [
         PersistError::Length,
@@ -582,6 +635,59 @@ fn every_event_parses_back_to_its_values() {
     for e in events() {
         check(&text(&e), &expected(&e));
     }
+}
+
+#[test]
+fn breath_and_volume_alarm_lines_parse_back_equal() {
+    let b = breath();
+    assert_eq!(
+        BreathLine::parse(&text(&Event::Breath(b))),
+        Ok(BreathLine {
+            number: 17,
+            tidal: 500.0,
+            peep: 5.5,
+            delivered: 487.5,
+            command: 512.5,
+            peak: 3_771.0 / 120.0,
+            rms: 0.5,
+        })
+    );
+    let on = Event::VolumeAlarm {
+        on: true,
+        delivered: 612.5,
+        tidal: 500.0,
+    };
+    assert_eq!(
+        VolumeAlarmLine::parse(&text(&on)),
+        Ok(VolumeAlarmLine::On {
+            delivered: 612.5,
+            tidal: 500.0
+        })
+    );
+    let off = Event::VolumeAlarm {
+        on: false,
+        delivered: 612.5,
+        tidal: 500.0,
+    };
+    assert_eq!(
+        VolumeAlarmLine::parse(&text(&off)),
+        Ok(VolumeAlarmLine::Clear)
+    );
+    // The tracking alarm is another line.
+    let track = Event::Alarm {
+        on: false,
+        error: 0.0,
+        ticks: 0,
+    };
+    assert!(VolumeAlarmLine::parse(&text(&track)).is_err());
+    // A BREATH line missing a field names it.
+    assert_eq!(
+        BreathLine::parse("BREATH n=1 vt=500.0 peep=5.0 vd=497.2 cmd=500.0 peak=31.250"),
+        Err(LineError::Field {
+            key: "rms",
+            expected: "number"
+        })
+    );
 }
 
 #[test]

@@ -2,6 +2,7 @@
 //! the tick, the watchdog, the record store, the stack figures and the console's bytes.
 
 use super::Console;
+use crate::ventilation::Valve;
 
 /// What the loop needs from a board besides sensor, pump and UART.
 pub trait Board {
@@ -48,5 +49,11 @@ pub trait Board {
     /// the console code out of the image.
     fn console(&mut self) -> Option<&mut Console> {
         None
+    }
+    /// Drives the exhalation valve (closed in a volume breath's inspiration, open otherwise;
+    /// open is the safe state, see [`crate::ventilation`]). A board without a valve keeps the
+    /// default, which does nothing.
+    fn set_valve(&mut self, valve: Valve) {
+        let _ = valve;
     }
 }

@@ -24,6 +24,7 @@ use crate::numfmt::Int;
 use crate::pump::Pump;
 use crate::selfid::{Guard, SelfIdentification, Settings};
 use crate::sfm3300::Sfm3300;
+use crate::ventilation::Valve;
 use embedded_hal::i2c::I2c;
 use embedded_hal::pwm::SetDutyCycle;
 use ufmt::{uWrite, uwriteln};
@@ -109,10 +110,11 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
             lost,
         } = end;
         if let Some(event) = event {
-            self.stop_on_fault();
+            self.stop_on_fault(board);
             self.report(board, &event);
         }
         if let Some(reason) = fault {
+            board.set_valve(Valve::Open);
             let event = self.sid.fault_detected(reason);
             self.report(board, &event);
         }
@@ -212,6 +214,7 @@ impl<'a, I: I2c, P: SetDutyCycle, B: Board> Keepalive<'a, I, P, B> {
                 let flow = self.sensor.read_counts().map_err(SensorFault::from);
                 if let Err(reason) = self.guard.check(self.applied, flow) {
                     self.pump.stop().ok();
+                    self.board.set_valve(Valve::Open);
                     self.fault = Some(reason);
                 }
             }
@@ -226,6 +229,7 @@ impl<I: I2c, P: SetDutyCycle, B: Board> Keepalive<'_, I, P, B> {
     fn console(&mut self) {
         if serve::listen(self.board) {
             self.pump.stop().ok();
+            self.board.set_valve(Valve::Open);
             self.applied = 0;
         }
     }

@@ -1,6 +1,7 @@
 //! The 100 Hz main loop shared by both boards: wait for the tick, pet the watchdog, read the
 //! SFM3300 (I2C in the main loop, never in an interrupt), step the self-identification state
-//! machine ([`crate::selfid`]), apply its duty to the pump, print its events,
+//! machine ([`crate::selfid`]), apply its duty to the pump and its exhalation valve state, do
+//! the work that does not feed the duty (a volume breath's bookkeeping), print its events,
 //! persist its record when an event asks for it, and — after the PWM write — judge the
 //! validation record and run the structure search or the controller design when they are due.
 //!
@@ -39,6 +40,7 @@ use crate::numfmt::Int;
 use crate::pump::Pump;
 use crate::selfid::{Config, SelfIdentification, Settings};
 use crate::sfm3300::Sfm3300;
+use crate::ventilation::Valve;
 use embedded_hal::i2c::I2c;
 use embedded_hal::pwm::SetDutyCycle;
 use jobs::Job;
@@ -185,16 +187,17 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
     #[inline(never)]
     fn judge(&mut self, board: &mut impl Board) {
         if let Some(event) = self.sid.judge() {
-            self.stop_on_fault();
+            self.stop_on_fault(board);
             self.report(board, &event);
         }
     }
 
-    /// Stops the pump now when the state machine holds a fault (its duty is then 0), instead
-    /// of at the next tick.
-    fn stop_on_fault(&mut self) {
+    /// Stops the pump and opens the exhalation valve now when the state machine holds a fault
+    /// (its duty is then 0), instead of at the next tick.
+    fn stop_on_fault(&mut self, board: &mut impl Board) {
         if self.sid.fault().is_some() {
             self.pump.stop().ok();
+            board.set_valve(Valve::Open);
         }
     }
 
@@ -209,10 +212,19 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
         let flow = self.sensor.read_counts().map_err(SensorFault::from);
         let mut event = None;
         let duty = self.sid.tick_into(flow, &mut event);
-        if self.pump.set(duty).is_err() {
+        let pumped = self.pump.set(duty).is_ok();
+        // The valve follows the PWM write (the control tick ends with that write).
+        board.set_valve(if pumped {
+            self.sid.valve()
+        } else {
+            Valve::Open
+        });
+        if !pumped {
             self.pump.stop().ok();
             uwriteln!(self.out, "PUMP error").ok();
         }
+        // Work that does not feed this tick's duty: a volume breath's bookkeeping.
+        self.sid.after_pwm(&mut event);
         if let Some(event) = &event {
             self.report(board, event);
         }
@@ -249,7 +261,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
     fn wait<B: Board>(&mut self, board: &mut B) -> (u16, bool) {
         wait_tick(board, |board| {
             if serve::listen(board) {
-                self.halt();
+                self.halt(board);
             }
         })
     }

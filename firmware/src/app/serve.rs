@@ -17,6 +17,7 @@ use crate::command::{Command, CommandError, Line};
 use crate::console::{ModelLine, Poly, RstLine, Status, LOG_HEADER};
 use crate::persist::RECORD_LEN;
 use crate::selfid::{Settings, State};
+use crate::ventilation::Valve;
 use embedded_hal::i2c::I2c;
 use embedded_hal::pwm::SetDutyCycle;
 use ufmt::{uWrite, uwriteln};
@@ -94,11 +95,13 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
         }
     }
 
-    /// `STOP`: the state machine stops (latched until `START`) and the pump's PWM goes to 0.
+    /// `STOP`: the state machine stops (latched until `START`), the pump's PWM goes to 0 and
+    /// the exhalation valve opens.
     #[inline(never)]
-    pub(super) fn halt(&mut self) {
+    pub(super) fn halt(&mut self, board: &mut impl Board) {
         self.sid.stop();
         self.pump.stop().ok();
+        board.set_valve(Valve::Open);
     }
 
     /// Executes a console command and answers it (one line, `MODEL` two in run mode).
@@ -118,7 +121,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
                 return;
             }
             Ok(Command::Stop) => {
-                self.halt();
+                self.halt(board);
                 if self.sid.state() == State::Fault {
                     Err(CommandError::State)
                 } else {
@@ -138,6 +141,11 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
                 .sid
                 .set_profile(&args)
                 .map(|()| "profile")
+                .map_err(CommandError::Range),
+            Ok(Command::Vent(args)) => self
+                .sid
+                .set_vent(&args)
+                .map(|()| "vent")
                 .map_err(CommandError::Range),
             Ok(Command::Reid) => match self.sid.state() {
                 State::Fault | State::Stopped => Err(CommandError::State),

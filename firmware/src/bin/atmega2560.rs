@@ -3,9 +3,10 @@
 //! Build: `scripts/build-boards` (nightly, `--target avr-none -Zbuild-std=core`). Pins, fuses and
 //! flashing: `docs/boards.md`.
 //!
-//! Boot: read and clear the reset cause, set up UART, PWM (pump stopped), TWI, the 100 Hz timer,
-//! read the stored record from EEPROM, start the state machine, enable interrupts, arm the
-//! watchdog, print `BOOT ...`, then run the shared loop (`board::app`).
+//! Boot: read and clear the reset cause, set up UART, the exhalation valve (open), PWM (pump
+//! stopped), TWI, the 100 Hz timer, read the stored record from EEPROM, start the state
+//! machine, enable interrupts, arm the watchdog, print `BOOT ...`, then run the shared loop
+//! (`board::app`).
 //!
 //! On the host this file compiles to a stub (`cargo build --all-features` stays a host build).
 #![cfg_attr(target_arch = "avr", no_std, no_main)]
@@ -23,7 +24,7 @@ fn main() {
 
 #[cfg(target_arch = "avr")]
 mod image {
-    use super::board::arduino_mega2560::{eeprom, pwm, stack, timer, twi, usart, watchdog};
+    use super::board::arduino_mega2560::{eeprom, pwm, stack, timer, twi, usart, valve, watchdog};
     use avr_device::atmega2560 as pac;
     use core::mem::MaybeUninit;
     use core::ptr::addr_of_mut;
@@ -35,6 +36,7 @@ mod image {
     use ridge_pump_firmware::selfid::{Defaults, SelfIdentification};
     use ridge_pump_firmware::sfm3300::Sfm3300;
     use ridge_pump_firmware::slots::{self, Plan, SLOT_LEN, STORE_LEN};
+    use ridge_pump_firmware::ventilation::Valve;
     use ufmt::uwriteln;
 
     /// I2C clock: 400 kHz, the SFM3300's maximum (fast mode). One 3-byte read then takes
@@ -58,6 +60,8 @@ mod image {
         /// Ticks left until the count is cleared (0: done).
         clean: u16,
         console: Console,
+        /// The exhalation valve (D22).
+        valve: valve::ValvePin,
     }
 
     impl Board for Mega {
@@ -110,6 +114,9 @@ mod image {
         fn console(&mut self) -> Option<&mut Console> {
             Some(&mut self.console)
         }
+        fn set_valve(&mut self, valve: Valve) {
+            self.valve.set(valve);
+        }
     }
 
     type MegaApp = App<twi::Twi, pwm::Pwm4A, usart::Usart0, Defaults>;
@@ -139,6 +146,8 @@ mod image {
         let reset_cause = watchdog::take_reset_cause(&dp.CPU);
 
         let mut out = usart::Usart0::new(dp.USART0);
+        // The exhalation valve open before the pump is driven.
+        let valve = valve::ValvePin::new(dp.PORTA);
         let pump = match Pump::new(pwm::Pwm4A::new(dp.TC4, dp.PORTH)) {
             Ok(pump) => pump,
             Err(e) => match e {},
@@ -186,13 +195,14 @@ mod image {
             resets,
             clean: resets::CLEAN_TICKS,
             console: Console::new(),
+            valve,
         });
         (app, board)
     }
 
     /// Panic: pump off first (PWM compare register to 0 and the pin driven low, written
-    /// directly), interrupts off, a `PANIC` line sent by polling, then spin until the watchdog
-    /// (0.5 s) resets the MCU.
+    /// directly) and the exhalation valve open (D22 low), interrupts off, a `PANIC` line sent
+    /// by polling, then spin until the watchdog (0.5 s) resets the MCU.
     ///
     /// Resetting is deliberate: the loop's state cannot be trusted after a panic, and a fresh
     /// start (which reports `BOOT ... reset=8`, WDRF, unless the bootloader cleared MCUSR)
@@ -206,6 +216,8 @@ mod image {
         avr_device::interrupt::disable();
         // SAFETY: interrupts are off and nothing runs after this handler.
         unsafe { pwm::force_off() };
+        // SAFETY: as above.
+        unsafe { valve::force_open() };
         uwriteln!(usart::Polled, "\nPANIC").ok();
         loop {
             core::hint::spin_loop();

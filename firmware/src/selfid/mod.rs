@@ -98,6 +98,7 @@ use crate::event::{Event, FaultReason, RejectReason, SensorFault, StoredReason};
 use crate::persist::{self, RECORD_LEN};
 use crate::setpoint::Program;
 use crate::units::{FRACTION_PER_DUTY, SLM_PER_COUNT};
+use crate::ventilation::Valve;
 
 use recording::Recording;
 use run::RunMode;
@@ -448,6 +449,25 @@ impl<S: Settings> SelfIdentification<S> {
         if !matches!(self.phase, Phase::Wait) {
             // The base duty takes effect with the next tick's return value.
             self.phase = settle(self.settings.config().settle_ticks, Then::Excite);
+        }
+    }
+
+    /// The exhalation valve's state for the interval in progress: closed only in the
+    /// inspiration of a volume-controlled breath in run mode ([`crate::ventilation`]), open
+    /// in every other state (identifying, stopped, fault).
+    pub fn valve(&self) -> Valve {
+        match &self.phase {
+            Phase::Run(run) => run.valve(),
+            _ => Valve::Open,
+        }
+    }
+
+    /// Run mode's work after the tick's PWM write: a volume program's per-breath bookkeeping
+    /// (`BREATH`, `ALARM volume`, the trim), its event into `event` if that is empty. Call it
+    /// once per tick, after [`tick_into`](Self::tick_into) and the PWM write.
+    pub fn after_pwm(&mut self, event: &mut Option<Event>) {
+        if let Phase::Run(run) = &mut self.phase {
+            run.after_pwm(self.last_counts, event);
         }
     }
 

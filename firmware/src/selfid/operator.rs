@@ -3,7 +3,7 @@
 
 use ridge_core::control::Controller;
 
-use crate::command::{Milli, ProfileArgs};
+use crate::command::{Milli, ProfileArgs, VentArgs};
 use crate::setpoint::{Breath, BreathWave, Program, DEMO_BREATH};
 use crate::units::{FLOW_SCALE, SLM_PER_COUNT};
 
@@ -93,6 +93,15 @@ impl<S: Settings> SelfIdentification<S> {
             rise: value(rise),
         };
         self.use_program(Program::Breath(BreathWave::new(&breath)));
+        Ok(())
+    }
+
+    /// Run mode ventilates: volume-controlled breaths of a `VENT` command, checked by
+    /// [`ventilation::settings`](crate::ventilation::settings) (`Err(<setting>)`, nothing
+    /// changes), from breath 1 now (or from the start of run mode).
+    pub fn set_vent(&mut self, args: &VentArgs) -> Result<(), &'static str> {
+        let breath = crate::ventilation::settings(args, self.settings.config().flow_limit)?;
+        self.use_program(Program::Volume(breath));
         Ok(())
     }
 

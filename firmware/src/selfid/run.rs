@@ -1,5 +1,6 @@
 //! Run mode: the flow controller tracking the setpoint program, with the model monitor and the
-//! tracking figures.
+//! tracking figures; with a volume program, the exhalation valve's state and the per-breath
+//! bookkeeping ([`crate::ventilation`], after the PWM write).
 
 use ridge_core::control::{Controller, Design};
 use ridge_core::ArxModel;
@@ -9,6 +10,7 @@ use crate::monitor::Monitor;
 use crate::setpoint::{Program, Setpoint};
 use crate::tracking::Tracking;
 use crate::units::{DUTY_FULL_SCALE, FRACTION_PER_DUTY, SLM_PER_COUNT};
+use crate::ventilation::{Valve, Ventilation};
 
 use super::Config;
 
@@ -24,6 +26,13 @@ pub(super) struct RunMode {
     /// Ticks the controller sees the program ahead of time: the mean delay of the designed
     /// setpoint response ([`Design::mean_delay`]), so that the flow follows the program in time.
     preview: u8,
+    /// A volume program's breath phase of the interval in progress and whether it is in the
+    /// inspiration (the valve closed); `None` for other programs.
+    breath: Option<(bool, u32)>,
+    /// The setpoint of the interval that ended with this tick's reading, slm.
+    ended: f32,
+    /// The per-breath bookkeeping of a volume program.
+    vent: Ventilation,
 }
 
 impl RunMode {
@@ -50,6 +59,9 @@ impl RunMode {
             tracking: Tracking::new(c.tracking, c.tracking.window / 2),
             current: y0,
             preview: preview_ticks(design.mean_delay(&model)),
+            breath: None,
+            ended: y0,
+            vent: ventilation_for(program),
         }
     }
 
@@ -68,19 +80,40 @@ impl RunMode {
     ) -> u16 {
         let y = f32::from(reading.unwrap_or(last)) * SLM_PER_COUNT;
         let ahead = self.setpoint.ahead(u32::from(self.preview));
+        self.breath = self.setpoint.volume_phase();
         let r = self.setpoint.advance();
         let u = self.ctrl.step(ahead, y);
         let duty = (u * f32::from(DUTY_FULL_SCALE) + 0.5) as u16;
         let measured = reading.map(|c| f32::from(c) * SLM_PER_COUNT);
         self.monitor.step(applied, reading, event);
         self.tracking.step(self.current, measured, applied, event);
+        self.ended = self.current;
         self.current = r;
         duty.min(DUTY_FULL_SCALE)
+    }
+
+    /// After the tick's PWM write: a volume program's per-breath bookkeeping with the tick's
+    /// reading `reading` (counts, held over sensor errors); its event into `event` if empty.
+    pub(super) fn after_pwm(&mut self, reading: i16, event: &mut Option<Event>) {
+        if let Some((_, phase)) = self.breath {
+            self.vent
+                .after_pwm(&mut self.setpoint, phase, reading, self.ended, event);
+        }
+    }
+
+    /// The exhalation valve for the interval in progress: closed in a volume breath's
+    /// inspiration, open otherwise.
+    pub(super) fn valve(&self) -> Valve {
+        match self.breath {
+            Some((true, _)) => Valve::Closed,
+            _ => Valve::Open,
+        }
     }
 
     /// Tracks `program` from now on, starting from the setpoint in progress.
     pub(super) fn set_program(&mut self, program: Program) {
         self.setpoint = Setpoint::new(program, self.current);
+        self.vent = ventilation_for(program);
     }
 
     /// The controller.
@@ -101,6 +134,14 @@ impl RunMode {
     /// Ticks of setpoint preview.
     pub(super) fn preview(&self) -> u8 {
         self.preview
+    }
+}
+
+/// The per-breath bookkeeping for `program` (idle unless it is a volume program).
+fn ventilation_for(program: Program) -> Ventilation {
+    match program {
+        Program::Volume(b) => Ventilation::new(b.tidal),
+        _ => Ventilation::new(0.0),
     }
 }
 
