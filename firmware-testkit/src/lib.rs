@@ -22,6 +22,7 @@ use embedded_hal::pwm::{self, SetDutyCycle};
 use ridge_pump_firmware::app::{Board, Console};
 use ridge_pump_firmware::sfm3300::ADDRESS;
 use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_OFFSET};
+use ridge_pump_firmware::ventilation::Valve;
 
 /// Simulated time one [`Board::poll_tick`] call costs, µs.
 pub const POLL_US: u64 = 500;
@@ -37,11 +38,18 @@ const START: [u8; 2] = [0x10, 0x00];
 pub trait Plant {
     /// Applies `duty` (1/10 000 of full scale) for one interval; the SFM3300 word at its end.
     fn step_word(&mut self, duty: u16) -> u16;
+    /// The exhalation valve from the next interval on (a plant without one ignores it).
+    fn set_valve(&mut self, valve: Valve) {
+        let _ = valve;
+    }
 }
 
 impl Plant for pump_sim::Rig {
     fn step_word(&mut self, duty: u16) -> u16 {
         self.step(duty)
+    }
+    fn set_valve(&mut self, valve: Valve) {
+        self.valve = valve;
     }
 }
 
@@ -79,6 +87,10 @@ pub struct World<P> {
     pub longest_unpetted: u64,
     /// Clock of the last `pet`, µs.
     pub last_pet: u64,
+    /// The exhalation valve as the board drives it, and `(clock, valve)` of every change.
+    pub valve: Valve,
+    /// `(clock, valve)` of every change of the valve.
+    pub valve_log: Vec<(u64, Valve)>,
 }
 
 /// The world as the fakes hold it.
@@ -103,6 +115,8 @@ pub fn world<P>(plant: P, pwm_max: u16) -> Shared<P> {
         pets: 0,
         longest_unpetted: 0,
         last_pet: 0,
+        valve: Valve::Open,
+        valve_log: Vec::new(),
     }))
 }
 
@@ -372,5 +386,15 @@ impl<P: Plant, const TICKING: bool> Board for FakeBoard<P, TICKING> {
 
     fn console(&mut self) -> Option<&mut Console> {
         self.console.as_mut()
+    }
+
+    fn set_valve(&mut self, valve: Valve) {
+        let mut w = self.w.borrow_mut();
+        if w.valve != valve {
+            let clock = w.clock;
+            w.valve_log.push((clock, valve));
+            w.valve = valve;
+            w.plant.set_valve(valve);
+        }
     }
 }

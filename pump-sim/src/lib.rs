@@ -14,6 +14,7 @@
 
 pub mod arx;
 pub mod baseline;
+pub mod iso;
 pub mod lung;
 pub mod paper;
 pub mod plant;
@@ -28,7 +29,7 @@ use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::units::{DUTY_FULL_SCALE, SAMPLE_RATE_HZ};
 
 pub use arx::simulate_arx;
-pub use lung::{Lung, LungParams};
+pub use lung::{Lung, LungParams, Valve};
 pub use plant::{Blower, Outlet, PlantArgs};
 pub use pump::{Pump, PumpParams};
 pub use sfm3300::{Sfm3300, Sfm3300Params};
@@ -117,6 +118,8 @@ pub struct Rig {
     pub lung: Option<Lung>,
     /// The flow sensor.
     pub sensor: Sfm3300,
+    /// The exhalation valve the firmware drives (open unless set: the passive valve).
+    pub valve: Valve,
 }
 
 impl Rig {
@@ -127,6 +130,7 @@ impl Rig {
             pump: Pump::new(pump),
             lung: None,
             sensor: Sfm3300::new(sensor, seed),
+            valve: Valve::Open,
         }
     }
 
@@ -158,7 +162,7 @@ impl Rig {
             Some(lung) => {
                 let p = self.pump.params();
                 let shutoff = p.shutoff_of_speed(self.pump.speed());
-                lung.step(open, shutoff, p.ts_s)
+                lung.step(self.valve, open, shutoff, p.ts_s)
             }
             None => open,
         }

@@ -145,6 +145,7 @@ impl PlantArgs {
             resistance: self.resistance.unwrap_or(base.resistance),
             peep: self.peep.unwrap_or(base.peep),
             valve_resistance: self.valve_resistance.unwrap_or(base.valve_resistance),
+            leak: base.leak,
         };
         lung.check()?;
         Ok(Some(lung))

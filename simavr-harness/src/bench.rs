@@ -10,7 +10,10 @@
 //! 20× (time constants are exact under zero-order hold; the transport delay is kept in time,
 //! 20 sub-steps per 10 ms sample). With a test lung (`pump_sim::Lung`) the blower's open-outlet
 //! flow and shut-off pressure feed the lung at every sub-step, and the sensor measures the flow
-//! against the lung's back pressure.
+//! against the lung's back pressure. The lung's exhalation valve is the firmware's output pin
+//! (D22 = PA0 on the ATmega2560, high = closed), read from the port registers at every sub-step
+//! like the PWM: each closing of the valve starts a breath, and the bench records each
+//! breath's truth from the lung ([`BreathTruth`]: delivered volume, peak airway pressure, PEEP).
 //!
 //! Timing is measured from the core's cycle counter, with no help from the firmware:
 //! - **tick start**: entry into the tick interrupt (TIMER3_COMPA, vector 32, by default);
@@ -38,7 +41,7 @@ use crate::pwm::{self, Channel};
 use crate::sensor::{Fault, SensorState, Sfm3300Slave};
 use crate::transcript::{Line, LineSplitter};
 use crate::uart::{SendId, SerialLine, Transmission, UartInput, UartTiming, BAUD};
-use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
+use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params, Valve};
 
 /// Plant sub-steps per 10 ms sample (0.5 ms each: the SFM3300 update period).
 pub const SUBSTEPS: usize = 20;
@@ -70,6 +73,8 @@ pub struct BenchConfig {
     pub eeprom: Vec<(u16, Vec<u8>)>,
     /// How USART0's frames are timed (transmit and receive; [`crate::uart`]).
     pub uart_timing: UartTiming,
+    /// The exhalation valve's output pin (port, bit; high = closed), `None`: always open.
+    pub valve_pin: Option<(char, u8)>,
 }
 
 impl BenchConfig {
@@ -90,8 +95,33 @@ impl BenchConfig {
             tick_vector: Some(TIMER3_COMPA),
             eeprom: Vec::new(),
             uart_timing: UartTiming::Simavr,
+            valve_pin: Some(VALVE_PIN),
         }
     }
+}
+
+/// The ATmega2560 board's exhalation valve pin: D22 = PA0 (docs/boards.md).
+pub const VALVE_PIN: (char, u8) = ('A', 0);
+
+/// One breath as the simulated lung saw it: from a closing of the exhalation valve to the
+/// next (the simulator's truth, beside the firmware's `BREATH` lines).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BreathTruth {
+    /// Core cycle of the plant step that saw the valve close.
+    pub start: u64,
+    /// Core cycle of the plant step that saw it open again (`None`: still closed).
+    pub open: Option<u64>,
+    /// Volume the lung gained while the valve was closed, mL (the delivered tidal volume).
+    pub delivered: f64,
+    /// Lung pressure when the valve closed: the end-expiratory pressure (PEEP) of the
+    /// expiration before, cmH₂O.
+    pub peep: f64,
+    /// Largest airway pressure (blower outlet) from the closing to the next one, cmH₂O.
+    pub peak_pressure: f64,
+    /// Largest true flow over the same span, slm.
+    pub peak_flow: f64,
+    /// Lung volume at the closing, mL (for the delivered volume).
+    volume_at_close: f64,
 }
 
 /// A PWM change seen at a plant step.
@@ -329,6 +359,35 @@ pub enum Action {
     Stall(bool),
     /// The sensor holds SDA low from the firmware's next STOP request on (see [`bus`]).
     HoldSda(SdaHold),
+    /// The test lung's parameters change now, its volume kept (a sudden change of
+    /// compliance, resistance, PEEP or leak; nothing without a lung).
+    Lung(LungChange),
+}
+
+/// New parameters of the test lung (see [`Action::Lung`]); `None` keeps the current value.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LungChange {
+    /// Compliance, mL/cmH₂O.
+    pub compliance: Option<f64>,
+    /// Airway resistance, cmH₂O/(L/s).
+    pub resistance: Option<f64>,
+    /// PEEP valve setting, cmH₂O.
+    pub peep: Option<f64>,
+    /// A leak's resistance, cmH₂O/(L/s).
+    pub leak: Option<f64>,
+}
+
+impl LungChange {
+    /// `p` with the change applied.
+    pub fn apply(&self, p: &LungParams) -> LungParams {
+        LungParams {
+            compliance: self.compliance.unwrap_or(p.compliance),
+            resistance: self.resistance.unwrap_or(p.resistance),
+            peep: self.peep.unwrap_or(p.peep),
+            leak: self.leak.or(p.leak),
+            ..p.clone()
+        }
+    }
 }
 
 /// The closed-loop bench: the simulated MCU running the firmware, its UART transcript, a serial
@@ -368,6 +427,15 @@ pub struct Bench {
     /// The serial line into USART0 and its schedule.
     serial: SerialLine,
     uart_in: UartInput,
+    /// The exhalation valve as the pin drives it now.
+    valve: Valve,
+    /// `(cycle, valve)` of every change of the valve seen at a plant step.
+    pub valve_log: Vec<(u64, Valve)>,
+    /// Every breath the lung saw (a closing of the valve to the next).
+    pub breaths: Vec<BreathTruth>,
+    /// Actions due at a breath: `(breath number from 1, delay after its closing in s,
+    /// action)`.
+    at_breath: Vec<(usize, f64, Action)>,
 }
 
 impl std::fmt::Debug for Bench {
@@ -450,6 +518,10 @@ impl Bench {
             schedule: Vec::new(),
             ticks,
             halted: None,
+            valve: Valve::Open,
+            valve_log: Vec::new(),
+            breaths: Vec::new(),
+            at_breath: Vec::new(),
         })
     }
 
@@ -480,13 +552,88 @@ impl Bench {
         self.schedule.sort_by_key(|(c, _)| *c);
     }
 
+    /// Schedules `action` `delay_s` seconds after the valve closes for breath `breath` (from
+    /// 1: the first closing the bench sees). A delay of 0 acts at the breath boundary, half
+    /// the inspiratory time mid-inspiration.
+    pub fn at_breath(&mut self, breath: usize, delay_s: f64, action: Action) {
+        self.at_breath.push((breath, delay_s, action));
+    }
+
     /// Applies `action` now.
     pub fn apply(&mut self, action: Action) {
         match action {
             Action::Sensor(f) => self.sensor.borrow_mut().fault = f,
             Action::Stall(s) => self.pump.set_stalled(s),
             Action::HoldSda(h) => self.bus.borrow_mut().arm(h),
+            Action::Lung(c) => {
+                if let Some(l) = &mut self.lung {
+                    let p = c.apply(l.params());
+                    l.set_params(p);
+                }
+            }
         }
+    }
+
+    /// The exhalation valve on its pin now: closed when the pin is an output driven high.
+    pub fn valve_now(&self) -> Valve {
+        let Some((port, bit)) = self.cfg.valve_pin else {
+            return Valve::Open;
+        };
+        let m = &self.machine;
+        let ddr = pwm::ddr_addr(port).map_or(0, |a| m.data(a));
+        let out = pwm::ddr_addr(port).map_or(0, |a| m.data(a + 1));
+        if ddr & out & (1 << bit) != 0 {
+            Valve::Closed
+        } else {
+            Valve::Open
+        }
+    }
+
+    /// The valve at this plant step: its changes logged, a closing starting a breath (and the
+    /// actions due at it), the breath's truth kept up to date.
+    fn valve_step(&mut self) -> Valve {
+        let v = self.valve_now();
+        let cycle = self.machine.cycle();
+        if v != self.valve {
+            self.valve = v;
+            self.valve_log.push((cycle, v));
+            let (volume, pressure) = self
+                .lung
+                .as_ref()
+                .map_or((0.0, 0.0), |l| (l.volume(), l.pressure()));
+            match v {
+                Valve::Closed => {
+                    self.breaths.push(BreathTruth {
+                        start: cycle,
+                        open: None,
+                        delivered: 0.0,
+                        peep: pressure,
+                        peak_pressure: 0.0,
+                        peak_flow: 0.0,
+                        volume_at_close: volume,
+                    });
+                    let n = self.breaths.len();
+                    let due: Vec<(f64, Action)> = self
+                        .at_breath
+                        .iter()
+                        .filter(|(k, _, _)| *k == n)
+                        .map(|&(_, d, a)| (d, a))
+                        .collect();
+                    for (delay, action) in due {
+                        let at = cycle + self.cycles(delay);
+                        self.schedule.push((at, action));
+                    }
+                    self.schedule.sort_by_key(|(c, _)| *c);
+                }
+                Valve::Open => {
+                    if let Some(b) = self.breaths.last_mut() {
+                        b.open = Some(cycle);
+                        b.delivered = volume - b.volume_at_close;
+                    }
+                }
+            }
+        }
+        v
     }
 
     /// Duty on the blower's pin now (0..1) and the raw registers.
@@ -548,14 +695,20 @@ impl Bench {
         if changed {
             self.duty_log.push(d);
         }
+        let valve = self.valve_step();
         let open = self.pump.step(d.fraction);
         let flow = match &mut self.lung {
             Some(lung) => {
                 let p = self.pump.params();
-                lung.step(open, p.shutoff_of_speed(self.pump.speed()), p.ts_s)
+                lung.step(valve, open, p.shutoff_of_speed(self.pump.speed()), p.ts_s)
             }
             None => open,
         };
+        if let Some(b) = self.breaths.last_mut() {
+            let pressure = self.lung.as_ref().map_or(0.0, Lung::airway_pressure);
+            b.peak_pressure = b.peak_pressure.max(pressure);
+            b.peak_flow = b.peak_flow.max(flow);
+        }
         self.sensor.borrow_mut().flow_slm = flow;
         self.substep += 1;
         if self.substep % SUBSTEPS == 0 {

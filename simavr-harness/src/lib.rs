@@ -27,6 +27,8 @@
 //! - [`capture`]: the firmware's UART output as the CSV `ridge-id capture` writes (its log).
 //! - [`stack`]: worst-case stack from the image's call graph ([`stack::StackAnalysis`], what
 //!   `avr-stack` prints).
+//! - [`ventilation`]: a ventilated session (identify, design, then `VENT` over the console,
+//!   the exhalation valve on its pin), breath by breath against the lung's truth.
 
 pub mod bench;
 pub mod bus;
@@ -41,3 +43,4 @@ pub mod stack;
 pub mod tracking;
 pub mod transcript;
 pub mod uart;
+pub mod ventilation;

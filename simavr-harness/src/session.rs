@@ -19,7 +19,7 @@ use ridge_core::{ArxModel, Evaluation, IntGram, Real, Search};
 use crate::bench::{Bench, BenchConfig, RunEnd, TickTiming, SUBSTEPS};
 use crate::firmware::{self, Sizes};
 use crate::transcript::Line;
-use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
+use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params, Valve};
 use ridge_id::eval::Trace;
 use ridge_id::plot::{write_fit_png, Axes, Panel};
 use ridge_pump_firmware::excitation::Record;
@@ -571,7 +571,8 @@ pub fn fresh_record(
         match &mut lung {
             Some(l) => {
                 let p = pump.params();
-                l.step(open, p.shutoff_of_speed(pump.speed()), p.ts_s)
+                // The firmware holds the exhalation valve open while it identifies.
+                l.step(Valve::Open, open, p.shutoff_of_speed(pump.speed()), p.ts_s)
             }
             None => open,
         }

@@ -15,6 +15,15 @@
 //! same ticks: they must match to the printed precision ([`RunTrace::track_mismatch`]), which
 //! checks the alignment, the program and the readings at once.
 //!
+//! After a `VENT` command ([`RunTrace::ventilated`]) the program is the volume-controlled breath
+//! from the tick that first closed the exhalation valve on: its setpoints are replayed from the
+//! firmware's own code (`setpoint::Setpoint` and `ventilation::Ventilation`, fed the readings the
+//! firmware was served, so that the per-breath volume trim moves the amplitude exactly as it did
+//! on the device), and the `TRACK` lines check them as they check the demo's.
+//!
+//! Every row also carries the breath and its phase from the valve's pin ([`TraceRow::breath`],
+//! [`TraceRow::phase`]): the simulator's truth, not the firmware's program.
+//!
 //! Conventions of the rebuilt [`Trace`] (as `pump_sim::baseline` scores it): interval `k` runs
 //! from run tick `k` to run tick `k + 1`; `setpoint[k]` is the program's value for it, `duty[k]`
 //! the duty the firmware wrote in tick `k`, `flow[k]` / `measured[k]` the true flow and the
@@ -25,10 +34,14 @@ use std::path::Path;
 
 use pump_sim::baseline::experiment::{score, Scores, Trace};
 use pump_sim::sfm3300::raw_to_flow;
+use pump_sim::Valve;
 use ridge_core::control::Limits;
+use ridge_pump_firmware::event::Event;
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
-use ridge_pump_firmware::setpoint::{value, Program};
+use ridge_pump_firmware::setpoint::{value, Program, Setpoint, VolumeBreath};
+use ridge_pump_firmware::sfm3300::raw_to_counts;
 use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, SLM_PER_COUNT};
+use ridge_pump_firmware::ventilation::Ventilation;
 
 use crate::bench::Bench;
 
@@ -44,6 +57,11 @@ pub struct TraceRow {
     pub duty: f64,
     /// True flow at the end of the interval (at the next tick's reading), slm.
     pub flow: f64,
+    /// Breaths the valve started so far (closings of the exhalation valve), 0 before the first.
+    pub breath: usize,
+    /// `Some(true)` when the valve was closed during the interval (inspiration), `Some(false)`
+    /// when open after the first breath started (expiration), `None` before it.
+    pub phase: Option<bool>,
 }
 
 /// Run mode rebuilt from a bench (see the module docs).
@@ -74,6 +92,10 @@ pub struct RunTrace {
     /// last left its idle wait before the `CTRL` line (the design runs in the main loop after
     /// that tick's work) to the line's first byte.
     pub design_cycles: Option<u64>,
+    /// The run tick the volume program started at ([`RunTrace::ventilated`]), if any.
+    pub vent_tick: Option<usize>,
+    /// The replayed volume program's `BREATH` events (what the firmware must have printed).
+    pub replayed: Vec<Event>,
 }
 
 /// The program run mode tracks: the firmware's default settings' (the image's `Config`).
@@ -85,6 +107,16 @@ impl RunTrace {
     /// Rebuilds run mode from `bench` (see the module docs); an error says what is missing
     /// (no `CTRL` line, no `TRACK` lines, no frames).
     pub fn from_bench(bench: &Bench) -> Result<Self, String> {
+        Self::rebuild(bench, None)
+    }
+
+    /// As [`from_bench`](Self::from_bench) for a run that was sent `VENT` with the settings
+    /// `breath`: the volume program from the tick that first closed the valve on, replayed.
+    pub fn ventilated(bench: &Bench, breath: VolumeBreath) -> Result<Self, String> {
+        Self::rebuild(bench, Some(breath))
+    }
+
+    fn rebuild(bench: &Bench, vent: Option<VolumeBreath>) -> Result<Self, String> {
         let ctrl_idx = bench
             .lines
             .iter()
@@ -136,9 +168,6 @@ impl RunTrace {
         // number of counts (as the firmware holds its reading).
         let counts = (sp1 * f64::from(FLOW_SCALE)).round();
         let start = f64::from(counts as f32 * SLM_PER_COUNT);
-        let program = program();
-        let sp_at = |k: usize| f64::from(value(program, start as f32, k as u32));
-
         // Frames: the reading of each bench tick (the first frame served within it).
         let frames = bench.sensor.borrow().served_with_flow();
         let frame_of = |j: usize| -> Option<(u16, f64)> {
@@ -155,6 +184,65 @@ impl RunTrace {
             bench
                 .duty_at(end.saturating_sub(1))
                 .map_or(0.0, |d| d.fraction)
+        };
+        // The setpoint of every run tick: the program's, and from the valve's first closing
+        // the volume program replayed on the readings.
+        let program = program();
+        let run_ticks = ticks.len().saturating_sub(first_tick);
+        let mut sp: Vec<f64> = (0..run_ticks)
+            .map(|k| f64::from(value(program, start as f32, k as u32)))
+            .collect();
+        let mut vent_tick = None;
+        let mut replayed = Vec::new();
+        if let Some(b) = vent {
+            let closed = bench
+                .valve_log
+                .iter()
+                .find(|(_, v)| *v == Valve::Closed)
+                .ok_or("VENT sent, but the valve never closed")?;
+            let j = tick_of(closed.0).ok_or("valve closed before the first tick")?;
+            let k0 = j
+                .checked_sub(first_tick)
+                .ok_or("valve closed before run mode")?;
+            vent_tick = Some(k0);
+            let reading = |k: usize| frame_of(first_tick + k).map(|(raw, _)| raw_to_counts(raw));
+            let mut held = (0..=k0).rev().find_map(reading).unwrap_or(0);
+            let mut ended = k0.checked_sub(1).map_or(start, |k| sp[k]) as f32;
+            let mut setpoint = Setpoint::new(Program::Volume(b), ended);
+            let mut v = Ventilation::new(b.tidal);
+            for (k, slot) in sp.iter_mut().enumerate().skip(k0) {
+                let (_, phase) = setpoint.volume_phase().ok_or("not a volume program")?;
+                let r = setpoint.advance();
+                *slot = f64::from(r);
+                if let Some(y) = reading(k) {
+                    held = y;
+                }
+                let mut event = None;
+                v.after_pwm(&mut setpoint, phase, held, ended, &mut event);
+                if let Some(e @ Event::Breath(_)) = event {
+                    replayed.push(e);
+                }
+                ended = r;
+            }
+        }
+        let sp_at = |k: usize| sp.get(k).copied().unwrap_or(f64::NAN);
+        // The valve during each interval (its state at the interval's end) and the breaths
+        // started by then.
+        let valve_of = |j: usize| -> (usize, Option<bool>) {
+            let end = ticks.get(j + 1).map_or(bench.machine.cycle(), |t| t.start);
+            let n = bench
+                .valve_log
+                .iter()
+                .take_while(|(c, _)| *c < end)
+                .filter(|(_, v)| *v == Valve::Closed)
+                .count();
+            let closed = bench
+                .valve_log
+                .iter()
+                .take_while(|(c, _)| *c < end)
+                .last()
+                .is_some_and(|(_, v)| *v == Valve::Closed);
+            (n, (n > 0).then_some(closed))
         };
         let plant_flow = |j: usize| -> f64 {
             // No frame (sensor fault): the plant sample nearest the tick.
@@ -173,11 +261,14 @@ impl RunTrace {
             let next = frame_of(j + 1);
             let flow = next.map_or_else(|| plant_flow(j + 1), |f| f.1);
             let setpoint = (j >= first_tick).then(|| sp_at(j - first_tick));
+            let (breath, phase) = valve_of(j);
             rows.push(TraceRow {
                 t: t.start as f64 / f64::from(bench.frequency()),
                 setpoint,
                 duty: duty_of(j),
                 flow,
+                breath,
+                phase,
             });
             // Complete intervals only (the next tick's reading exists).
             if let (Some(sp), Some((raw, _))) = (setpoint, next) {
@@ -235,6 +326,8 @@ impl RunTrace {
                 max_step: frac(c.duty_step),
             },
             design_cycles,
+            vent_tick,
+            replayed,
         })
     }
 
@@ -245,18 +338,30 @@ impl RunTrace {
         score(&self.trace, false, self.preview)
     }
 
-    /// Writes the per-tick CSV `t,setpoint,duty,flow` (seconds since reset, slm or empty before
-    /// run mode, duty 0..1, true flow in slm).
+    /// Writes the per-tick CSV `t,setpoint,duty,flow,breath,phase` (seconds since reset, slm
+    /// or empty before run mode, duty 0..1, true flow in slm, breaths the valve started so far
+    /// (0 before the first), `i` in inspiration, `e` in expiration, empty before the first
+    /// breath).
     pub fn write_csv(&self, path: &Path) -> Result<(), String> {
         let err = |e: std::io::Error| format!("{}: {e}", path.display());
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(err)?;
         }
         let mut w = std::io::BufWriter::new(std::fs::File::create(path).map_err(err)?);
-        writeln!(w, "t,setpoint,duty,flow").map_err(err)?;
+        writeln!(w, "t,setpoint,duty,flow,breath,phase").map_err(err)?;
         for r in &self.rows {
             let sp = r.setpoint.map_or_else(String::new, |v| format!("{v:.4}"));
-            writeln!(w, "{:.5},{sp},{:.5},{:.4}", r.t, r.duty, r.flow).map_err(err)?;
+            let phase = match r.phase {
+                Some(true) => "i",
+                Some(false) => "e",
+                None => "",
+            };
+            writeln!(
+                w,
+                "{:.5},{sp},{:.5},{:.4},{},{phase}",
+                r.t, r.duty, r.flow, r.breath
+            )
+            .map_err(err)?;
         }
         w.flush().map_err(err)
     }
