@@ -30,6 +30,11 @@
 //!   [`TRIM_PERCENT`] % of the set volume (the program's amplitude is resized for it:
 //!   the flow controller still tracks the flow, the trim only corrects the volume its tracking
 //!   loses, breath to breath);
+//! - in the middle of the expiration the lung has emptied to the PEEP and the bias flow holds:
+//!   the **no-flow check** of the tick's faults expects from this operating point on (the
+//!   identified gain through it, [`Anchor`]); it is paused from the program's first tick until
+//!   then, since the operating point of the identification did not have the PEEP valve's back
+//!   pressure (at 10 cmH₂O the blower needs about 40 % duty before any flow);
 //! - at the start of the next breath the breath is complete: its `BREATH` line (number, set
 //!   volume and PEEP, delivered volume, the volume it was programmed for, peak flow, tracking
 //!   RMS over the breath). This tick is the **breath boundary**.
@@ -193,6 +198,21 @@ pub fn within_band(delivered: f32, tidal: f32) -> bool {
     e <= band && e >= -band
 }
 
+/// What the tick's fault checks take from a volume program ([`Ventilation::after_pwm`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Anchor {
+    /// The program's first tick: pause the no-flow check (its expected flow comes from an
+    /// operating point without the PEEP valve's back pressure).
+    Pause,
+    /// Mid-expiration with the bias flow held (the reading within `1 slm + 15 %` of it):
+    /// the pump demonstrably gives this tick's reading at the duty of the interval that ended
+    /// with it; expect from there on.
+    Hold,
+    /// Mid-expiration without the bias flow held: the expectation stays as it was (and a
+    /// pause ends: the no-flow check judges the pump by it).
+    Keep,
+}
+
 /// Run mode's per-breath bookkeeping of a volume program (see the [module docs](self)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Ventilation {
@@ -261,7 +281,8 @@ impl Ventilation {
     /// tick's reading (counts; the held one after a sensor error), `ended` the setpoint of the
     /// interval that ended with it (slm). Puts a `BREATH` or `ALARM volume` event into
     /// `event` when it is empty (one waiting for a free tick goes first); resizes the
-    /// program's amplitude when the trim moves. Nothing for other programs.
+    /// program's amplitude when the trim moves; returns what the fault checks take from the
+    /// tick ([`Anchor`]). Nothing for other programs.
     // Out of line: once, after the PWM write.
     #[inline(never)]
     pub fn after_pwm(
@@ -271,13 +292,28 @@ impl Ventilation {
         reading: i16,
         ended: f32,
         event: &mut Option<Event>,
-    ) {
-        let Some(b) = setpoint.volume() else {
-            return;
-        };
+    ) -> Option<Anchor> {
+        let b = setpoint.volume()?;
         let insp = u32::from(b.wave.inspiration());
         let y = reading;
+        let mut anchor = None;
+        // Mid-expiration: the lung has emptied to the PEEP, and the preview of the next
+        // breath has not yet raised the flow.
+        let period = u32::from(b.wave.period());
+        if phase == insp + (period - insp) / 2 {
+            let bias = b.wave.bias();
+            let e = f32::from(y) * crate::units::SLM_PER_COUNT - bias;
+            let band = 1.0 + 0.15 * bias;
+            anchor = Some(if e <= band && e >= -band {
+                Anchor::Hold
+            } else {
+                Anchor::Keep
+            });
+        }
         if phase == 0 {
+            if self.number == 0 {
+                anchor = Some(Anchor::Pause);
+            }
             if self.number > 0 {
                 self.add_error(ended, y);
                 self.last = BreathSummary {
@@ -324,6 +360,7 @@ impl Ventilation {
                 });
             }
         }
+        anchor
     }
 
     fn add_error(&mut self, setpoint: f32, reading: i16) {

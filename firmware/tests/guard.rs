@@ -243,3 +243,33 @@ fn resume_takes_over_the_counters_of_the_watched_copy() {
         Some((20, FaultReason::Frozen { counts: 1_500 }))
     );
 }
+
+/// A volume program's operating point: paused, nothing is expected (a blower at 43 % giving
+/// 5 slm against a PEEP of 10 cmH₂O runs on); moved to the bias flow held at a breath
+/// boundary, the model's slope goes on from there (200 slm per unit duty through 5 slm at
+/// 43 %: 25 slm at 53 %); resumed without a move, the old expectation is back.
+#[test]
+fn a_volume_programs_operating_point_moves_the_expectation() {
+    let mut g = Guard::new(&cfg());
+    g.expect_operating_point(3_000, 2_400);
+    g.expect_model(200.0);
+    let wobble = |k: usize| 600 + (k % 3) as i16;
+    // 5 slm at 43 %, where 46 slm are expected: a no-flow fault after 100 ticks ...
+    let mut h = g;
+    let k = (1..).find(|&k| h.check(4_300, Ok(wobble(k))).is_err());
+    assert_eq!(k, Some(100));
+    // ... unless paused.
+    g.pause_expectation();
+    assert_eq!(g.expected(4_300), None);
+    assert!((1..1_000).all(|k| g.check(4_300, Ok(wobble(k))).is_ok()));
+    let mut resumed = g;
+    resumed.resume_expectation();
+    let old = f64::from(resumed.expected(4_300).unwrap()) / 120.0;
+    assert!((old - 46.0).abs() < 0.1, "{old}");
+    g.move_operating_point(4_300, 600);
+    for (u, slm) in [(4_300u16, 5.0f64), (5_300, 25.0)] {
+        let e = f64::from(g.expected(u).unwrap()) / 120.0;
+        assert!((e - slm).abs() < 0.1, "{u}: {e} slm vs {slm}");
+    }
+    assert!((1..1_000).all(|k| g.check(4_300, Ok(wobble(k))).is_ok()));
+}

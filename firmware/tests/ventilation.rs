@@ -7,7 +7,7 @@
 use ridge_pump_firmware::command::{Milli, VentArgs};
 use ridge_pump_firmware::event::Event;
 use ridge_pump_firmware::setpoint::{value, Program, Setpoint, Shape, VolumeBreath, VolumeWave};
-use ridge_pump_firmware::ventilation::{settings, within_band, Ventilation, TRIM_PERCENT};
+use ridge_pump_firmware::ventilation::{settings, within_band, Anchor, Ventilation, TRIM_PERCENT};
 
 /// The default flow limit (30 000 counts = 250 slm).
 const LIMIT: i16 = 30_000;
@@ -409,4 +409,40 @@ fn volume_program_setpoint_equals_value() {
         Setpoint::new(Program::Constant(3.0), 0.0).volume_phase(),
         None
     );
+}
+
+/// The fault checks' anchors: a pause at the program's first tick, then mid-expiration (phase
+/// 200 of 300, 100 of inspiration) `Hold` when the reading is within 1 slm + 15 % of the bias
+/// flow, `Keep` when not; nothing on the other ticks.
+#[test]
+fn breath_boundaries_anchor_the_fault_checks() {
+    let b = check(args(500_000, 20_000)).unwrap(); // bias 5 slm: band 1.75 slm
+    for (bias_reading, want) in [
+        (5.0f32, Anchor::Hold),
+        (6.7, Anchor::Hold),
+        (3.3, Anchor::Hold),
+        (6.8, Anchor::Keep),
+        (0.0, Anchor::Keep),
+    ] {
+        let mut sp = Setpoint::new(Program::Volume(b), 0.0);
+        let mut v = Ventilation::new(500.0);
+        let mut anchors = Vec::new();
+        for t in 0..601u32 {
+            let (_, phase) = sp.volume_phase().unwrap();
+            sp.advance();
+            let y = if phase == 200 {
+                counts(bias_reading)
+            } else {
+                3_000
+            };
+            if let Some(a) = v.after_pwm(&mut sp, phase, y, 0.0, &mut None) {
+                anchors.push((t, a));
+            }
+        }
+        assert_eq!(
+            anchors,
+            vec![(0, Anchor::Pause), (200, want), (500, want)],
+            "{bias_reading}"
+        );
+    }
 }

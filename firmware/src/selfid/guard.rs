@@ -38,6 +38,9 @@ pub struct Guard {
     loss: u16,
     /// The expected flow, if known.
     expect: Option<Expect>,
+    /// The no-flow check is paused (a volume program's first breath, see
+    /// [`pause_expectation`](Guard::pause_expectation)).
+    paused: bool,
 }
 
 /// The flow a healthy pump gives at a duty `u`
@@ -75,6 +78,7 @@ impl Guard {
             repeats: 0,
             loss: 0,
             expect: None,
+            paused: false,
         }
     }
 
@@ -117,10 +121,41 @@ impl Guard {
         self.loss = 0;
     }
 
+    /// Pauses the no-flow check until [`move_operating_point`](Self::move_operating_point) or
+    /// [`resume_expectation`](Self::resume_expectation): a volume program's breaths run against
+    /// the PEEP valve, which the operating point of the identification did not see (at a PEEP
+    /// of 10 cmH₂O the blower needs about 40 % duty before any flow), so the expectation waits
+    /// for the operating point the first expiration shows.
+    pub fn pause_expectation(&mut self) {
+        self.paused = true;
+        self.loss = 0;
+    }
+
+    /// Ends a pause of the no-flow check with the expectation as it was.
+    pub fn resume_expectation(&mut self) {
+        self.paused = false;
+    }
+
+    /// Moves the expectation's reference point to `duty` (1/10 000) and `flow` (counts), its
+    /// slope kept, and ends a pause: the operating point the pump demonstrably holds now (a
+    /// volume program's bias flow against the PEEP in the middle of an expiration). Nothing but
+    /// the end of the pause when no flow is expected.
+    pub fn move_operating_point(&mut self, duty: u16, flow: i16) {
+        self.paused = false;
+        if let Some(e) = &mut self.expect {
+            e.duty = duty;
+            e.flow = flow;
+            self.loss = 0;
+        }
+    }
+
     /// The flow expected at the duty `applied` (1/10 000), counts: `None` where nothing is
     /// expected (see [`expect_operating_point`](Self::expect_operating_point) and
     /// [`expect_model`](Self::expect_model)). Saturates at the `i16` range.
     pub fn expected(&self, applied: u16) -> Option<i16> {
+        if self.paused {
+            return None;
+        }
         let e = self.expect?;
         let u = applied.min(DUTY_FULL_SCALE);
         if u < e.duty && !e.below {

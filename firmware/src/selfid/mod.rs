@@ -98,7 +98,7 @@ use crate::event::{Event, FaultReason, RejectReason, SensorFault, StoredReason};
 use crate::persist::{self, RECORD_LEN};
 use crate::setpoint::Program;
 use crate::units::{FRACTION_PER_DUTY, SLM_PER_COUNT};
-use crate::ventilation::Valve;
+use crate::ventilation::{Anchor, Valve};
 
 use recording::Recording;
 use run::RunMode;
@@ -465,9 +465,20 @@ impl<S: Settings> SelfIdentification<S> {
     /// Run mode's work after the tick's PWM write: a volume program's per-breath bookkeeping
     /// (`BREATH`, `ALARM volume`, the trim), its event into `event` if that is empty. Call it
     /// once per tick, after [`tick_into`](Self::tick_into) and the PWM write.
+    ///
+    /// The no-flow check follows a volume program's operating point (see
+    /// [`Guard::pause_expectation`]): paused from its first tick until the middle of its first
+    /// expiration, then expecting from the bias flow held in the middle of each expiration.
     pub fn after_pwm(&mut self, event: &mut Option<Event>) {
         if let Phase::Run(run) = &mut self.phase {
-            run.after_pwm(self.last_counts, event);
+            match run.after_pwm(self.last_counts, event) {
+                Some((Anchor::Pause, _)) => self.guard.pause_expectation(),
+                Some((Anchor::Hold, applied)) => {
+                    self.guard.move_operating_point(applied, self.last_counts)
+                }
+                Some((Anchor::Keep, _)) => self.guard.resume_expectation(),
+                None => {}
+            }
         }
     }
 

@@ -130,6 +130,10 @@ impl<S: Settings> SelfIdentification<S> {
 
     fn use_program(&mut self, program: Program) {
         self.program = program;
+        // A volume program pauses the no-flow check at its first tick; any other ends a pause.
+        if !matches!(program, Program::Volume(_)) {
+            self.guard.resume_expectation();
+        }
         if let Phase::Run(run) = &mut self.phase {
             run.set_program(program);
         }

@@ -10,7 +10,7 @@ use crate::monitor::Monitor;
 use crate::setpoint::{Program, Setpoint};
 use crate::tracking::Tracking;
 use crate::units::{DUTY_FULL_SCALE, FRACTION_PER_DUTY, SLM_PER_COUNT};
-use crate::ventilation::{Valve, Ventilation};
+use crate::ventilation::{Anchor, Valve, Ventilation};
 
 use super::Config;
 
@@ -33,6 +33,8 @@ pub(super) struct RunMode {
     ended: f32,
     /// The per-breath bookkeeping of a volume program.
     vent: Ventilation,
+    /// The duty applied during the interval that ended with this tick's reading, 1/10 000.
+    applied: u16,
 }
 
 impl RunMode {
@@ -62,6 +64,7 @@ impl RunMode {
             breath: None,
             ended: y0,
             vent: ventilation_for(program),
+            applied,
         }
     }
 
@@ -78,6 +81,7 @@ impl RunMode {
         last: i16,
         event: &mut Option<Event>,
     ) -> u16 {
+        self.applied = applied;
         let y = f32::from(reading.unwrap_or(last)) * SLM_PER_COUNT;
         let ahead = self.setpoint.ahead(u32::from(self.preview));
         self.breath = self.setpoint.volume_phase();
@@ -94,11 +98,17 @@ impl RunMode {
 
     /// After the tick's PWM write: a volume program's per-breath bookkeeping with the tick's
     /// reading `reading` (counts, held over sensor errors); its event into `event` if empty.
-    pub(super) fn after_pwm(&mut self, reading: i16, event: &mut Option<Event>) {
-        if let Some((_, phase)) = self.breath {
-            self.vent
-                .after_pwm(&mut self.setpoint, phase, reading, self.ended, event);
-        }
+    /// Returns what the fault checks take from the tick, with the duty applied during the
+    /// interval that ended with the reading.
+    pub(super) fn after_pwm(
+        &mut self,
+        reading: i16,
+        event: &mut Option<Event>,
+    ) -> Option<(Anchor, u16)> {
+        let (_, phase) = self.breath?;
+        self.vent
+            .after_pwm(&mut self.setpoint, phase, reading, self.ended, event)
+            .map(|a| (a, self.applied))
     }
 
     /// The exhalation valve for the interval in progress: closed in a volume breath's
