@@ -214,6 +214,13 @@ impl Machine {
         unsafe { (*self.raw()).pc }
     }
 
+    /// Continues execution at byte address `pc` (between two instructions): for tests that
+    /// enter a handler the firmware reaches only on a failure, such as its panic handler.
+    pub fn jump(&mut self, pc: u32) {
+        // SAFETY: plain field write of a live core, between instructions.
+        unsafe { (*self.raw()).pc = pc }
+    }
+
     /// Global interrupt enable (SREG.I): false inside interrupt handlers and critical
     /// sections.
     pub fn interrupts_enabled(&self) -> bool {
