@@ -1,6 +1,11 @@
 //! Arithmetic self-check image for the ATmega2560 (diagnostics, not flashed by users): runs
 //! the ridge-core statistics path on a fixed record and prints the results over USART0, so
 //! that a host run of the same computation can be compared bit for bit.
+//!
+//! With the feature `pad-64k` the linker places 64 KB of `.progmem.data` (the first output in
+//! `.text` after the vectors) ahead of the code: every function then runs from above 64 KB
+//! of flash and `.data` is copied from above it, as in a firmware image past 64 KB
+//! (`scripts/avr-arith-check --above-64k` checks the addresses and the output).
 #![cfg_attr(target_arch = "avr", no_std, no_main)]
 
 #[cfg(not(target_arch = "avr"))]
@@ -27,6 +32,22 @@ mod image {
         }
     }
 
+    /// Three times 22 000 bytes ahead of the code (see the module docs; one object on AVR is
+    /// at most `isize::MAX` = 32 767 bytes); their addresses are taken in `main`, so that the
+    /// linker's section garbage collection keeps them; read by nothing.
+    #[cfg(feature = "pad-64k")]
+    #[used]
+    #[link_section = ".progmem.data"]
+    static PAD1: [u8; 22_000] = [0xA5; 22_000];
+    #[cfg(feature = "pad-64k")]
+    #[used]
+    #[link_section = ".progmem.data"]
+    static PAD2: [u8; 22_000] = [0xA5; 22_000];
+    #[cfg(feature = "pad-64k")]
+    #[used]
+    #[link_section = ".progmem.data"]
+    static PAD3: [u8; 22_000] = [0xA5; 22_000];
+
     #[avr_device::entry]
     fn main() -> ! {
         let dp = unsafe { pac::Peripherals::steal() };
@@ -34,6 +55,8 @@ mod image {
         dp.USART0.ucsr0a().write(|w| unsafe { w.bits(1 << 1) });
         dp.USART0.ucsr0b().write(|w| unsafe { w.bits(1 << 3) });
         dp.USART0.ucsr0c().write(|w| unsafe { w.bits(0b110) });
+        #[cfg(feature = "pad-64k")]
+        core::hint::black_box([PAD1.as_ptr(), PAD2.as_ptr(), PAD3.as_ptr()]);
         firmware_diag::arith_check::write(&mut Tx);
         loop {}
     }
