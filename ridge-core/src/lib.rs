@@ -37,12 +37,14 @@
 mod bounds;
 mod cholesky;
 pub mod control;
+mod eigen;
 pub mod error;
 pub mod estimate;
 pub mod excitation;
 pub mod gram;
 #[cfg(feature = "alasso")]
 pub mod lasso;
+mod modal;
 pub mod model;
 pub mod normal;
 pub mod real;
