@@ -157,7 +157,7 @@ impl<'a, T: Real> Columns<'a, T> {
 
     /// Rotates the columns until every pair of `M`'s columns is orthogonal to within
     /// `n ε` of the product of their norms (cyclic sweeps by rows; the carried row rotates
-    /// along), with `norms` as work space. Calls `progress()` after every rotation. Returns
+    /// along), with `norms` as work space. Calls `progress()` for every pair. Returns
     /// the number of rotations, or [`Error::NonFinite`] when a column norm is not finite or
     /// the sweeps do not converge (which only non-finite data can cause).
     #[inline(never)]
@@ -183,6 +183,7 @@ impl<'a, T: Real> Columns<'a, T> {
             let mut rotated = false;
             for p in 0..n {
                 for q in p + 1..n {
+                    progress();
                     let (Some(&a), Some(&b)) = (norms.get(p), norms.get(q)) else {
                         continue;
                     };
@@ -227,7 +228,6 @@ impl<'a, T: Real> Columns<'a, T> {
                     }
                     rotated = true;
                     rotations += 1;
-                    progress();
                 }
             }
             if !rotated {

@@ -244,9 +244,9 @@ impl<T: Real> RidgeM<T> {
     /// eigen-decomposition of the least-squares factor `ls` (`system.factor(0)`). `ls` and
     /// `f` are its work space: `ls` is factored again before the fit's RSS is computed from it
     /// (it holds the least-squares factor on success, maybe nothing usable after an error),
-    /// `f` is overwritten. Calls `progress()` after each factorisation, after every rotation
-    /// of the decomposition and once per iterate, so that no stretch between two calls is
-    /// longer than one `(n + 1)`-row factorisation.
+    /// `f` is overwritten. Calls `progress()` between factorisations, for every pair of
+    /// columns the decomposition compares, once per mode and once per iterate, so that no
+    /// stretch between two calls is longer than one `(n + 1)`-row factorisation.
     ///
     /// Errors: as [`RidgeM::check`] and [`System::factor`]; [`Error::InvalidStructure`] when
     /// `ls` is not a factor of `system`'s size; [`Error::NonFinite`] when the decomposition

@@ -79,8 +79,9 @@ use crate::PARAMS_MAX;
 /// are the work space: `f` holds the factor of `XᵀX + γD` on return and `ls` the least-squares
 /// factor again (it is factored anew: it holds columns of the decomposition and the per-mode
 /// arrays in between); on an error either may hold neither. Returns the last iterate
-/// (internal order) and the number of iterates. Calls `progress()` after each factorisation,
-/// after every rotation of the decomposition and once per iterate.
+/// (internal order) and the number of iterates. Calls `progress()` between factorisations,
+/// for every pair of columns the decomposition compares, once per mode and once per iterate:
+/// no stretch between two calls is longer than one factorisation.
 ///
 /// Never inlined, nor are its parts: their locals are on the stack one after another.
 #[inline(never)]
@@ -96,6 +97,7 @@ pub(crate) fn ridge_m<T: Real>(
     if ls.params() != n {
         return Err(Error::InvalidStructure);
     }
+    progress();
     system.factor_into(rm.gamma, f)?;
     let mut w = f.solution();
     progress();
@@ -122,13 +124,14 @@ pub(crate) fn ridge_m<T: Real>(
             .ok_or(Error::InvalidStructure)?;
         cols.orthogonalise(norms, progress)?;
         let used = stop(rm, &cols, work, &w, intercept, progress)?;
-        momentum(rm, &cols, intercept, used, &mut w);
+        momentum(rm, &cols, intercept, used, &mut w, progress);
         used
     };
     // w_K = A⁻¹ (Xᵀy + γ D v_{K−1}), A factored again; then the least-squares factor.
     system.factor_into(rm.gamma, f)?;
     progress();
     f.solve_shifted(rm.gamma, &mut w);
+    progress();
     system.factor_into(T::ZERO, ls)?;
     progress();
     if w.iter().take(n).all(|v| v.is_finite()) {
@@ -246,7 +249,8 @@ fn fill<T: Real>(
 
 /// The stopping rule (see the module docs): the first `k` with `‖w_k − w_{k−1}‖ < ε`, or
 /// `max_iter` (iterate 1 was checked by the caller), with `work` for the per-mode arrays and
-/// `xr = a / a_cc` ([`coupling`]). Calls `progress()` once per iterate.
+/// `xr = a / a_cc` ([`coupling`]). Calls `progress()` once per iterate and once per
+/// evaluation of the bound.
 #[inline(never)]
 fn stop<T: Real>(
     rm: &RidgeM<T>,
@@ -296,11 +300,13 @@ fn stop<T: Real>(
     let below = |s: T| s.sqrt() < rm.tol;
     let max = rm.max_iter;
     let mut used = max;
+    progress();
     if below(lower(max)) {
         // The first k ∈ [2, max] with the lower bound below ε: lower(lo) ≥ ε² > lower(hi).
         let (mut lo, mut hi) = (1, max);
         while hi - lo > 1 {
             let mid = lo + (hi - lo) / 2;
+            progress();
             if below(lower(mid)) {
                 hi = mid;
             } else {
@@ -340,7 +346,7 @@ fn stop<T: Real>(
 }
 
 /// `D v_{K−1}` into `out` (internal order, zero at the intercept) for `K = used` (see the
-/// module docs).
+/// module docs). Calls `progress()` once per mode.
 #[inline(never)]
 fn momentum<T: Real>(
     rm: &RidgeM<T>,
@@ -348,12 +354,14 @@ fn momentum<T: Real>(
     intercept: bool,
     used: u32,
     out: &mut [T; PARAMS_MAX],
+    progress: &mut impl FnMut(),
 ) {
     let m = cols.n();
     for v in out.iter_mut() {
         *v = T::ZERO;
     }
     for j in 0..m {
+        progress();
         let (rho, mu) = mode(rm, cols, j);
         let k = (T::ONE - rm.beta) * cols.get(m, j) * geometric(rho, used - 1) / mu;
         for i in 0..m {
