@@ -284,3 +284,79 @@ fn eigenbasis_ridge_m_agrees_with_algorithm_1_on_the_pump_records() {
         assert!(d.3 < 1e-4, "{d:?}");
     }
 }
+
+/// Ridge-M's last iterate as `nalgebra`'s `SymmetricEigen` (Householder tridiagonalisation and
+/// implicit QR, the crate the hand-written Jacobi replaces) would give it in `f32`: the
+/// eigen-decomposition of `XᵀX` formed in `f32` from the crate's normal equations, then the
+/// same closed form per mode (`ω_K = c/μ + a G_{K−1}`), `K` given.
+fn qr_eigen_ridge_m(sys: &System<f32>, rm: &RidgeM<f32>, k: u32) -> Vec<f64> {
+    let n = sys.params();
+    let a = nalgebra::DMatrix::<f32>::from_fn(n, n, |i, j| sys.augmented(i, j));
+    let b = nalgebra::DVector::<f32>::from_fn(n, |i, _| sys.augmented(i, n));
+    let eig = nalgebra::SymmetricEigen::new(a);
+    let c = eig.eigenvectors.transpose() * &b;
+    let omega = nalgebra::DVector::<f32>::from_fn(n, |i, _| {
+        let mu = eig.eigenvalues[i] + rm.gamma;
+        let rho = rm.beta + (1.0 - rm.beta) * rm.gamma / mu;
+        let a = (rho - rm.beta) * c[i] / mu;
+        let g: f32 = (0..k - 1).map(|j| rho.powi(j as i32)).sum();
+        c[i] / mu + a * g
+    });
+    (eig.eigenvectors * omega)
+        .iter()
+        .map(|&v| f64::from(v))
+        .collect()
+}
+
+/// Why the decomposition is hand-written (docs/hand-written.md): on the same candidates
+/// (without intercept, as the devices search), Ridge-M from a QR eigen-decomposition of the
+/// Gram formed in `f32` against the Jacobi decomposition of the least-squares factor.
+#[test]
+fn jacobi_on_the_factor_is_more_precise_than_qr_on_the_formed_gram() {
+    let (rm64, rm32) = (RidgeM::<f64>::default(), RidgeM::<f32>::default());
+    let (mut ours, mut qr) = (Tally::default(), Tally::default());
+    for (name, g) in grams() {
+        let (n32, n64): (Normal<f32>, Normal<f64>) =
+            (g.normal(SCALE).unwrap(), g.normal(SCALE).unwrap());
+        for s in Grid::PAPER.iter() {
+            let (Ok(s64), Ok(s32)) = (n64.system(s, Offset::None), n32.system(s, Offset::None))
+            else {
+                continue;
+            };
+            if s32.factor(0.0).is_err() || s64.factor(0.0).is_err() {
+                continue;
+            }
+            let (w, k, steps) = algorithm_1(&s64, &rm64).expect("A positive definite");
+            let want = arx(&s64, &w);
+            let label = format!("{name} {s:?}");
+            let fit = rm32.fit(&s32).unwrap();
+            ours.add(
+                coefficient_error(&of_model(&fit.model()), &want),
+                &label,
+                0,
+                0,
+                &steps,
+                1.0,
+            );
+            let alt = qr_eigen_ridge_m(&s32, &rm32, k);
+            qr.add(
+                coefficient_error(&arx(&s64, &alt), &want),
+                &label,
+                0,
+                0,
+                &steps,
+                1.0,
+            );
+        }
+    }
+    println!(
+        "f32 against Algorithm 1, {} candidates without intercept:",
+        ours.errors.len()
+    );
+    println!(
+        "  Jacobi on the least-squares factor:    {}",
+        ours.summary()
+    );
+    println!("  nalgebra SymmetricEigen of XᵀX in f32: {}", qr.summary());
+    assert!(ours.quantile(0.5) < qr.quantile(0.5) && ours.quantile(1.0) < qr.quantile(1.0));
+}
