@@ -4,22 +4,21 @@
 //!
 //! # One mode at a time
 //! Without an intercept, let `XᵀX = U Λ Uᵀ`, so `A = XᵀX + γI = U (Λ + γ) Uᵀ`, and write
-//! `ω = Uᵀ w`, `ν = Uᵀ v`, `c = Uᵀ Xᵀy`. Each mode `i` (`μ_i = λ_i + γ`) iterates on its own:
+//! `ω = Uᵀ w`, `ν = Uᵀ v`, `z = Uᵀ Xᵀy`. Each mode `i` (`μ_i = λ_i + γ`) iterates on its own:
 //!
 //! ```text
-//! ω_{k+1} = (c + γ ν_k) / μ,   ν_{k+1} = ρ ν_k + s,   ρ = β + (1 − β) γ / μ,   s = (1 − β) c / μ
+//! ω_{k+1} = (z + γ ν_k) / μ,   ν_{k+1} = ρ ν_k + s,   ρ = β + (1 − β) γ / μ,   s = (1 − β) z / μ
 //! ```
 //!
-//! From `v_0 = w_0 = 0` the first iterate is the Ridge solution `ω_1 = c / μ`, and the steps
+//! From `v_0 = w_0 = 0` the first iterate is the Ridge solution `ω_1 = z / μ`, and the steps
 //! after it are geometric: `Δω_2 = (ρ − β) ω_1 =: a`, `Δω_{k+1} = ρ Δω_k`. Hence
 //!
 //! ```text
-//! ω_K = ω_1 + a G_{K−1},   G_j = 1 + ρ + … + ρ^{j−1},   ‖w_k − w_{k−1}‖² = Σ_i a_i² ρ_i^{2(k−2)}  (k ≥ 2)
+//! ω_K = ω_1 + a G_{K−1},   G_j = 1 + ρ + … + ρ^{j−1}
+//! ‖w_k − w_{k−1}‖² = Σ_i a_i² ρ_i^{2(k−2)}   (k ≥ 2)
 //! ```
 //!
-//! `G_j` is a sum of positive terms (computed by doubling, [`geometric`]): nothing cancels,
-//! however slowly a mode converges. `w_1` stays the Cholesky Ridge solution
-//! ([`crate::Factor::solution`]), so plain Ridge is still exactly the first iterate.
+//! The momentum is `ν_k = s G_k`.
 //!
 //! # The intercept
 //! The intercept `c` is not regularised. Eliminating it, `w_S = B⁻¹ (b̃ + γ v_S)` with
@@ -37,7 +36,7 @@
 //! other rows as a factor of `G̃`: `M Mᵀ = G̃`, where `M` is those rows without the column
 //! along the intercept's row, whose entries are `a / r` (`r² = a_cc`). The augmented row
 //! rotated alike is `l̃` with `M l̃ = b̃`. One-sided Jacobi gives `M W = U Σ` (`Σ² = Λ`) and
-//! `Wᵀ l̃`, so `c = Σ Wᵀ l̃`, and nothing below divides by `σ`: with
+//! `Wᵀ l̃`, so `z = Σ Wᵀ l̃`, and nothing below divides by `σ`: with
 //! `â_i = a_i / σ_i = (ρ_i − β) (Wᵀ l̃)_i / μ_i`,
 //!
 //! ```text

@@ -16,7 +16,7 @@
 //! | `chol-ours` | ridge-core's packed Cholesky (its own `cholesky.rs`), 12 × 12 and 13 × 13 |
 //! | `chol-nalgebra12`, `chol-nalgebra13` | `nalgebra::Cholesky` on an `SMatrix<f32, N, N>` |
 //! | `sqrt-ours`, `sqrt-nalgebra` | the `f32` square root each of them takes per pivot |
-//! | `eig-ours` | ridge-core's one-sided Jacobi (its own `eigen.rs`) on a factor `M`, 8 and 12 columns |
+//! | `eig-ours` | ridge-core's one-sided Jacobi (its `eigen.rs`) on a factor `M`, 8 and 12 columns |
 //! | `eig-nalgebra8`, `eig-nalgebra12` | `nalgebra::SymmetricEigen` of `M Mᵀ` formed in `f32` |
 //! | `eig-svd8`, `eig-svd12` | `nalgebra::SVD` of `M` (left singular vectors: the eigenvectors) |
 //! | `ring-ours` | `ridge_pump_firmware::ring::Ring<256>` |
