@@ -334,13 +334,13 @@ fn jacobi_eigenvalues(mut b: Vec<Vec<f64>>) -> Vec<f64> {
                 let t = if theta == 0.0 { 1.0 } else { t };
                 let c = 1.0 / (t * t + 1.0).sqrt();
                 let s = t * c;
-                for k in 0..n {
-                    let (bkp, bkq) = (b[k][p], b[k][q]);
-                    b[k][p] = c * bkp - s * bkq;
-                    b[k][q] = s * bkp + c * bkq;
+                for row in b.iter_mut() {
+                    let (bkp, bkq) = (row[p], row[q]);
+                    row[p] = c * bkp - s * bkq;
+                    row[q] = s * bkp + c * bkq;
                 }
-                for k in 0..n {
-                    let (bpk, bqk) = (b[p][k], b[q][k]);
+                let (rp, rq) = (b[p].clone(), b[q].clone());
+                for (k, (bpk, bqk)) in rp.iter().zip(&rq).enumerate() {
                     b[p][k] = c * bpk - s * bqk;
                     b[q][k] = s * bpk + c * bqk;
                 }
