@@ -138,6 +138,8 @@ pub struct Chip {
     pub active: Vec<u32>,
     /// Accesses no model answered, with their counts.
     pub misses: BTreeMap<Miss, u64>,
+    /// Instructions executed at the access being served (set by the machine).
+    pub instr: u64,
     clocks: Clocks,
 }
 
@@ -167,6 +169,7 @@ impl Chip {
             dbgmcu: Dbgmcu::default(),
             active: Vec::new(),
             misses: BTreeMap::new(),
+            instr: 0,
             clocks,
         };
         chip.clocks_changed(0);
@@ -305,7 +308,7 @@ impl Chip {
             Unit::Tim5 => self.tim5.write(off, v, now)?,
             Unit::Iwdg => self.iwdg.write(off, v, now)?,
             Unit::I2c1 => self.i2c1.write(off, v, now)?,
-            Unit::Usart1 => self.usart1.write(off, v, now)?,
+            Unit::Usart1 => self.usart1.write(off, v, now, self.instr)?,
             Unit::GpioA => self.gpioa.write(off, v)?,
             Unit::GpioB => self.gpiob.write(off, v)?,
             Unit::Rcc => {

@@ -146,6 +146,7 @@ impl Core {
 
     fn mmio_read(&mut self, addr: u32, size: u32) -> (u32, bool) {
         let now = self.now;
+        self.chip.instr = self.instr;
         let v = self.chip.read(addr, size, now);
         if self.trace > 0 {
             self.trace -= 1;
@@ -162,14 +163,17 @@ impl Core {
             self.poll_first = (now, self.instr);
         }
         self.poll = Some((addr, v, self.instr));
-        if counter {
+        // The loop's ticks are the main program's: an interrupt handler's accesses (the
+        // UART's) neither start nor end one.
+        let thread = self.chip.active.is_empty();
+        if counter && thread {
             self.ticks.counter_read(now, self.instr);
-        } else {
+        } else if thread {
             self.ticks.other_access();
         }
         let mut stop = self.chip.pending_exception().is_some();
         if self.poll_run >= POLL_READS {
-            if counter && self.poll_run == POLL_READS {
+            if counter && thread && self.poll_run == POLL_READS {
                 self.ticks.idle(self.poll_first.0, self.poll_first.1);
             }
             // Jump to whatever can change what the loop reads next.
@@ -202,10 +206,13 @@ impl Core {
         }
         self.poll = None;
         self.poll_run = 0;
-        self.ticks.other_access();
-        if addr == TIM3 + CCR1 {
-            self.ticks.pwm_write(self.now, self.instr);
+        if self.chip.active.is_empty() {
+            self.ticks.other_access();
+            if addr == TIM3 + CCR1 {
+                self.ticks.pwm_write(self.now, self.instr);
+            }
         }
+        self.chip.instr = self.instr;
         let e = self.chip.write(addr, size, v, self.now);
         if matches!(crate::chip::decode(addr), Some((crate::chip::Unit::Rcc, _)))
             || crate::periph::bitband::target_in(addr, crate::chip::RCC)
@@ -708,5 +715,21 @@ impl Machine {
             self.chip().active,
             self.chip().usart1.next_event()
         )
+    }
+}
+
+impl Machine {
+    /// Replaces the whole flash memory (e.g. with another run's, kept across a power cycle)
+    /// and reboots from it.
+    pub fn load_flash(&mut self, mem: &[u8]) -> Result<(), String> {
+        if mem.len() != flash::SIZE as usize {
+            return Err(format!("flash image of {} bytes, not {}", mem.len(), flash::SIZE));
+        }
+        self.chip_mut().flash.mem.copy_from_slice(mem);
+        self.uc
+            .mem_write(u64::from(flash::BASE), mem)
+            .map_err(uc_err("load flash"))?;
+        self.resets.clear();
+        self.boot(ResetCause::PowerOn)
     }
 }

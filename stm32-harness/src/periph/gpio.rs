@@ -59,6 +59,11 @@ impl Gpio {
         (r >> (4 * (n % 8))) & 0xF
     }
 
+    /// `ODR`.
+    pub fn read_odr(&self) -> u32 {
+        self.regs[5]
+    }
+
     /// Register read.
     pub fn read(&mut self, off: u32) -> Result<u32, Unmodelled> {
         match off {

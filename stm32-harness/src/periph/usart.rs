@@ -75,6 +75,8 @@ const CR1_OVER8: u32 = 1 << 15;
 pub struct Sent {
     /// When its frame started (DR moved into the shift register).
     pub start: Time,
+    /// Instructions executed when the firmware wrote it to DR.
+    pub instr: u64,
     /// When its frame ended (stop bit done).
     pub end: Time,
     /// The byte.
@@ -97,10 +99,12 @@ pub struct Received {
 pub struct Usart {
     sr: u32,
     dr_rx: u32,
-    /// Byte waiting in the transmit data register (TXE clear).
-    tdr: Option<u8>,
-    /// Byte in the shift register and the end of its frame.
-    shifting: Option<(u8, Time, Time)>,
+    /// Byte waiting in the transmit data register (TXE clear), with the instruction count
+    /// of its write.
+    tdr: Option<(u8, u64)>,
+    /// Byte in the shift register (with its write's instruction count), its frame's start
+    /// and end.
+    shifting: Option<((u8, u64), Time, Time)>,
     brr: u32,
     cr1: u32,
     cr2: u32,
@@ -212,8 +216,13 @@ impl Usart {
     }
 
     fn tx_frame_end(&mut self, end: Time) {
-        if let Some((byte, start, _)) = self.shifting.take() {
-            self.sent.push(Sent { start, end, byte });
+        if let Some(((byte, instr), start, _)) = self.shifting.take() {
+            self.sent.push(Sent {
+                start,
+                instr,
+                end,
+                byte,
+            });
         }
         match self.tdr.take() {
             Some(next) => {
@@ -292,8 +301,8 @@ impl Usart {
         })
     }
 
-    /// Register write at `now`.
-    pub fn write(&mut self, off: u32, v: u32, now: Time) -> Result<(), Unmodelled> {
+    /// Register write at `now`, the `instr`-th instruction.
+    pub fn write(&mut self, off: u32, v: u32, now: Time, instr: u64) -> Result<(), Unmodelled> {
         self.advance(now);
         match off {
             // RXNE and TC are rc_w0; the other flags are read-only (§19.6.1).
@@ -306,7 +315,7 @@ impl Usart {
                 if !self.enabled(CR1_TE) {
                     return Ok(());
                 }
-                let byte = v as u8;
+                let byte = (v as u8, instr);
                 self.sr &= !SR_TC;
                 if self.shifting.is_none() {
                     self.shifting = Some((byte, now, now + self.frame_ps()));
