@@ -1,0 +1,143 @@
+//! The release image of the STM32F411 (`cargo flash-f411`'s), unchanged, in the emulated
+//! chip, closed loop with the simulated blower and SFM3300: the power-up identification, the
+//! record across a reset, the watchdog. Truths: the host rerun of ridge-core's search on the
+//! samples the sensor served, the plant's true flow, the reset flags RM0383 defines.
+//!
+//! The image is built (incrementally) if missing or stale; `STM32_ELF` names another.
+
+use stm32_harness::bench::{ps, secs, Action, Bench, BenchConfig};
+use stm32_harness::firmware;
+use stm32_harness::lines::Line;
+use stm32_harness::periph::rcc::ResetCause;
+use stm32_harness::sensor::Fault;
+use stm32_harness::session::{self, host_search, SessionConfig};
+
+fn elf() -> std::path::PathBuf {
+    firmware::ensure_elf().expect("STM32F411 image")
+}
+
+fn keywords(lines: &[Line]) -> Vec<&str> {
+    lines.iter().map(Line::keyword).collect()
+}
+
+/// Index of the first line with keyword `kw` at or after `from`.
+fn find_after(lines: &[Line], from: usize, kw: &str) -> usize {
+    lines[from..]
+        .iter()
+        .position(|l| l.keyword() == kw)
+        .map(|i| from + i)
+        .unwrap_or_else(|| panic!("no {kw} after line {from}: {:?}", keywords(lines)))
+}
+
+#[test]
+fn default_blower_boots_identifies_persists_designs_and_tracks() {
+    let mut cfg = SessionConfig::new(elf());
+    cfg.track_s = 12.0;
+    let out = session::run(&cfg).unwrap();
+    let b = &out.bench;
+    let l = &b.lines;
+    // The sequence, in order.
+    let boot = find_after(l, 0, "BOOT");
+    assert_eq!(l[boot].text, "BOOT board=stm32f411 reset=14 record=none");
+    let mut at = boot;
+    for kw in ["SENSOR", "EXCITE", "ID", "ACCEPT", "PERSIST", "CTRL", "TRACK"] {
+        at = find_after(l, at, kw);
+    }
+    assert!(l.iter().any(|x| x.text == "SENSOR ready tries=1"));
+    assert!(l.iter().any(|x| x.text == "PERSIST saved"));
+    assert!(out.faults.is_empty(), "{:?}", out.faults);
+    // Every access answered by a model, no CPU fault, no reset, a clean sensor protocol.
+    let m = &b.machine;
+    assert!(m.chip().misses.is_empty(), "{:?}", m.chip().misses);
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    assert_eq!(m.resets.len(), 1);
+    assert!(b.sensor.borrow().errors.is_empty());
+    // The record is in flash sector 7.
+    assert!(b.record_sector_used());
+    // Run mode: each TRACK line's measured mean flow (over the run ticks since the previous
+    // line, `tick=`) is the plant's true flow over the same window (sensor noise and offset
+    // averaged: within 0.3 slm), and tracks its setpoint.
+    let tracks: Vec<&Line> = b.find("TRACK").collect();
+    assert!(tracks.len() >= 10, "{} TRACK lines", tracks.len());
+    let mut prev = 0;
+    for t in &tracks {
+        let p = t.parsed();
+        let (sp, flow) = (p.num("sp").unwrap(), p.num("flow").unwrap());
+        let tick = p.int("tick").unwrap();
+        let span = ps(0.01 * (tick - prev) as f64);
+        prev = tick;
+        let window: Vec<f64> = b
+            .plant_log
+            .iter()
+            .filter(|s| s.at <= t.start && s.at + span > t.start)
+            .map(|s| s.flow)
+            .collect();
+        let truth = window.iter().sum::<f64>() / window.len() as f64;
+        assert!((flow - truth).abs() < 0.3, "{}: true mean {truth:.3}", t.text);
+        assert!((flow - sp).abs() < 1.0, "{}", t.text);
+    }
+    // Instructions per control tick against the 10 k target (0.1 ms at 100 MHz).
+    let tm = &out.timing;
+    assert!(tm.ticks > 5_000, "{} ticks", tm.ticks);
+    assert!(tm.control_worst > 0 && tm.control_worst <= 10_000, "{tm:?}");
+    assert!(tm.search_instr.is_some() && tm.design_instr.is_some(), "{tm:?}");
+}
+
+#[test]
+fn identification_equals_the_host_rerun_on_the_samples_served() {
+    let cfg = SessionConfig::new(elf());
+    let out = session::run(&cfg).unwrap();
+    let id = out.id.as_ref().expect("ID line");
+    let est = out.estimation.as_ref().expect("estimation record rebuilt");
+    assert_eq!(est.len(), 3000);
+    for host in [host_search::<f64>(est), host_search::<f32>(est)] {
+        let host = host.unwrap();
+        let err = session::coefficient_error(id, &host)
+            .unwrap_or_else(|| panic!("structure differs: firmware {id:?}, host {host:?}"));
+        // The ID line prints 6 decimals; the firmware computes in f32.
+        assert!(err < 1e-4, "max coefficient difference {err:e}");
+        assert_eq!(id.eval, host.eval);
+    }
+}
+
+#[test]
+fn record_survives_a_reset_with_flash_kept() {
+    let cfg = SessionConfig::new(elf());
+    let first = session::run(&cfg).unwrap();
+    assert!(first.bench.lines.iter().any(|l| l.text == "PERSIST saved"));
+    let id = first.id.clone().expect("ID line");
+    let mut bc: BenchConfig = cfg.bench.clone();
+    bc.flash = Some(first.bench.flash());
+    let mut b = Bench::new(bc).unwrap();
+    b.run_until(30.0, |l| matches!(l.keyword(), "CTRL" | "FAULT"))
+        .unwrap();
+    let boot = b.find("BOOT").next().expect("BOOT");
+    assert_eq!(boot.text, "BOOT board=stm32f411 reset=14 record=stored");
+    let loaded = b.find("LOADED").next().expect("LOADED").parsed();
+    let model = session::IdLine::parse(&loaded).expect("model on LOADED");
+    assert_eq!((model.p, model.q, model.d), (id.p, id.q, id.d));
+    assert_eq!(model.theta, id.theta);
+    assert_eq!(model.phi, id.phi);
+    assert!(b.find("EXCITE").next().is_none(), "no identification with a stored model");
+    assert!(b.find("CTRL").next().is_some());
+}
+
+#[test]
+fn the_watchdog_resets_a_hung_image_and_the_next_boot_reports_it() {
+    // The sensor holds SDA low from its next STOP on: the HAL's next START never completes
+    // and the loop hangs in the tick's sensor read.
+    let mut b = Bench::new(BenchConfig::new(elf())).unwrap();
+    b.schedule(3.0, Action::Sensor(Fault::HoldSda));
+    b.run_until(6.0, |l| l.keyword() == "BOOT" && l.start > ps(3.0))
+        .unwrap();
+    let resets = &b.machine.resets;
+    assert!(resets.len() >= 2, "{resets:?}");
+    assert_eq!(resets[1].cause, ResetCause::Watchdog);
+    // The image's timeout: 0.5 s (IWDG at 32 kHz), from its last reload within 10 ms of the
+    // hold.
+    let hung = secs(resets[1].at) - 3.0;
+    assert!((0.49..0.53).contains(&hung), "reset {hung:.3} s after the hold");
+    // RCC_CSR after an IWDG reset: IWDGRSTF (0x20) with PINRSTF (0x04).
+    let boot = b.find("BOOT").nth(1).expect("second BOOT");
+    assert_eq!(boot.text, "BOOT board=stm32f411 reset=36 record=none");
+}
