@@ -292,7 +292,8 @@ impl Bench {
         for s in &sent[self.sent_seen..] {
             match s.byte {
                 b'\n' => {
-                    let (start, start_instr) = self.partial_start.take().unwrap_or((s.start, s.instr));
+                    let (start, start_instr) =
+                        self.partial_start.take().unwrap_or((s.start, s.instr));
                     self.lines.push(Line {
                         text: String::from_utf8_lossy(&self.partial).into_owned(),
                         start,

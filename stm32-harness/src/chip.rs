@@ -145,7 +145,9 @@ pub struct Chip {
 
 impl std::fmt::Debug for Chip {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Chip").field("clocks", &self.clocks).finish()
+        f.debug_struct("Chip")
+            .field("clocks", &self.clocks)
+            .finish()
     }
 }
 
@@ -301,7 +303,13 @@ impl Chip {
         }
     }
 
-    fn write_word(&mut self, addr: u32, v: u32, size: u32, now: Time) -> Result<Effect, Unmodelled> {
+    fn write_word(
+        &mut self,
+        addr: u32,
+        v: u32,
+        size: u32,
+        now: Time,
+    ) -> Result<Effect, Unmodelled> {
         let (unit, off) = decode(addr).ok_or(Unmodelled)?;
         match unit {
             Unit::Tim3 => self.tim3.write(off, v, now)?,

@@ -123,7 +123,6 @@ pub fn parse(b: &[u8]) -> Result<Image, String> {
     let phnum = usize::from(r.u16(0x2C)?);
     let shentsize = usize::from(r.u16(0x2E)?);
     let shnum = usize::from(r.u16(0x30)?);
-    let shstrndx = usize::from(r.u16(0x32)?);
     let mut img = Image::default();
     for i in 0..phnum {
         let p = phoff + i * phentsize;
@@ -141,10 +140,8 @@ pub fn parse(b: &[u8]) -> Result<Image, String> {
         }
     }
     let sh = |i: usize| shoff + i * shentsize;
-    let strtab_off = r.u32(sh(shstrndx) + 0x10)? as usize;
     for i in 0..shnum {
         let s = sh(i);
-        let name = r.cstr(strtab_off + r.u32(s)? as usize)?;
         let kind = r.u32(s + 4)?;
         let flags = r.u32(s + 8)?;
         let offset = r.u32(s + 0x10)? as usize;

@@ -70,10 +70,6 @@ pub const RAM_FILL: u8 = 0x55;
 /// How a chunk of execution ended, seen by the run loop.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Exit {
-    /// The handler returned (PC = EXC_RETURN).
-    ExcReturn(u32),
-    /// A CPU fault: Unicorn's error.
-    Fault,
     /// A power cut was due (after a flash program access).
     PowerCut,
 }
@@ -275,7 +271,10 @@ impl Machine {
             poll_first: (0, 0),
             ticks: TickMeter::default(),
             power_cut_after: None,
-            trace: std::env::var("STM32_TRACE").ok().and_then(|v| v.parse().ok()).unwrap_or(0),
+            trace: std::env::var("STM32_TRACE")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(0),
         };
         let mut uc = Unicorn::new_with_data(Arch::ARM, Mode::THUMB | Mode::MCLASS, core)
             .map_err(uc_err("open"))?;
@@ -465,7 +464,11 @@ impl Machine {
         self.locked = false;
         let sp = self.vector(0)?;
         let pc = self.vector(1)?;
-        for r in [RegisterARM::PRIMASK, RegisterARM::BASEPRI, RegisterARM::CONTROL] {
+        for r in [
+            RegisterARM::PRIMASK,
+            RegisterARM::BASEPRI,
+            RegisterARM::CONTROL,
+        ] {
             self.set_reg(r, 0)?;
         }
         self.set_reg(RegisterARM::FAULTMASK, 0)?;
@@ -538,7 +541,10 @@ impl Machine {
         }
         if fp {
             for k in 0..16u32 {
-                let s = self.uc.reg_read(RegisterARM::S0 as i32 + k as i32).unwrap_or(0) as u32;
+                let s = self
+                    .uc
+                    .reg_read(RegisterARM::S0 as i32 + k as i32)
+                    .unwrap_or(0) as u32;
                 self.write_u32(frame + 0x20 + 4 * k, s)?;
             }
             let fpscr = self.reg(RegisterARM::FPSCR);
@@ -610,7 +616,10 @@ impl Machine {
             RegisterARM::CONTROL,
             if fp { control | 4 } else { control & !4 },
         )?;
-        self.set_reg(RegisterARM::XPSR_NZCVQG, (xpsr & !0x1FF & !(1 << 9)) | (1 << 24))?;
+        self.set_reg(
+            RegisterARM::XPSR_NZCVQG,
+            (xpsr & !0x1FF & !(1 << 9)) | (1 << 24),
+        )?;
         self.set_reg(RegisterARM::PC, regs[6] | 1)?;
         let chip = self.chip_mut();
         if let Some(exc) = chip.active.pop() {
@@ -671,7 +680,10 @@ impl Machine {
         let i0 = self.instructions();
         let r = self.uc.emu_start(u64::from(pc | 1), 0, 0, 0);
         if std::env::var("DBG2").is_ok() && self.instructions() == i0 {
-            eprintln!("no progress at {pc:#x}: {r:?} pc now {:#x}", self.reg(RegisterARM::PC));
+            eprintln!(
+                "no progress at {pc:#x}: {r:?} pc now {:#x}",
+                self.reg(RegisterARM::PC)
+            );
         }
         let exit = self.core_mut().exit.take();
         let pc_now = self.reg(RegisterARM::PC);
@@ -681,8 +693,8 @@ impl Machine {
         }
         match r {
             Ok(()) => Ok(()),
-            Err(e) if pc_now >= 0xFFFF_FF00 && !self.chip().active.is_empty() => {
-                let _ = e;
+            // The handler's return to EXC_RETURN: a fetch Unicorn refuses.
+            Err(_) if pc_now >= 0xFFFF_FF00 && !self.chip().active.is_empty() => {
                 self.exception_return(pc_now | 1)
             }
             Err(e) => {
@@ -691,7 +703,6 @@ impl Machine {
                     eprintln!("fault {e:?} at pc {pc_now:#x}");
                 }
                 self.faults.push((now, pc_now, format!("{e:?}")));
-                let _ = Exit::Fault;
                 if self.chip().active.contains(&3) {
                     self.locked = true;
                     Ok(())
@@ -723,7 +734,11 @@ impl Machine {
     /// and reboots from it.
     pub fn load_flash(&mut self, mem: &[u8]) -> Result<(), String> {
         if mem.len() != flash::SIZE as usize {
-            return Err(format!("flash image of {} bytes, not {}", mem.len(), flash::SIZE));
+            return Err(format!(
+                "flash image of {} bytes, not {}",
+                mem.len(),
+                flash::SIZE
+            ));
         }
         self.chip_mut().flash.mem.copy_from_slice(mem);
         self.uc

@@ -44,7 +44,11 @@ pub fn render(out: &Outcome, all_lines: bool) -> (String, bool) {
     let _ = writeln!(
         s,
         "firmware lines{}:",
-        if all_lines { "" } else { " (events; log rows left out)" }
+        if all_lines {
+            ""
+        } else {
+            " (events; log rows left out)"
+        }
     );
     for l in &bench.lines {
         if all_lines || (l.keyword() != "RES" && classify(l.text.as_bytes()) != Kind::Row) {
@@ -76,7 +80,10 @@ pub fn render(out: &Outcome, all_lines: bool) -> (String, bool) {
     }
     let mut ok = misses.is_empty();
 
-    let _ = writeln!(s, "\n== identified model (ID line, physical units: slm, duty 0..1)");
+    let _ = writeln!(
+        s,
+        "\n== identified model (ID line, physical units: slm, duty 0..1)"
+    );
     match &out.id {
         Some(id) => {
             let _ = writeln!(s, "  {}", show_model(id));
@@ -93,7 +100,10 @@ pub fn render(out: &Outcome, all_lines: bool) -> (String, bool) {
         (Some(id), Some(est)) => {
             for (name, host) in [
                 ("f64", session::host_search::<f64>(est)),
-                ("f32, as the firmware computes", session::host_search::<f32>(est)),
+                (
+                    "f32, as the firmware computes",
+                    session::host_search::<f32>(est),
+                ),
             ] {
                 let text = match host {
                     Ok(h) => match session::coefficient_error(id, &h) {
@@ -110,7 +120,10 @@ pub fn render(out: &Outcome, all_lines: bool) -> (String, bool) {
             }
         }
         (Some(_), None) => {
-            let _ = writeln!(s, "  (estimation record could not be rebuilt from the logs)");
+            let _ = writeln!(
+                s,
+                "  (estimation record could not be rebuilt from the logs)"
+            );
         }
         _ => {}
     }

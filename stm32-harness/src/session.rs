@@ -317,7 +317,10 @@ fn timing(bench: &Bench, parsed: &[ParsedLine], id_idx: Option<usize>) -> Timing
 
 /// TIM3 counts the firmware writes for a duty in 1/10 000, with `period` = ARR + 1.
 pub fn duty_counts(duty: u16, period: u32) -> u32 {
-    u32::from(duty_to_counts(duty, u16::try_from(period).unwrap_or(u16::MAX)))
+    u32::from(duty_to_counts(
+        duty,
+        u16::try_from(period).unwrap_or(u16::MAX),
+    ))
 }
 
 /// Rebuilds the record announced by line `idx` (`EXCITE <name> n=.. u0=.. y0=..`) from the
@@ -325,7 +328,9 @@ pub fn duty_counts(duty: u16, period: u32) -> u32 {
 pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
     let r = bench.lines.get(idx)?.parsed();
     let record = r.words.iter().find_map(|w| w.parse::<Record>().ok())?;
-    let n = r.int("n").map_or(record.len_samples() as usize, |v| v as usize);
+    let n = r
+        .int("n")
+        .map_or(record.len_samples() as usize, |v| v as usize);
     let gen: Vec<u16> = record.generator().take(n).collect();
     let frames = bench.sensor.borrow().served();
     let at = bench.lines[idx].start;
@@ -409,8 +414,18 @@ pub fn coefficient_error(a: &IdLine, b: &IdLine) -> Option<f64> {
 
 /// Writes what USART1 sent as the CSV `ridge-id capture` writes (its `Capture`, so the formats
 /// cannot differ); returns its counts.
-pub fn write_capture(bench: &Bench, path: &std::path::Path) -> Result<ridge_id::capture::Counts, String> {
-    let bytes: Vec<u8> = bench.machine.chip().usart1.sent.iter().map(|s| s.byte).collect();
+pub fn write_capture(
+    bench: &Bench,
+    path: &std::path::Path,
+) -> Result<ridge_id::capture::Counts, String> {
+    let bytes: Vec<u8> = bench
+        .machine
+        .chip()
+        .usart1
+        .sent
+        .iter()
+        .map(|s| s.byte)
+        .collect();
     let mut csv = Vec::new();
     let mut cap = ridge_id::capture::Capture::new(&mut csv).map_err(|e| e.to_string())?;
     cap.feed(&bytes).map_err(|e| e.to_string())?;

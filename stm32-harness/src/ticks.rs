@@ -37,6 +37,9 @@ pub struct Tick {
     pub busy_ps: Time,
 }
 
+/// An open tick: its start (time, instructions) and its first PWM write, once seen.
+type Open = (Time, u64, Option<(Time, u64)>);
+
 /// Tick detection state (fed by the machine's bus callbacks).
 #[derive(Clone, Debug, Default)]
 pub struct TickMeter {
@@ -44,7 +47,7 @@ pub struct TickMeter {
     /// The last counter read while idle: (time, instructions).
     last_read: Option<(Time, u64)>,
     /// The open tick: start and control.
-    open: Option<(Time, u64, Option<(Time, u64)>)>,
+    open: Option<Open>,
     /// Ticks measured.
     pub ticks: Vec<Tick>,
 }

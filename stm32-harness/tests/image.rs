@@ -40,7 +40,9 @@ fn default_blower_boots_identifies_persists_designs_and_tracks() {
     let boot = find_after(l, 0, "BOOT");
     assert_eq!(l[boot].text, "BOOT board=stm32f411 reset=14 record=none");
     let mut at = boot;
-    for kw in ["SENSOR", "EXCITE", "ID", "ACCEPT", "PERSIST", "CTRL", "TRACK"] {
+    for kw in [
+        "SENSOR", "EXCITE", "ID", "ACCEPT", "PERSIST", "CTRL", "TRACK",
+    ] {
         at = find_after(l, at, kw);
     }
     assert!(l.iter().any(|x| x.text == "SENSOR ready tries=1"));
@@ -73,14 +75,21 @@ fn default_blower_boots_identifies_persists_designs_and_tracks() {
             .map(|s| s.flow)
             .collect();
         let truth = window.iter().sum::<f64>() / window.len() as f64;
-        assert!((flow - truth).abs() < 0.3, "{}: true mean {truth:.3}", t.text);
+        assert!(
+            (flow - truth).abs() < 0.3,
+            "{}: true mean {truth:.3}",
+            t.text
+        );
         assert!((flow - sp).abs() < 1.0, "{}", t.text);
     }
     // Instructions per control tick against the 10 k target (0.1 ms at 100 MHz).
     let tm = &out.timing;
     assert!(tm.ticks > 5_000, "{} ticks", tm.ticks);
     assert!(tm.control_worst > 0 && tm.control_worst <= 10_000, "{tm:?}");
-    assert!(tm.search_instr.is_some() && tm.design_instr.is_some(), "{tm:?}");
+    assert!(
+        tm.search_instr.is_some() && tm.design_instr.is_some(),
+        "{tm:?}"
+    );
 }
 
 #[test]
@@ -118,7 +127,10 @@ fn record_survives_a_reset_with_flash_kept() {
     assert_eq!((model.p, model.q, model.d), (id.p, id.q, id.d));
     assert_eq!(model.theta, id.theta);
     assert_eq!(model.phi, id.phi);
-    assert!(b.find("EXCITE").next().is_none(), "no identification with a stored model");
+    assert!(
+        b.find("EXCITE").next().is_none(),
+        "no identification with a stored model"
+    );
     assert!(b.find("CTRL").next().is_some());
 }
 
@@ -136,7 +148,10 @@ fn the_watchdog_resets_a_hung_image_and_the_next_boot_reports_it() {
     // The image's timeout: 0.5 s (IWDG at 32 kHz), from its last reload within 10 ms of the
     // hold.
     let hung = secs(resets[1].at) - 3.0;
-    assert!((0.49..0.53).contains(&hung), "reset {hung:.3} s after the hold");
+    assert!(
+        (0.49..0.53).contains(&hung),
+        "reset {hung:.3} s after the hold"
+    );
     // RCC_CSR after an IWDG reset: IWDGRSTF (0x20) with PINRSTF (0x04).
     let boot = b.find("BOOT").nth(1).expect("second BOOT");
     assert_eq!(boot.text, "BOOT board=stm32f411 reset=36 record=none");

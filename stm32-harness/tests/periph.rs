@@ -31,19 +31,26 @@ impl Device for Slave {
         self.0.borrow_mut().log.push(format!("S@{}", now / US));
     }
     fn address(&mut self, addr: u8, read: bool, now: Time) -> bool {
-        self.0
-            .borrow_mut()
-            .log
-            .push(format!("A{addr:02x}{}@{}", if read { 'r' } else { 'w' }, now / US));
+        self.0.borrow_mut().log.push(format!(
+            "A{addr:02x}{}@{}",
+            if read { 'r' } else { 'w' },
+            now / US
+        ));
         addr == 0x40
     }
     fn write(&mut self, byte: u8, now: Time) -> bool {
-        self.0.borrow_mut().log.push(format!("W{byte:02x}@{}", now / US));
+        self.0
+            .borrow_mut()
+            .log
+            .push(format!("W{byte:02x}@{}", now / US));
         true
     }
     fn read(&mut self, _now: Time) -> u8 {
         let mut s = self.0.borrow_mut();
-        let b = [0xA1, 0xB2, 0xC3].get(s.next as usize).copied().unwrap_or(0xFF);
+        let b = [0xA1, 0xB2, 0xC3]
+            .get(s.next as usize)
+            .copied()
+            .unwrap_or(0xFF);
         s.next += 1;
         b
     }
@@ -84,10 +91,21 @@ fn i2c_three_byte_read_follows_the_master_receiver_sequence() {
     assert_eq!(bus.scl_period(), 10 * US);
     // START with ACK (§18.3.3, Figure 164: EV5 = SB).
     bus.write(i2c::CR1, 1 | (1 << 8) | (1 << 10), 0).unwrap();
-    assert_eq!(sr1(&mut bus, 9 * US) & i2c::SR1_SB, 0, "SB before one SCL period");
-    assert_ne!(sr1(&mut bus, 10 * US) & i2c::SR1_SB, 0, "SB after one SCL period");
+    assert_eq!(
+        sr1(&mut bus, 9 * US) & i2c::SR1_SB,
+        0,
+        "SB before one SCL period"
+    );
+    assert_ne!(
+        sr1(&mut bus, 10 * US) & i2c::SR1_SB,
+        0,
+        "SB after one SCL period"
+    );
     let sr2 = bus.read(i2c::SR2, 10 * US).unwrap();
-    assert_eq!(sr2 & (i2c::SR2_MSL | i2c::SR2_BUSY), i2c::SR2_MSL | i2c::SR2_BUSY);
+    assert_eq!(
+        sr2 & (i2c::SR2_MSL | i2c::SR2_BUSY),
+        i2c::SR2_MSL | i2c::SR2_BUSY
+    );
     // SB is cleared by reading SR1 then writing DR (the address).
     sr1(&mut bus, 11 * US);
     bus.write(i2c::DR, 0x81, 11 * US).unwrap();
@@ -151,9 +169,17 @@ fn i2c_write_sets_txe_then_btf_per_byte() {
     let s = sr1(&mut bus, 101 * US);
     assert_ne!(s & i2c::SR1_TXE, 0, "DR moved into the shift register");
     assert_eq!(s & i2c::SR1_BTF, 0);
-    assert_ne!(sr1(&mut bus, 190 * US) & i2c::SR1_BTF, 0, "EV8_2: BTF after the byte");
+    assert_ne!(
+        sr1(&mut bus, 190 * US) & i2c::SR1_BTF,
+        0,
+        "EV8_2: BTF after the byte"
+    );
     bus.write(i2c::DR, 0x00, 190 * US).unwrap();
-    assert_eq!(sr1(&mut bus, 191 * US) & i2c::SR1_BTF, 0, "SR1 read + DR write clear BTF");
+    assert_eq!(
+        sr1(&mut bus, 191 * US) & i2c::SR1_BTF,
+        0,
+        "SR1 read + DR write clear BTF"
+    );
     assert_ne!(sr1(&mut bus, 280 * US) & i2c::SR1_BTF, 0);
     bus.write(i2c::CR1, 1 | (1 << 9), 280 * US).unwrap();
     assert_eq!(bus.read(i2c::SR2, 290 * US).unwrap() & 3, 0);
@@ -169,7 +195,8 @@ fn usart_115200() -> Usart {
     let mut u = Usart::new();
     u.set_clock(100_000_000);
     u.write(usart::BRR, 0x364, 0, 0).unwrap();
-    u.write(usart::CR1, (1 << 13) | (1 << 3) | (1 << 2), 0, 0).unwrap(); // UE, TE, RE
+    u.write(usart::CR1, (1 << 13) | (1 << 3) | (1 << 2), 0, 0)
+        .unwrap(); // UE, TE, RE
     u
 }
 
@@ -178,7 +205,10 @@ fn usart_byte_time_and_tx_flags() {
     let mut u = usart_115200();
     assert_eq!(u.frame_ps(), 86_800_000);
     let sr = u.read(usart::SR, 0).unwrap();
-    assert_eq!(sr & (usart::SR_TXE | usart::SR_TC), usart::SR_TXE | usart::SR_TC);
+    assert_eq!(
+        sr & (usart::SR_TXE | usart::SR_TC),
+        usart::SR_TXE | usart::SR_TC
+    );
     u.write(usart::DR, b'A'.into(), 0, 0).unwrap();
     // The byte moved into the idle shift register: TXE set again, TC clear.
     let sr = u.read(usart::SR, 1).unwrap();
@@ -193,7 +223,8 @@ fn usart_byte_time_and_tx_flags() {
     assert_eq!(ends, [(b'A', 86_800_000), (b'B', 173_600_000)]);
     // TXEIE raises the interrupt while TXE is set.
     assert!(!u.irq());
-    u.write(usart::CR1, (1 << 13) | (1 << 7) | 0xC, 173_600_000, 0).unwrap();
+    u.write(usart::CR1, (1 << 13) | (1 << 7) | 0xC, 173_600_000, 0)
+        .unwrap();
     assert!(u.irq());
 }
 
@@ -209,7 +240,10 @@ fn usart_receive_overrun_and_clearing_sequences() {
     assert_ne!(sr & usart::SR_ORE, 0);
     assert_eq!(u.read(usart::DR, 200 * US).unwrap(), u32::from(b'x'));
     // SR then DR cleared RXNE and ORE.
-    assert_eq!(u.read(usart::SR, 201 * US).unwrap() & (usart::SR_RXNE | usart::SR_ORE), 0);
+    assert_eq!(
+        u.read(usart::SR, 201 * US).unwrap() & (usart::SR_RXNE | usart::SR_ORE),
+        0
+    );
     assert_eq!(u.received.iter().filter(|r| r.lost).count(), 1);
     // RXNE is rc_w0.
     u.receive_at(300 * US, b'z');
@@ -228,7 +262,11 @@ fn timer_counts_from_the_clock_with_preloaded_prescaler() {
     t.write(timer::ARR, 0xFFFF_FFFE, 0).unwrap();
     // PSC is preloaded: without an update event the counter still counts at /1.
     t.write(timer::CR1, 1, 0).unwrap();
-    assert_eq!(t.read(timer::CNT, 1_000_000).unwrap(), 100, "1 µs at 100 MHz, PSC 0");
+    assert_eq!(
+        t.read(timer::CNT, 1_000_000).unwrap(),
+        100,
+        "1 µs at 100 MHz, PSC 0"
+    );
     // UG: counter cleared, PSC loaded, UIF set (URS = 0).
     t.write(timer::EGR, 1, 1_000_000).unwrap();
     assert_ne!(t.read(timer::SR, 1_000_000).unwrap() & 1, 0);
@@ -242,7 +280,11 @@ fn timer_counts_from_the_clock_with_preloaded_prescaler() {
     t3.set_clock(100_000_000, 0);
     t3.write(timer::ARR, 4999, 0).unwrap();
     t3.write(timer::CR1, 1, 0).unwrap();
-    assert_eq!(t3.read(timer::CNT, 50 * US).unwrap(), 0, "5000 counts: one period");
+    assert_eq!(
+        t3.read(timer::CNT, 50 * US).unwrap(),
+        0,
+        "5000 counts: one period"
+    );
 }
 
 #[test]
@@ -257,7 +299,11 @@ fn timer_pwm_mode_1_duty_is_ccr_over_period() {
     t.write(timer::CCER, 1, 0).unwrap();
     assert_eq!(t.duty_ch1(), Some(0.25));
     t.write(timer::CCR1, 6000, 0).unwrap();
-    assert_eq!(t.duty_ch1(), Some(1.0), "CCR1 > ARR: always active (§13.3.10)");
+    assert_eq!(
+        t.duty_ch1(),
+        Some(1.0),
+        "CCR1 > ARR: always active (§13.3.10)"
+    );
     t.write(timer::CCR1, 0, 0).unwrap();
     assert_eq!(t.duty_ch1(), Some(0.0));
 }
@@ -273,7 +319,11 @@ fn unlocked_flash() -> Flash {
 #[test]
 fn flash_unlock_needs_the_two_keys_in_order() {
     let mut f = Flash::new();
-    assert_ne!(f.read(flash::CR, 0).unwrap() & flash::CR_LOCK, 0, "locked at reset");
+    assert_ne!(
+        f.read(flash::CR, 0).unwrap() & flash::CR_LOCK,
+        0,
+        "locked at reset"
+    );
     f.write(flash::KEYR, 0xCDEF_89AB, 0).unwrap();
     f.write(flash::KEYR, 0x4567_0123, 0).unwrap();
     f.write(flash::KEYR, 0xCDEF_89AB, 0).unwrap();
@@ -282,7 +332,11 @@ fn flash_unlock_needs_the_two_keys_in_order() {
     assert_ne!(f.read(flash::CR, 0).unwrap() & flash::CR_LOCK, 0);
     assert_eq!(f.errors.len(), 3);
     f.write(flash::CR, flash::CR_PG, 0).unwrap();
-    assert_eq!(f.read(flash::CR, 0).unwrap() & flash::CR_PG, 0, "locked CR ignores writes");
+    assert_eq!(
+        f.read(flash::CR, 0).unwrap() & flash::CR_PG,
+        0,
+        "locked CR ignores writes"
+    );
     f.reset();
     f.write(flash::KEYR, 0x4567_0123, 0).unwrap();
     f.write(flash::KEYR, 0xCDEF_89AB, 0).unwrap();
@@ -311,8 +365,12 @@ fn flash_program_only_clears_bits_and_checks_the_sequence() {
     assert_eq!(f.mem[off as usize], 0x00);
     // BSY for the program time; EOP only with EOPIE (§3.8.4).
     assert_ne!(f.read(flash::SR, 0).unwrap() & flash::SR_BSY, 0);
-    assert_eq!(f.read(flash::SR, 2 * flash::PROGRAM_PS).unwrap() & (flash::SR_BSY | flash::SR_EOP), 0);
-    f.write(flash::CR, flash::CR_PG | flash::CR_EOPIE, 0).unwrap();
+    assert_eq!(
+        f.read(flash::SR, 2 * flash::PROGRAM_PS).unwrap() & (flash::SR_BSY | flash::SR_EOP),
+        0
+    );
+    f.write(flash::CR, flash::CR_PG | flash::CR_EOPIE, 0)
+        .unwrap();
     f.program(off + 1, 1, 0x5A, 0);
     assert_ne!(f.read(flash::SR, 0).unwrap() & flash::SR_EOP, 0);
     // A halfword across a 128-bit row: PGAERR (PSIZE x16).
@@ -327,7 +385,7 @@ fn flash_sector_erase_sets_0xff_and_takes_the_datasheet_time() {
     f.write(flash::CR, flash::CR_PG, 0).unwrap();
     f.program(0x6_0010, 1, 0x12, 0);
     f.program(0x5_FFFF, 1, 0x34, 0); // last byte of sector 6
-    // SER, SNB = 7, STRT (§3.5.3), after the programs have finished.
+                                     // SER, SNB = 7, STRT (§3.5.3), after the programs have finished.
     let e = f
         .write(flash::CR, flash::CR_SER | (7 << 3) | flash::CR_STRT, MS)
         .unwrap();
@@ -349,7 +407,11 @@ fn iwdg_times_out_after_rlr_prescaled_lsi_periods() {
     w.write(iwdg::KR, 0x5555, 0).unwrap();
     w.write(iwdg::PR, 3, 0).unwrap();
     w.write(iwdg::RLR, 499, 0).unwrap();
-    assert_eq!(w.read(iwdg::SR, 0).unwrap(), 3, "PVU and RVU while updating");
+    assert_eq!(
+        w.read(iwdg::SR, 0).unwrap(),
+        3,
+        "PVU and RVU while updating"
+    );
     // Five LSI periods later the values are in effect (§15.4.4).
     let settled = 5 * PS_PER_S / iwdg::LSI_HZ;
     assert_eq!(w.read(iwdg::SR, settled).unwrap(), 0);
@@ -370,7 +432,11 @@ fn iwdg_reload_right_after_a_new_rlr_uses_the_old_value() {
     w.write(iwdg::KR, 0x5555, 0).unwrap();
     w.write(iwdg::RLR, 100, 0).unwrap();
     w.write(iwdg::KR, 0xAAAA, 1).unwrap();
-    assert_eq!(w.expiry(), Some(1 + 4095 * 4 * PS_PER_S / iwdg::LSI_HZ), "RVU still set");
+    assert_eq!(
+        w.expiry(),
+        Some(1 + 4095 * 4 * PS_PER_S / iwdg::LSI_HZ),
+        "RVU still set"
+    );
     let later = MS;
     w.write(iwdg::KR, 0xAAAA, later).unwrap();
     assert_eq!(w.expiry(), Some(later + 100 * 4 * PS_PER_S / iwdg::LSI_HZ));
@@ -380,7 +446,11 @@ fn iwdg_reload_right_after_a_new_rlr_uses_the_old_value() {
 fn rcc_pll_from_hse_gives_100_mhz_and_reset_flags_accumulate() {
     let mut r = Rcc::new();
     assert_eq!(r.clocks().sysclk, rcc::HSI_HZ);
-    assert_eq!(r.reset_flags(), 0x0E, "POR, PIN, BOR at power-on (reset value 0x0E00_0000)");
+    assert_eq!(
+        r.reset_flags(),
+        0x0E,
+        "POR, PIN, BOR at power-on (reset value 0x0E00_0000)"
+    );
     // HSE on: HSERDY follows (§6.3.1).
     let cr = r.read(rcc::CR).unwrap();
     r.write(rcc::CR, cr | (1 << 16)).unwrap();
@@ -394,8 +464,14 @@ fn rcc_pll_from_hse_gives_100_mhz_and_reset_flags_accumulate() {
     r.write(rcc::CFGR, (4 << 10) | 2).unwrap();
     assert_eq!((r.read(rcc::CFGR).unwrap() >> 2) & 3, 2);
     let c = r.clocks();
-    assert_eq!((c.sysclk, c.hclk, c.pclk1, c.pclk2), (100_000_000, 100_000_000, 50_000_000, 100_000_000));
-    assert_eq!(c.tim1clk, 100_000_000, "APB1 prescaler 2: timers at 2 × PCLK1 (§6.2)");
+    assert_eq!(
+        (c.sysclk, c.hclk, c.pclk1, c.pclk2),
+        (100_000_000, 100_000_000, 50_000_000, 100_000_000)
+    );
+    assert_eq!(
+        c.tim1clk, 100_000_000,
+        "APB1 prescaler 2: timers at 2 × PCLK1 (§6.2)"
+    );
     // RMVF clears the flags; a watchdog reset sets IWDGRSTF and PINRSTF.
     r.write(rcc::CSR, 1 << 24).unwrap();
     assert_eq!(r.reset_flags(), 0);

@@ -68,9 +68,7 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    cfg.track_s = args
-        .track_s
-        .unwrap_or(f64::from(run_ticks()) * 0.01 + 0.5);
+    cfg.track_s = args.track_s.unwrap_or(f64::from(run_ticks()) * 0.01 + 0.5);
     cfg.log = args.log.is_some();
     println!(
         "stm32: STM32F411 in Unicorn, {}, {}, sensor seed {}",

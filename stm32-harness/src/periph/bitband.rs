@@ -23,6 +23,11 @@ pub fn target(alias: u32) -> (u32, u32) {
     (byte & !3, bit + 8 * (byte & 3))
 }
 
+/// Whether alias address `addr` maps a bit inside the 0x400-byte block at `base`.
+pub fn target_in(addr: u32, base: u32) -> bool {
+    (ALIAS..ALIAS + ALIAS_SIZE).contains(&addr) && (base..base + 0x400).contains(&target(addr).0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -37,9 +42,4 @@ mod tests {
         // A bit of the second byte of a word.
         assert_eq!(target(0x4200_0000 + 0x41 * 32 + 4), (0x4000_0040, 9));
     }
-}
-
-/// Whether alias address `addr` maps a bit inside the 0x400-byte block at `base`.
-pub fn target_in(addr: u32, base: u32) -> bool {
-    (ALIAS..ALIAS + ALIAS_SIZE).contains(&addr) && (base..base + 0x400).contains(&target(addr).0)
 }

@@ -255,8 +255,9 @@ impl Flash {
         self.key_step = 0;
         self.lockout = true;
         self.cr |= CR_LOCK;
-        self.errors
-            .push(format!("wrong key sequence ({v:#010x}): FLASH_CR locked until reset"));
+        self.errors.push(format!(
+            "wrong key sequence ({v:#010x}): FLASH_CR locked until reset"
+        ));
     }
 
     fn control(&mut self, v: u32, now: Time) -> Result<Effect, Unmodelled> {
@@ -283,7 +284,8 @@ impl Flash {
         let snb = (v >> 3) & 0xF;
         let Some(&(start, len)) = SECTORS.get(snb as usize) else {
             self.sr |= SR_PGSERR;
-            self.errors.push(format!("erase of sector {snb}: no such sector"));
+            self.errors
+                .push(format!("erase of sector {snb}: no such sector"));
             return Ok(Effect::default());
         };
         self.mem[start as usize..(start + len) as usize].fill(ERASED);
@@ -308,19 +310,23 @@ impl Flash {
         };
         if self.cr & CR_PG == 0 || self.cr & (CR_SER | CR_MER) != 0 {
             self.sr |= SR_PGSERR;
-            self.errors
-                .push(format!("write to flash +{offset:#x} without PG (FLASH_CR {:#x})", self.cr));
+            self.errors.push(format!(
+                "write to flash +{offset:#x} without PG (FLASH_CR {:#x})",
+                self.cr
+            ));
             return Effect::default();
         }
         if size != psize {
             self.sr |= SR_PGPERR;
-            self.errors
-                .push(format!("{size}-byte write with PSIZE of {psize} bytes at +{offset:#x}"));
+            self.errors.push(format!(
+                "{size}-byte write with PSIZE of {psize} bytes at +{offset:#x}"
+            ));
             return Effect::default();
         }
         if offset / 16 != (offset + u32::from(size) - 1) / 16 {
             self.sr |= SR_PGAERR;
-            self.errors.push(format!("write across a 128-bit row at +{offset:#x}"));
+            self.errors
+                .push(format!("write across a 128-bit row at +{offset:#x}"));
             return Effect::default();
         }
         for k in 0..u32::from(size) {

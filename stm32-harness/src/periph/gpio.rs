@@ -30,7 +30,10 @@ pub struct Gpio {
 impl Gpio {
     /// Port `port` (`'A'` or `'B'`) at reset.
     pub fn new(port: char) -> Self {
-        let mut g = Gpio { port, regs: [0; 10] };
+        let mut g = Gpio {
+            port,
+            regs: [0; 10],
+        };
         g.reset();
         g
     }

@@ -207,7 +207,8 @@ impl Rcc {
                 self.update_sws();
             }
             CSR => {
-                let mut csr = (v & !(CSR_FLAGS | CSR_RMVF | CSR_LSIRDY)) | (self.reg(CSR) & CSR_FLAGS);
+                let mut csr =
+                    (v & !(CSR_FLAGS | CSR_RMVF | CSR_LSIRDY)) | (self.reg(CSR) & CSR_FLAGS);
                 if v & CSR_RMVF != 0 {
                     csr &= !CSR_FLAGS;
                 }

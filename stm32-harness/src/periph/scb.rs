@@ -106,7 +106,11 @@ impl Scb {
         if self.stk_ctrl & 1 == 0 {
             return self.stk_val;
         }
-        let hz = if self.stk_ctrl & 4 != 0 { hclk } else { hclk / 8 };
+        let hz = if self.stk_ctrl & 4 != 0 {
+            hclk
+        } else {
+            hclk / 8
+        };
         let ticks = ps_to_cycles(now.saturating_sub(self.stk_base), hz);
         let period = u64::from(self.stk_load) + 1;
         let v = u64::from(self.stk_val);
@@ -132,7 +136,8 @@ impl Scb {
                 // COUNTFLAG (bit 16) reads 1 if the counter reached 0 since the last read;
                 // approximated by the counter having wrapped since it was started.
                 let wrapped = self.stk_ctrl & 1 != 0
-                    && ps_to_cycles(now.saturating_sub(self.stk_base), hclk) > u64::from(self.stk_val);
+                    && ps_to_cycles(now.saturating_sub(self.stk_base), hclk)
+                        > u64::from(self.stk_val);
                 c | if wrapped { 1 << 16 } else { 0 }
             }
             0xE000_E014 => self.stk_load,

@@ -205,7 +205,11 @@ impl Usart {
     pub fn advance(&mut self, now: Time) {
         loop {
             let tx = self.shifting.map(|(_, _, end)| end).filter(|&e| e <= now);
-            let rx = self.rx_line.front().map(|&(at, _)| at).filter(|&a| a <= now);
+            let rx = self
+                .rx_line
+                .front()
+                .map(|&(at, _)| at)
+                .filter(|&a| a <= now);
             match (tx, rx) {
                 (Some(t), Some(r)) if r < t => self.rx_frame(),
                 (Some(t), _) => self.tx_frame_end(t),
