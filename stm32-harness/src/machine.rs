@@ -105,7 +105,8 @@ pub struct Core {
     pub ticks: TickMeter,
     /// Cut the power after this many flash program accesses in all (power-cut tests).
     pub power_cut_after: Option<usize>,
-    /// Bus accesses still to print on stderr (debugging).
+    /// Bus accesses, exception entries and returns still to print on stderr (debugging: the
+    /// environment variable `STM32_TRACE=<n>` sets it at start).
     pub trace: u64,
 }
 
@@ -677,14 +678,7 @@ impl Machine {
         c.deadline = deadline.max(c.now + 1);
         c.exit = None;
         let pc = self.reg(RegisterARM::PC);
-        let i0 = self.instructions();
         let r = self.uc.emu_start(u64::from(pc | 1), 0, 0, 0);
-        if std::env::var("DBG2").is_ok() && self.instructions() == i0 {
-            eprintln!(
-                "no progress at {pc:#x}: {r:?} pc now {:#x}",
-                self.reg(RegisterARM::PC)
-            );
-        }
         let exit = self.core_mut().exit.take();
         let pc_now = self.reg(RegisterARM::PC);
         if exit == Some(Exit::PowerCut) {
