@@ -481,3 +481,31 @@ fn rcc_pll_from_hse_gives_100_mhz_and_reset_flags_accumulate() {
     r.reset(ResetCause::Software);
     assert_eq!(r.reset_flags(), 0x34, "flags accumulate until RMVF");
 }
+
+#[test]
+fn iwdg_new_prescaler_changes_the_rate_when_it_arrives() {
+    // The image's erase: running at PR 3 (/32), RLR 499 (499 ms); it writes PR 6 (/256) and a
+    // new RLR, then reloads at once: the reload takes the old RLR (RVU set), and once the new
+    // prescaler arrives (5 LSI periods) the remaining counts go 8 times slower.
+    let lsi = PS_PER_S / iwdg::LSI_HZ;
+    let mut w = Iwdg::new();
+    w.write(iwdg::KR, 0x5555, 0).unwrap();
+    w.write(iwdg::PR, 3, 0).unwrap();
+    w.write(iwdg::RLR, 499, 0).unwrap();
+    w.write(iwdg::KR, 0xCCCC, 10 * lsi).unwrap();
+    w.write(iwdg::KR, 0x5555, 10 * lsi).unwrap();
+    w.write(iwdg::PR, 6, 10 * lsi).unwrap();
+    w.write(iwdg::RLR, 999, 10 * lsi).unwrap();
+    w.write(iwdg::KR, 0xAAAA, 10 * lsi).unwrap();
+    assert_eq!(
+        w.expiry(),
+        Some(10 * lsi + 499 * 32 * lsi),
+        "old RLR, old rate"
+    );
+    w.settle(15 * lsi);
+    // 5 LSI periods at /32 used no whole count: 499 counts left, now at /256.
+    assert_eq!(w.expiry(), Some(15 * lsi + 499 * 256 * lsi));
+    // The next reload takes the new RLR.
+    w.write(iwdg::KR, 0xAAAA, 20 * lsi).unwrap();
+    assert_eq!(w.expiry(), Some(20 * lsi + 999 * 256 * lsi));
+}

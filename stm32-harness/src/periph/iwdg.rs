@@ -9,9 +9,10 @@
 //! - `IWDG_SR` (§15.4.4): PVU and RVU are set while a new PR or RLR value is carried into the
 //!   watchdog's own (VDD) domain, "up to 5 RC 40 kHz cycles"; until then the counter keeps
 //!   using the old value (a reload right after writing RLR reloads the old one). Modelled as
-//!   5 LSI periods.
-//! - the counter counts at f_LSI / divider from its reload and the chip resets when it reaches
-//!   0 (§15.3.1), with IWDGRSTF in RCC_CSR (the machine does the reset).
+//!   5 LSI periods. A new prescaler changes the counting rate from the moment it arrives; a
+//!   new reload value is used from the next reload.
+//! - the counter counts down at f_LSI / divider from its reload and the chip resets when it
+//!   reaches 0 (§15.3.1), with IWDGRSTF in RCC_CSR (the machine does the reset).
 //! - f_LSI is its typical 32 kHz (STM32F411xC/E datasheet DS10314, "LSI oscillator
 //!   characteristics": 17–47 kHz). Simplification: the LSI is exact, so the timeout is the
 //!   nominal one; a real chip's may differ by −47 %/+88 %.
@@ -42,8 +43,9 @@ pub struct Iwdg {
     pr_update: Option<Time>,
     rlr_update: Option<Time>,
     unlocked: bool,
-    /// When the counter was last reloaded, and the value it was reloaded with (None: stopped).
-    reload: Option<(Time, u32, u32)>,
+    /// The counter as of a time: (time, LSI periods left until it reaches 0 at the divider in
+    /// effect), `None` while stopped.
+    count: Option<(Time, u64)>,
     /// Reloads (feeds) seen, for tests.
     pub feeds: u64,
 }
@@ -69,7 +71,7 @@ impl Iwdg {
             pr_update: None,
             rlr_update: None,
             unlocked: false,
-            reload: None,
+            count: None,
             feeds: 0,
         }
     }
@@ -80,7 +82,16 @@ impl Iwdg {
 
     /// Carries PR and RLR updates that have ended by `now` into effect.
     pub fn settle(&mut self, now: Time) {
-        if self.pr_update.is_some_and(|t| t <= now) {
+        if let Some(t) = self.pr_update.filter(|&t| t <= now) {
+            // The counter counts on at the new rate from `t`, its remaining counts kept.
+            if let Some((at, left)) = self.count {
+                let gone = t.saturating_sub(at) / lsi_period();
+                // The counter's value then (a count in progress not yet taken off).
+                let counts = left
+                    .saturating_sub(gone)
+                    .div_ceil(Self::divider(self.pr_active));
+                self.count = Some((t, counts * Self::divider(self.pr)));
+            }
             self.pr_active = self.pr;
             self.pr_update = None;
         }
@@ -92,20 +103,22 @@ impl Iwdg {
 
     fn reload_now(&mut self, now: Time) {
         self.settle(now);
-        self.reload = Some((now, self.rlr_active, self.pr_active));
+        self.count = Some((
+            now,
+            u64::from(self.rlr_active) * Self::divider(self.pr_active),
+        ));
     }
 
     /// Whether the watchdog runs.
     pub fn running(&self) -> bool {
-        self.reload.is_some()
+        self.count.is_some()
     }
 
-    /// When the counter reaches 0 (the chip resets), if it runs.
+    /// When the counter reaches 0 (the chip resets) if nothing reloads it, at the rate in
+    /// effect (a prescaler update on its way is an event of its own).
     pub fn expiry(&self) -> Option<Time> {
-        // A prescaler taking effect later changes the rate from then on; the model applies
-        // it from the next reload (the image reloads every 10 ms).
-        let (at, count, pr) = self.reload?;
-        Some(at + u64::from(count) * Self::divider(pr) * lsi_period())
+        let (at, left) = self.count?;
+        Some(at + left * lsi_period())
     }
 
     /// The next time something happens by itself: an update ending or the expiry.
@@ -135,7 +148,7 @@ impl Iwdg {
             KR => match v & 0xFFFF {
                 0xCCCC => {
                     self.unlocked = false;
-                    if self.reload.is_none() {
+                    if self.count.is_none() {
                         // Starts from the reset value 0xFFF (§15.3.1) ... with the RLR in effect.
                         self.reload_now(now);
                     }
@@ -143,7 +156,7 @@ impl Iwdg {
                 0xAAAA => {
                     self.unlocked = false;
                     self.feeds += 1;
-                    if self.reload.is_some() {
+                    if self.count.is_some() {
                         self.reload_now(now);
                     }
                 }
