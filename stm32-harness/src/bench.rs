@@ -285,11 +285,27 @@ impl Bench {
         Ok(())
     }
 
-    /// Moves the bytes USART1 sent into lines; returns how many lines completed.
+    /// Moves the bytes USART1 sent into lines; returns how many lines completed. A line cut
+    /// by a reset ends there (its text as far as it was sent), so that the next boot's first
+    /// line starts a line of its own.
     fn drain(&mut self) -> usize {
         let sent = &self.machine.chip().usart1.sent;
+        let resets = &self.machine.resets;
         let mut new = 0;
         for s in &sent[self.sent_seen..] {
+            if let Some((start, start_instr)) = self.partial_start {
+                if let Some(r) = resets.iter().find(|r| r.at > start && r.at <= s.start) {
+                    self.lines.push(Line {
+                        text: String::from_utf8_lossy(&self.partial).into_owned(),
+                        start,
+                        start_instr,
+                        end: r.at,
+                    });
+                    self.partial.clear();
+                    self.partial_start = None;
+                    new += 1;
+                }
+            }
             match s.byte {
                 b'\n' => {
                     let (start, start_instr) =

@@ -156,3 +156,43 @@ fn the_watchdog_resets_a_hung_image_and_the_next_boot_reports_it() {
     let boot = b.find("BOOT").nth(1).expect("second BOOT");
     assert_eq!(boot.text, "BOOT board=stm32f411 reset=36 record=none");
 }
+
+#[test]
+fn a_power_cut_in_the_middle_of_the_first_save_leaves_no_record() {
+    // The first save programs the 76-byte record, then its 4-byte header as the commit mark
+    // (firmware/src/board/blackpill_f411.rs): power cut after 40 program accesses.
+    let mut b = Bench::new(BenchConfig::new(elf())).unwrap();
+    b.apply(Action::PowerCutAfterProgram(40)).unwrap();
+    b.run_until(100.0, |l| l.keyword() == "BOOT" && l.start > ps(1.0))
+        .unwrap();
+    let m = &b.machine;
+    assert_eq!(m.resets.len(), 2, "{:?} {:?}", m.resets, keywords(&b.lines));
+    assert_eq!(m.resets[1].cause, ResetCause::PowerOn);
+    assert_eq!(m.chip().flash.programmed.len(), 40);
+    assert!(
+        b.record_sector_used(),
+        "the bytes before the cut stay programmed"
+    );
+    // The ACCEPT line was on its way when the power went: it ends at the cut.
+    let cut = b
+        .lines
+        .iter()
+        .position(|l| l.keyword() == "BOOT" && l.start > ps(1.0));
+    assert!(b.lines[cut.unwrap() - 1].text.starts_with("ACCEPT"));
+    let boot = b.find("BOOT").nth(1).expect("BOOT after the power cut");
+    assert_eq!(boot.text, "BOOT board=stm32f411 reset=14 record=none");
+}
+
+#[test]
+fn a_stalled_blower_stops_the_pump() {
+    // Stalled in run mode: the firmware's stall check drives the duty to 0.
+    let mut b = Bench::new(BenchConfig::new(elf())).unwrap();
+    b.run_until(80.0, |l| l.keyword() == "CTRL").unwrap();
+    let at = b.time_s() + 2.0;
+    b.schedule(at, Action::Stall(true));
+    b.run_until(at + 5.0, |l| l.keyword() == "FAULT").unwrap();
+    let fault = b.find("FAULT").next().expect("FAULT line");
+    assert!(fault.parsed().has_word("stall"), "{}", fault.text);
+    b.run_for(0.1).unwrap();
+    assert_eq!(b.duty_now().fraction, 0.0, "pump off");
+}
