@@ -17,6 +17,7 @@ use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
 use crate::lines::Line;
 use crate::machine::Machine;
 use crate::periph::flash;
+use crate::periph::i2c::BusFault;
 use crate::periph::rcc::ResetCause;
 use crate::periph::{Time, PS_PER_S};
 use crate::sensor::{Fault, SensorState, Sfm3300Slave};
@@ -81,6 +82,8 @@ pub enum Action {
     Reset,
     /// Cut the power after this many more flash program accesses, then power up again.
     PowerCutAfterProgram(usize),
+    /// A fault on the I2C bus during the next byte (BERR, or ARLO: another master).
+    Bus(BusFault),
 }
 
 /// The duty on the pump's pin, seen at a plant step.
@@ -214,6 +217,7 @@ impl Bench {
                 let done = self.machine.chip().flash.programmed.len();
                 self.machine.core_mut().power_cut_after = Some(done + n);
             }
+            Action::Bus(f) => self.machine.chip_mut().i2c1.inject(f),
         }
         Ok(())
     }

@@ -56,6 +56,25 @@ fn default_blower_boots_identifies_persists_designs_and_tracks() {
     assert!(b.sensor.borrow().errors.is_empty());
     // The record is in flash sector 7.
     assert!(b.record_sector_used());
+    // USART1's interrupt kept every line's bytes back to back: each frame starts when the one
+    // before it ends (the interrupt refills DR within the 86.8 µs frame), so neither the clock
+    // jump nor the chunking delayed a TXE interrupt past its frame.
+    let sent = &m.chip().usart1.sent;
+    let frame = sent[0].end - sent[0].start;
+    assert_eq!(frame, 86_800_000, "10 bits at BRR 868 and PCLK2 100 MHz");
+    let mut gaps = 0;
+    for w in sent.windows(2) {
+        if w[0].byte != b'\n' {
+            assert_eq!(
+                w[1].start,
+                w[0].end,
+                "gap inside a line at {} s",
+                secs(w[0].end)
+            );
+            gaps += 1;
+        }
+    }
+    assert!(gaps > 1_000, "{gaps} byte pairs checked");
     // Run mode: each TRACK line's measured mean flow (over the run ticks since the previous
     // line, `tick=`) is the plant's true flow over the same window (sensor noise and offset
     // averaged: within 0.3 slm), and tracks its setpoint.
