@@ -122,7 +122,9 @@ pub struct Timing {
     /// Worst whole tick, instructions.
     pub tick_worst: u64,
     /// Search: instructions from the PWM write of the tick that completed the record to the
-    /// first byte of the `ID` (or `REJECT`) line, the ticks run inside it included.
+    /// first byte of the `ID` (or `REJECT`) line leaving USART1, the ticks run inside it
+    /// included. `None` when that byte waited in the transmit queue past the tick (the
+    /// console's log on): then the line's start no longer marks the end of the job.
     pub search_instr: Option<u64>,
     /// The same in emulated time, ps.
     pub search_ps: Option<Time>,
