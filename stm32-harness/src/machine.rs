@@ -105,6 +105,8 @@ pub struct Core {
     pub ticks: TickMeter,
     /// Cut the power after this many flash program accesses in all (power-cut tests).
     pub power_cut_after: Option<usize>,
+    /// Whether polling jumps the clock (on by default; off, every poll iteration runs).
+    pub clock_jump: bool,
     /// Bus accesses, exception entries and returns still to print on stderr (debugging: the
     /// environment variable `STM32_TRACE=<n>` sets it at start).
     pub trace: u64,
@@ -186,7 +188,7 @@ impl Core {
             if let Some(t) = timer_change {
                 target = target.min(t);
             }
-            if target > now && !stop {
+            if self.clock_jump && target > now && !stop {
                 self.jumped += target - now;
                 self.now = target;
                 self.chip.advance(target);
@@ -272,6 +274,7 @@ impl Machine {
             poll_first: (0, 0),
             ticks: TickMeter::default(),
             power_cut_after: None,
+            clock_jump: true,
             trace: std::env::var("STM32_TRACE")
                 .ok()
                 .and_then(|v| v.parse().ok())

@@ -215,3 +215,46 @@ fn a_stalled_blower_stops_the_pump() {
     b.run_for(0.1).unwrap();
     assert_eq!(b.duty_now().fraction, 0.0, "pump off");
 }
+
+#[test]
+fn the_clock_jump_changes_nothing_the_firmware_observes() {
+    // The first 2.5 s (clock setup, BOOT, the sensor's start, the settling at the base duty,
+    // EXCITE) with and without the jump: the same lines, and the same frames served at the
+    // same times up to the few instructions a poll loop takes to see an event (< 1 µs).
+    let run = |jump: bool| {
+        let mut b = Bench::new(BenchConfig::new(elf())).unwrap();
+        b.machine.core_mut().clock_jump = jump;
+        b.run_until(2.5, |_| false).unwrap();
+        let lines: Vec<String> = b.lines.iter().map(|l| l.text.clone()).collect();
+        let frames = b.sensor.borrow().served();
+        (
+            lines,
+            frames,
+            b.machine.core().jumped,
+            b.machine.instructions(),
+        )
+    };
+    let (lines_j, frames_j, jumped, instr_j) = run(true);
+    let (lines_n, frames_n, not_jumped, instr_n) = run(false);
+    assert_eq!(not_jumped, 0);
+    assert!(secs(jumped) > 2.0, "the jump skipped {:.3} s", secs(jumped));
+    assert!(
+        instr_n > 50 * instr_j,
+        "{instr_n} instructions without, {instr_j} with"
+    );
+    assert!(
+        lines_j.iter().any(|l| l.starts_with("EXCITE")),
+        "{lines_j:?}"
+    );
+    assert_eq!(lines_j, lines_n);
+    assert_eq!(frames_j.len(), frames_n.len());
+    for (a, b) in frames_j.iter().zip(&frames_n) {
+        assert_eq!(a.1, b.1, "raw word");
+        assert!(
+            a.0.abs_diff(b.0) < ps(1e-6),
+            "frame at {} s vs {} s",
+            secs(a.0),
+            secs(b.0)
+        );
+    }
+}
