@@ -172,6 +172,8 @@ pub struct SessionConfig {
     pub track_s: f64,
     /// Send `LOG on` once the firmware printed its first line (the console's CSV log).
     pub log: bool,
+    /// Jump the clock over polling (see [`crate::machine`]).
+    pub clock_jump: bool,
 }
 
 impl SessionConfig {
@@ -183,6 +185,7 @@ impl SessionConfig {
             linger_s: 0.5,
             track_s: 0.0,
             log: false,
+            clock_jump: true,
         }
     }
 }
@@ -194,6 +197,7 @@ fn is_final(l: &Line) -> bool {
 /// Runs one session.
 pub fn run(cfg: &SessionConfig) -> Result<Outcome, String> {
     let mut bench = Bench::new(cfg.bench.clone())?;
+    bench.machine.core_mut().clock_jump = cfg.clock_jump;
     let t0 = Instant::now();
     if cfg.log {
         bench.run_until(cfg.max_s, |_| true)?;

@@ -46,6 +46,10 @@ struct Args {
     /// PATH as `ridge-id capture` does.
     #[arg(long, value_name = "PATH")]
     log: Option<PathBuf>,
+    /// Run every poll iteration instead of jumping the clock to the next event (slow: for
+    /// checking the jump).
+    #[arg(long)]
+    no_jump: bool,
 }
 
 fn main() -> ExitCode {
@@ -70,6 +74,7 @@ fn main() -> ExitCode {
     };
     cfg.track_s = args.track_s.unwrap_or(f64::from(run_ticks()) * 0.01 + 0.5);
     cfg.log = args.log.is_some();
+    cfg.clock_jump = !args.no_jump;
     println!(
         "stm32: STM32F411 in Unicorn, {}, {}, sensor seed {}",
         elf.display(),
