@@ -258,3 +258,35 @@ fn the_clock_jump_changes_nothing_the_firmware_observes() {
         );
     }
 }
+
+#[test]
+fn console_bytes_reach_the_firmware_through_usart1_receive_interrupt() {
+    // `LOG on` at 115 200 baud into PA10: the receive interrupt queues the bytes, the loop
+    // answers `OK log`, the CSV header, then one log row per 10 ms tick.
+    let mut b = Bench::new(BenchConfig::new(elf())).unwrap();
+    b.run_until(1.0, |_| false).unwrap();
+    b.send_at(1.0, b"LOG on\n");
+    b.run_until(3.0, |_| false).unwrap();
+    let received = &b.machine.chip().usart1.received;
+    assert_eq!(received.len(), 7);
+    assert!(received.iter().all(|r| !r.lost), "no overrun");
+    let ok = b
+        .lines
+        .iter()
+        .position(|l| l.text == "OK log")
+        .expect("OK log");
+    let last_byte = received.last().unwrap().at;
+    assert!(b.lines[ok].start > last_byte);
+    // Answered within the pass after the line completed (≤ 2 ticks).
+    assert!(
+        b.lines[ok].start - last_byte < ps(0.02),
+        "{} s",
+        secs(b.lines[ok].start - last_byte)
+    );
+    assert_eq!(b.lines[ok + 1].text, "t,u,y,r,phase");
+    let rows = b.lines[ok + 2..]
+        .iter()
+        .filter(|l| l.start > ps(2.0) && l.start <= ps(3.0))
+        .count();
+    assert!((99..=101).contains(&rows), "{rows} rows in one second");
+}
