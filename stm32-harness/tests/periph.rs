@@ -384,8 +384,9 @@ fn flash_sector_erase_sets_0xff_and_takes_the_datasheet_time() {
     let mut f = unlocked_flash();
     f.write(flash::CR, flash::CR_PG, 0).unwrap();
     f.program(0x6_0010, 1, 0x12, 0);
-    f.program(0x5_FFFF, 1, 0x34, 0); // last byte of sector 6
-                                     // SER, SNB = 7, STRT (§3.5.3), after the programs have finished.
+    // The last byte of sector 6.
+    f.program(0x5_FFFF, 1, 0x34, 0);
+    // SER, SNB = 7, STRT (§3.5.3), after the programs have finished.
     let e = f
         .write(flash::CR, flash::CR_SER | (7 << 3) | flash::CR_STRT, MS)
         .unwrap();

@@ -4,8 +4,8 @@
 //! Modelled:
 //! - `RCC_CR` (§6.3.1): each ready flag (HSIRDY, HSERDY, PLLRDY, PLLI2SRDY) follows its enable
 //!   (HSION, HSEON, PLLON, PLLI2SON). Simplification: at once; a real HSE needs its start-up
-//!   time (≈ 2 ms crystal dependent) and the PLL its lock time (≤ 100 µs), which the image only
-//!   waits for.
+//!   time (≈ 2 ms, crystal dependent) and the PLL its lock time (≤ 100 µs), which the image
+//!   only waits for.
 //! - `RCC_PLLCFGR` (§6.3.2), `RCC_CFGR` (§6.3.3): SWS follows SW when the selected source is
 //!   ready; SYSCLK, HCLK, PCLK1/2 and the timer clocks (§6.2, "TIMPRE = 0: the timer clock is
 //!   PCLKx when the APBx prescaler is 1, else 2 × PCLKx") are computed from them.
