@@ -395,6 +395,28 @@ impl Chip {
         })
     }
 
+    /// Whether the register at `addr` can change by itself (a counter, a status flag, an
+    /// input): only such a register can be waited on, so only reads of one count as polling
+    /// for the clock jump. Reading a constant (the flash-size word in a loop over the record
+    /// slots) is work, not a wait.
+    pub fn changes_by_itself(addr: u32) -> bool {
+        use crate::periph::{flash, i2c, iwdg, timer, usart};
+        let Some((unit, off)) = decode(addr & !3) else {
+            return false;
+        };
+        match unit {
+            Unit::Tim3 | Unit::Tim5 => matches!(off, timer::CNT | timer::SR),
+            Unit::Usart1 => off == usart::SR,
+            Unit::I2c1 => matches!(off, i2c::SR1 | i2c::SR2 | i2c::CR1),
+            Unit::Flash => off == flash::SR,
+            Unit::Iwdg => off == iwdg::SR,
+            Unit::Rcc => matches!(off, 0x00 | 0x08 | 0x74),
+            Unit::GpioA | Unit::GpioB => off == 0x10,
+            Unit::Scb => matches!(off, 0xE000_E010 | 0xE000_E018 | 0xE000_ED04),
+            Unit::Nvic | Unit::Dbgmcu | Unit::Signature => false,
+        }
+    }
+
     /// Changes of state that the machine must act on: a reset requested by software.
     pub fn take_reset_request(&mut self) -> bool {
         std::mem::take(&mut self.scb.reset_requested)

@@ -11,9 +11,10 @@
 //! peripheral changes by itself ([`crate::chip::Chip::next_event`]) or the caller's deadline,
 //! so no event is passed over.
 //!
-//! **Clock jump.** When the firmware polls one register (the same value read
-//! [`POLL_READS`] times in a row, each within [`POLL_GAP`] instructions of the last, with no
-//! other bus access between), nothing it can observe changes until the next peripheral event,
+//! **Clock jump.** When the firmware polls one register that can change by itself (a counter,
+//! a status flag: [`Chip::changes_by_itself`]; the same value read [`POLL_READS`] times in a
+//! row, each within [`POLL_GAP`] instructions of the last, with no other bus access between),
+//! nothing it can observe changes until the next peripheral event,
 //! the next change of that register (a timer's next count) or the caller's deadline; the
 //! machine jumps emulated time there at once. Interrupts are events too, so a jump never
 //! skips one. What changes: the poll loop runs fewer iterations than on the chip, so a loop
@@ -149,7 +150,10 @@ impl Core {
         let v = self.chip.read(addr, size, now);
         if self.trace > 0 {
             self.trace -= 1;
-            eprintln!("{:>12} R {addr:#010x} {size} -> {v:#x}", self.instr);
+            eprintln!(
+                "{:>12} {:>14} R {addr:#010x} {size} -> {v:#x}",
+                self.instr, self.now
+            );
         }
         let counter = addr == TIM5 + CNT;
         let same = self
@@ -171,7 +175,7 @@ impl Core {
             self.ticks.other_access();
         }
         let mut stop = self.chip.pending_exception().is_some();
-        if self.poll_run >= POLL_READS {
+        if self.poll_run >= POLL_READS && Chip::changes_by_itself(addr) {
             if counter && thread && self.poll_run == POLL_READS {
                 self.ticks.idle(self.poll_first.0, self.poll_first.1);
             }
@@ -201,7 +205,10 @@ impl Core {
     fn mmio_write(&mut self, addr: u32, size: u32, v: u32) -> (Effect, bool) {
         if self.trace > 0 {
             self.trace -= 1;
-            eprintln!("{:>12} W {addr:#010x} {size} <- {v:#x}", self.instr);
+            eprintln!(
+                "{:>12} {:>14} W {addr:#010x} {size} <- {v:#x}",
+                self.instr, self.now
+            );
         }
         self.poll = None;
         self.poll_run = 0;
@@ -384,7 +391,14 @@ impl Machine {
         let bytes = uc.get_data().chip.flash.mem[off as usize..(off + len) as usize].to_vec();
         uc.mem_write(u64::from(flash::BASE + off), &bytes).ok();
         let c = uc.get_data_mut();
-        c.now += e.stall;
+        // The CPU stalls until the operation ends, unless the watchdog resets the chip first
+        // (the run loop then resets it at that time). Simplification: an erase cut short by
+        // the reset has erased its sector all the same (the chip leaves it undefined).
+        let end = c.now + e.stall;
+        c.now = match c.chip.iwdg.expiry() {
+            Some(x) if x < end => x.max(c.now),
+            _ => end,
+        };
         c.chip.advance(c.now);
         true
     }
