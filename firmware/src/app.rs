@@ -187,6 +187,8 @@ pub struct App<I, P, W, S: Settings = &'static Config> {
     sid: SelfIdentification<S>,
     late: u16,
     lost: u16,
+    /// A search or design ended in the last pass: the next pass's tick is not late.
+    after_job: bool,
     reported: (u16, u16),
     summary_in: u8,
     /// The last blocking job and its `(ticks, lost)`, for its line in the next pass.
@@ -210,6 +212,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
             out,
             sid,
             late: 0,
+            after_job: false,
             lost: 0,
             reported: (0, 0),
             summary_in: SUMMARY_TICKS,
@@ -255,7 +258,8 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
     pub fn step<B: Board>(&mut self, board: &mut B) {
         let (elapsed, late) = self.wait(board);
         board.pet();
-        if late {
+        let after_job = core::mem::take(&mut self.after_job);
+        if late && !after_job {
             self.late = self.late.saturating_add(1);
         }
         self.lost = self.lost.saturating_add(elapsed - 1);
@@ -550,16 +554,18 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
         }
     }
 
-    /// After a search (its frame is gone): its event (and a fault the guard found), then the
-    /// catch-up tick. The `SEARCH` / `STACK` lines wait for the next pass, right after its
-    /// tick, so that printing them cannot run into the next tick boundary.
+    /// After a search (its frame is gone): its event (and a fault the guard found). The next
+    /// pass ticks at once if a boundary passed meanwhile, and is not counted late for it (the
+    /// job's time is on its `SEARCH` / `DESIGN` line). The `SEARCH` / `STACK` lines wait for
+    /// that pass, right after its tick, so that printing them cannot run into the next tick
+    /// boundary.
     fn after_search<B: Board>(&mut self, board: &mut B, end: SearchEnd) {
         let SearchEnd {
             job,
             event,
             fault,
-            mut ticks,
-            mut lost,
+            ticks,
+            lost,
         } = end;
         if let Some(event) = event {
             self.stop_on_fault();
@@ -584,16 +590,8 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
                 self.sid.stop();
             }
         }
-        // Catch up with the boundary that passed last (the ones before it are lost), so that
-        // the next pass of the loop does not count as late.
-        if let Some(elapsed) = board.poll_tick() {
-            ticks = ticks.saturating_add(1);
-            lost = lost.saturating_add(elapsed - 1);
-            if let Some(c) = board.console() {
-                c.clock = c.clock.wrapping_add(u32::from(elapsed) - 1);
-            }
-            self.tick(board);
-        }
+        // The boundary that passes while the job ends is the next pass's tick, not a late one.
+        self.after_job = true;
         self.search_lines = Some((job, ticks, lost));
     }
 

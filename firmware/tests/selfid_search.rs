@@ -149,7 +149,19 @@ fn check_same<T: Real>(normal: &Normal<T>, search: &Search<T>) {
                 (c.candidates, c.evaluated, c.skipped),
                 "{search:?}"
             );
-            assert!(pets >= usize::from(m.candidates), "{pets}");
+            // The watchdog is fed at least once per group of bounds (one elimination per p,
+            // one small factorisation per (p, d); one bound per candidate for the validation
+            // criterion).
+            let g = search.grid;
+            let (np, nd) = (
+                usize::from(g.p.max - g.p.min) + 1,
+                usize::from(g.d.max - g.d.min) + 1,
+            );
+            let groups = match search.criterion {
+                Criterion::Validation => usize::from(m.candidates),
+                _ => np * (nd + 1),
+            };
+            assert!(pets >= groups, "{pets}");
         }
         (Err(a), Err(b)) => assert_eq!(a, b),
         (a, b) => panic!("{a:?} vs {b:?}"),

@@ -19,6 +19,8 @@
 //!
 //! The API is ridge-core's; see its documentation.
 
+#[path = "../../ridge-core/src/bounds.rs"]
+mod bounds;
 #[path = "../../ridge-core/src/cholesky.rs"]
 mod cholesky;
 #[path = "../../ridge-core/src/error.rs"]

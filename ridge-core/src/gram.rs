@@ -26,7 +26,7 @@
 //! fed the statistics.
 
 use crate::error::{Error, Result};
-use crate::normal::{other, Normal, N_OTHER};
+use crate::normal::{other, Col, Normal, N_OTHER};
 use crate::real::Real;
 use crate::structure::Grid;
 use crate::wide::Wide;
@@ -261,17 +261,6 @@ impl Accumulator for f64 {
     fn is_positive(self) -> bool {
         self > 0.0
     }
-}
-
-/// One column of the full lag Gram: an output lag, an input lag or the constant 1.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Col {
-    /// `y_{t-k}`, `k ∈ 0..=P_MAX` (`k = 0` is the regression target).
-    Y(u8),
-    /// `u_{t-k}`, `k ∈ 0..L_MAX`.
-    U(u8),
-    /// The constant 1 of the intercept.
-    One,
 }
 
 /// Exact streaming statistics of one record; see the [module docs](self).

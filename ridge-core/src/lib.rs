@@ -34,6 +34,7 @@
 //! See `README.md` ("Precision") for the measured agreement of the `f32` and `f64`
 //! paths; the host tests check it.
 
+mod bounds;
 mod cholesky;
 pub mod control;
 pub mod error;

@@ -2,7 +2,7 @@
 //! as MATLAB reports it).
 
 use crate::error::{Error, Result};
-use crate::gram::Col;
+use crate::normal::Col;
 use crate::normal::Layout;
 use crate::real::Real;
 use crate::structure::{Offset, Structure};

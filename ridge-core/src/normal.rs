@@ -19,10 +19,20 @@
 
 use crate::cholesky::{backward, factor_in_place, forward, packed, packed_len};
 use crate::error::{Error, Result};
-use crate::gram::Col;
 use crate::real::Real;
 use crate::structure::{Offset, Structure};
 use crate::{L_MAX, PARAMS_MAX, P_MAX};
+
+/// One column of the full lag Gram: an output lag, an input lag or the constant 1.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Col {
+    /// `y_{t-k}`, `k ∈ 0..=P_MAX` (`k = 0` is the regression target).
+    Y(u8),
+    /// `u_{t-k}`, `k ∈ 0..L_MAX`.
+    U(u8),
+    /// The constant 1 of the intercept.
+    One,
+}
 
 /// The 19 columns of the lag Gram other than the pivot `y_{t-1}`:
 /// `y_{t-2} … y_{t-P}`, `u_t … u_{t-L+1}`, `1`, `y_t` (target, last).
@@ -63,7 +73,7 @@ pub(crate) fn other(idx: usize) -> Col {
 pub(crate) const N_OTHER: usize = OTHERS.len();
 
 /// Position of a column in [`OTHERS`].
-fn others_index(c: Col) -> usize {
+pub(crate) fn others_index(c: Col) -> usize {
     match c {
         Col::Y(0) => P_MAX + L_MAX,
         Col::Y(k) => usize::from(k) - 2,
@@ -120,7 +130,7 @@ impl<T: Real> Normal<T> {
         }
     }
 
-    fn schur_at(&self, a: usize, b: usize) -> T {
+    pub(crate) fn schur_at(&self, a: usize, b: usize) -> T {
         let (a, b) = if a >= b { (a, b) } else { (b, a) };
         self.schur.get(packed(a, b)).copied().unwrap_or(T::ZERO)
     }
@@ -135,6 +145,40 @@ impl<T: Real> Normal<T> {
             }
         }
         Ok(())
+    }
+
+    /// Entry `(a, b)` (positions in [`OTHERS`]) of the matrix that Cholesky continues on
+    /// after the exact pivot `y_{t-1}`, without the `γD` of the diagonal: the Schur
+    /// complement plus `c r_a r_b`, `c = γ / (s11 (s11 + γ))` (see [`System::factor_into`],
+    /// whose formula this is; `c = 0` for least squares).
+    pub(crate) fn trailing(&self, a: usize, b: usize, c: T) -> T {
+        let ra = self.r.get(a).copied().unwrap_or(T::ZERO);
+        let rb = self.r.get(b).copied().unwrap_or(T::ZERO);
+        self.schur_at(a, b) + c * ra * rb
+    }
+
+    /// `c = γ / (s11 (s11 + γ))` of [`Normal::trailing`] and the pivot `s11 + γ`, or
+    /// [`Error::NotPositiveDefinite`] when that pivot is not positive and finite.
+    pub(crate) fn pivot(&self, gamma: T) -> Result<(T, T)> {
+        let a11 = self.s11 + gamma;
+        if a11 <= T::ZERO || !a11.is_finite() {
+            return Err(Error::NotPositiveDefinite);
+        }
+        Ok((a11, gamma / (self.s11 * a11)))
+    }
+
+    /// The rounding floor of the least-squares RSS of a system of `n` coefficients:
+    /// Cholesky's backward error on the target row (`4 n ε` of what `y_{t-1}` leaves
+    /// unexplained of the target) plus the rounding of the statistics themselves.
+    pub(crate) fn rss_floor(&self, n: usize) -> T {
+        let target = others_index(Col::Y(0));
+        let floor = T::from_u32(4 * n as u32) * T::EPSILON * self.schur_at(target, target)
+            + self.y_rounding;
+        if floor > T::ZERO {
+            floor
+        } else {
+            T::ZERO
+        }
     }
 
     /// Number of samples `N` of the record (rows of the regression matrix).
@@ -188,7 +232,10 @@ impl<T: Real> Normal<T> {
 
 /// Where each coefficient of a structure sits in the parameter vector.
 ///
-/// Internal order: `[y_{t-1}, (1), u_{t-d} … u_{t-d-q+1}, y_{t-2} … y_{t-p}]`.
+/// Internal order: `[y_{t-1}, (1), y_{t-2} … y_{t-p}, u_{t-d} … u_{t-d-q+1}]`: the columns
+/// every candidate of one `p` shares come first and the input lags last, so that the
+/// factor of `(p, q, d)` is the leading block of the factor of `(p, q', d)` for `q' > q`
+/// (what the search's bounds use, [`crate::bounds`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Layout {
     pub(crate) structure: Structure,
@@ -211,11 +258,11 @@ impl Layout {
         if offset == Offset::Intercept {
             put(Col::One);
         }
-        for j in 0..structure.q {
-            put(Col::U(structure.d + j));
-        }
         for i in 2..=structure.p {
             put(Col::Y(i));
+        }
+        for j in 0..structure.q {
+            put(Col::U(structure.d + j));
         }
         Layout {
             structure,
@@ -294,7 +341,7 @@ impl<T: Real> System<'_, T> {
 
     /// The regressor of parameter `i` in internal order (`i = n`: the target
     /// `Output(0)`); `None` past the end. The internal order is
-    /// `[y_{t-1}, (1), u_{t-d} … u_{t-d-q+1}, y_{t-2} … y_{t-p}]`.
+    /// `[y_{t-1}, (1), y_{t-2} … y_{t-p}, u_{t-d} … u_{t-d-q+1}]`.
     pub fn regressor(&self, i: usize) -> Option<Regressor> {
         if i == self.layout.len {
             return Some(Regressor::Output(0));
@@ -349,25 +396,20 @@ impl<T: Real> System<'_, T> {
             return Err(Error::InvalidParameter);
         }
         let n = self.layout.len;
-        let s11 = self.normal.s11;
-        let a11 = s11 + gamma;
-        if a11 <= T::ZERO || !a11.is_finite() {
-            return Err(Error::NotPositiveDefinite);
-        }
-        let l00 = a11.sqrt();
         // Eliminating the regularised pivot y_{t-1} leaves, for the other columns,
         // Schur + γD + r rᵀ (1/s11 − 1/(s11 + γ)) = Schur + γD + r rᵀ γ / (s11 (s11 + γ)):
         // the trailing block is formed from the exact Schur complements, column 0 of L
         // directly, and Cholesky continues from row 1.
-        let c = gamma / (s11 * a11);
+        let (a11, c) = self.normal.pivot(gamma)?;
+        let l00 = a11.sqrt();
         let intercept = self.layout.intercept();
         out.n = n;
         out.l[0] = l00;
         for i in 1..=n {
-            let ri = self.r(i - 1);
-            out.l[packed(i, 0)] = ri / l00;
+            let ri = usize::from(self.rest[i - 1]);
+            out.l[packed(i, 0)] = self.r(i - 1) / l00;
             for j in 1..=i {
-                let mut v = self.schur(i - 1, j - 1) + c * ri * self.r(j - 1);
+                let mut v = self.normal.trailing(ri, usize::from(self.rest[j - 1]), c);
                 // The target (row n) is never regularised, nor is the intercept.
                 if i == j && i < n && intercept != Some(i) {
                     v += gamma;
@@ -375,15 +417,17 @@ impl<T: Real> System<'_, T> {
                 out.l[packed(i, j)] = v;
             }
         }
-        let tol = T::from_u32(4 * PARAMS_MAX as u32) * T::EPSILON;
-        factor_in_place(&mut out.l, n + 1, 1, n, tol)?;
-        let schur_tt = self.schur(n - 1, n - 1);
-        // Below this, a residual is rounding noise: Cholesky's backward error on the
-        // target row plus the rounding of the statistics themselves.
-        let floor = T::from_u32(4 * n as u32) * T::EPSILON * schur_tt + self.normal.y_rounding;
-        out.rss_floor = if floor > T::ZERO { floor } else { T::ZERO };
+        factor_in_place(&mut out.l, n + 1, 1, n, pivot_tol())?;
+        out.rss_floor = self.normal.rss_floor(n);
         Ok(())
     }
+}
+
+/// The relative pivot tolerance of every factorisation of normal equations: a pivot of a
+/// regressor row at or below `4 · PARAMS_MAX · ε` of its diagonal entry is a linear
+/// dependence ([`Error::NotPositiveDefinite`]).
+pub(crate) fn pivot_tol<T: Real>() -> T {
+    T::from_u32(4 * PARAMS_MAX as u32) * T::EPSILON
 }
 
 /// Cholesky factor `[L 0; lᵀ ρ]` of an augmented normal-equation matrix
@@ -403,6 +447,13 @@ impl<T: Real> Factor<T> {
             l: [T::ZERO; packed_len(PARAMS_MAX + 1)],
             rss_floor: T::ZERO,
         }
+    }
+
+    /// The factor's storage as scratch space ([`crate::bounds`]); the factor is not usable
+    /// afterwards.
+    pub(crate) fn storage(&mut self) -> &mut [T; packed_len(PARAMS_MAX + 1)] {
+        self.n = 0;
+        &mut self.l
     }
 
     /// Number of coefficients.

@@ -3,8 +3,8 @@
 
 use crate::cholesky::{packed, packed_len};
 use crate::error::{Error, Result};
-use crate::gram::Col;
 use crate::model::ArxModel;
+use crate::normal::Col;
 use crate::normal::Layout;
 use crate::real::Real;
 use crate::structure::{Offset, Structure};

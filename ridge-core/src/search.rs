@@ -3,17 +3,20 @@
 //! Every candidate `(p, q, d)` of a [`Grid`] is scored by a [`Criterion`] of its
 //! residual sum of squares. With `prune` on (the default) the search is exact but cheap:
 //! least squares minimises the RSS, so the criterion of the least-squares RSS is a
-//! lower bound of every estimator's criterion for that candidate. Bounds cost one
-//! Cholesky each; the estimator then runs on candidates in ascending bound order and
-//! stops when the next bound exceeds the best criterion found. The pick is identical to
+//! lower bound of every estimator's criterion for that candidate. The bounds come a
+//! group of candidates at a time, bit-identical to factoring each ([`crate::bounds`]: one
+//! elimination per `p` and one small factorisation per `(p, d)` give every `q`); the
+//! estimator then runs on candidates in ascending bound order and stops when the next
+//! bound exceeds the best criterion found. The pick is identical to
 //! the exhaustive grid: the same arithmetic produces every score, and every score is
 //! `bound + (non-negative excess)`.
 //!
 //! Memory is bounded by a constant, not by the grid: each pass over the grid queues the 16
 //! best-ranked bounds after those already queued, and another pass runs only when all of them
-//! were evaluated and the search goes on (a factorisation per candidate and pass; the default
-//! search on the simulated pump needs one pass).
+//! were evaluated and the search goes on (the bounds computed again in each pass; the
+//! default search on the simulated pump needs one pass).
 
+use crate::bounds::Nested;
 use crate::error::{Error, Result};
 use crate::estimate::{Estimator, Fit, Ols, Ridge, RidgeM};
 #[cfg(feature = "alasso")]
@@ -21,6 +24,7 @@ use crate::lasso::AdaptiveLasso;
 use crate::normal::{Factor, Normal, System};
 use crate::real::Real;
 use crate::structure::{Grid, Offset, Structure};
+use crate::Q_MAX;
 
 /// How candidates are ranked. All use `N ln(RSS/N)`; they differ in the penalty.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -380,6 +384,59 @@ impl<T: Real> Search<T> {
         Some(self.score(&system, ls, scratch, val, progress))
     }
 
+    /// Calls `visit(s, bound)` for every candidate `s` of the grid: the criterion of its
+    /// least-squares RSS (a lower bound of its score), or `None` when the candidate cannot
+    /// be prepared ([`Search::prepare`] fails: too short, not positive definite, a bound
+    /// that is not finite). The bounds come a group at a time ([`crate::bounds`]),
+    /// bit-identical to preparing each candidate, except for [`Criterion::Validation`],
+    /// whose bounds are the validation record's and are prepared one by one. `ls` and
+    /// `scratch` are overwritten.
+    fn bounds(
+        &self,
+        est: &Normal<T>,
+        val: Option<&Normal<T>>,
+        ls: &mut Factor<T>,
+        scratch: &mut Factor<T>,
+        progress: &mut impl FnMut(),
+        visit: &mut impl FnMut(Structure, Option<T>),
+    ) {
+        if self.criterion == Criterion::Validation {
+            for s in self.grid.iter() {
+                visit(
+                    s,
+                    self.prepare(s, est, val, ls, scratch).ok().map(|(_, b)| b),
+                );
+                progress();
+            }
+            return;
+        }
+        let g = self.grid;
+        let mut nested = Nested::new(est, self.offset, g, ls, scratch).ok();
+        let mut rss = [None; Q_MAX];
+        for p in g.p.min..=g.p.max {
+            let usable = nested.as_mut().is_some_and(|n| n.eliminate(p));
+            progress();
+            for d in g.d.min..=g.d.max {
+                match nested.as_mut() {
+                    Some(n) if usable => n.group(d, &mut rss),
+                    _ => rss = [None; Q_MAX],
+                }
+                for q in g.q.min..=g.q.max {
+                    let s = Structure { p, q, d };
+                    let bound = rss
+                        .get(usize::from(q) - 1)
+                        .copied()
+                        .flatten()
+                        .map(|r| self.criterion(r, est.samples(), s))
+                        // A NaN or +∞ bound cannot be ordered: such a candidate is unusable.
+                        .filter(|b| b.is_finite() || *b < T::ZERO);
+                    visit(s, bound);
+                }
+                progress();
+            }
+        }
+    }
+
     /// Runs the search on the estimation statistics `est` (and, for
     /// [`Criterion::Validation`], the validation statistics `val`).
     ///
@@ -390,10 +447,12 @@ impl<T: Real> Search<T> {
         self.run_with_progress(est, val, &mut || {})
     }
 
-    /// [`Search::run`], calling `progress()` after every candidate bound, every Ridge-M
-    /// iterate and every other estimator fit, so that no stretch between two calls is
-    /// longer than one factorisation or one iterate (≤ 13 × 13): firmware feeds its
-    /// watchdog there. The result is identical to [`Search::run`].
+    /// [`Search::run`], calling `progress()` after every group of bounds (one elimination
+    /// per `p`, one small factorisation per `(p, d)`, [`crate::bounds`]; one bound with
+    /// [`Criterion::Validation`]), every Ridge-M iterate and every other estimator fit, so
+    /// that no stretch between two calls is longer than one factorisation or one iterate
+    /// (≤ 14 rows): firmware feeds its watchdog there. The result is identical to
+    /// [`Search::run`].
     pub fn run_with_progress(
         &self,
         est: &Normal<T>,
@@ -417,20 +476,19 @@ impl<T: Real> Search<T> {
             let mut after: Option<(T, Structure)> = None;
             'passes: loop {
                 let mut queue = Queue::<T>::default();
-                for s in self.grid.iter() {
-                    match self.prepare(s, est, val, &mut ls, &mut scratch) {
-                        Ok((_, b)) => {
-                            let done = after.is_some_and(|(ab, a)| !better(ab, a, b, s));
-                            if !done {
-                                queue.offer(b, s);
-                            }
+                let first_pass = after.is_none();
+                let mut offer = |s: Structure, bound: Option<T>| match bound {
+                    Some(b) => {
+                        let done = after.is_some_and(|(ab, a)| !better(ab, a, b, s));
+                        if !done {
+                            queue.offer(b, s);
                         }
-                        // Counted once, in the first pass.
-                        Err(_) if after.is_none() => tally.skipped += 1,
-                        Err(_) => {}
                     }
-                    progress();
-                }
+                    // Counted once, in the first pass.
+                    None if first_pass => tally.skipped += 1,
+                    None => {}
+                };
+                self.bounds(est, val, &mut ls, &mut scratch, progress, &mut offer);
                 for (b, s) in queue.entries() {
                     if let Some((_, bs)) = &tally.best {
                         if b > *bs {

@@ -297,8 +297,9 @@ fn progress_hook_is_called_between_bounded_steps_and_changes_nothing() {
             .run_with_progress(&normal, None, &mut || calls += 1)
             .unwrap();
         assert_eq!(with, s.run(&normal, None).unwrap());
-        // One call per bound (pruned) and one per Ridge-M iterate of every evaluated candidate.
-        let bounds = if prune { 252 } else { 0 };
+        // One call per group of bounds (pruned: per p one elimination, then one small
+        // factorisation per d) and one per Ridge-M iterate of every evaluated candidate.
+        let bounds = if prune { 6 * (1 + 7) } else { 0 };
         assert!(calls >= bounds + with.fit.iterations * u32::from(with.evaluated.min(1)));
         assert!(calls >= u32::from(with.evaluated), "{calls}");
     }

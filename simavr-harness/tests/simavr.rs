@@ -33,8 +33,9 @@ use simavr_harness::tracking::RunTrace;
 const TICK_BUDGET: u64 = 25_600;
 /// Search budget, seconds.
 const SEARCH_BUDGET_S: f64 = 10.0;
-/// Flash budget, bytes.
-const FLASH_BUDGET: u32 = 64 * 1024;
+/// Flash budget, bytes: 96 KB of the ATmega2560's 256 KB (below 128 KB no EIND trampolines;
+/// `scripts/build-boards` enforces the same figure, `AVR_FLASH_MAX`).
+const FLASH_BUDGET: u32 = 96 * 1024;
 /// Static RAM + stack budget, bytes.
 const RAM_BUDGET: u32 = 6 * 1024;
 /// Smallest free-run fit (%) of the identified model on a fresh host-side validation signal
