@@ -78,8 +78,9 @@ pub enum Action {
     Sensor(Fault),
     /// Block or free the rotor.
     Stall(bool),
-    /// Reset the chip (the NRST pin).
-    Reset,
+    /// Reset the chip by this cause: the NRST pin, a watchdog expiry (as the IWDG's own would),
+    /// a brown-out, or a power cycle (RAM lost, the backup domain too).
+    Reset(ResetCause),
     /// Cut the power after this many more flash program accesses, then power up again.
     PowerCutAfterProgram(usize),
     /// A fault on the I2C bus during the next byte (BERR, or ARLO: another master).
@@ -212,7 +213,8 @@ impl Bench {
         match action {
             Action::Sensor(f) => self.sensor.borrow_mut().fault = f,
             Action::Stall(s) => self.pump.set_stalled(s),
-            Action::Reset => self.machine.reset(ResetCause::Pin)?,
+            Action::Reset(ResetCause::PowerOn) => self.machine.power_cycle()?,
+            Action::Reset(cause) => self.machine.reset(cause)?,
             Action::PowerCutAfterProgram(n) => {
                 let done = self.machine.chip().flash.programmed.len();
                 self.machine.core_mut().power_cut_after = Some(done + n);

@@ -6,6 +6,7 @@
 
 use std::collections::BTreeMap;
 
+use crate::periph::backup::{self, Backup};
 use crate::periph::bitband;
 use crate::periph::dbgmcu::{self, Dbgmcu};
 use crate::periph::flash::{Effect, Flash};
@@ -69,6 +70,10 @@ pub enum Unit {
     Dbgmcu,
     /// Device electronic signature.
     Signature,
+    /// PWR.
+    Pwr,
+    /// RTC (its backup registers).
+    Rtc,
 }
 
 /// The unit and register offset of `addr`, if a model covers it.
@@ -87,6 +92,8 @@ pub fn decode(addr: u32) -> Option<(Unit, u32)> {
         (Unit::Nvic, NVIC, 0x3F0),
         (Unit::Dbgmcu, dbgmcu::BASE, 0x10),
         (Unit::Signature, 0x1FFF_7A00, 0x100),
+        (Unit::Pwr, backup::PWR, 0x400),
+        (Unit::Rtc, backup::RTC, 0x400),
     ];
     for (unit, base, size) in table {
         if let Some(off) = block(base, size) {
@@ -134,6 +141,8 @@ pub struct Chip {
     pub scb: Scb,
     /// DBGMCU.
     pub dbgmcu: Dbgmcu,
+    /// PWR and the backup registers.
+    pub backup: Backup,
     /// Exceptions active now, innermost last (kept by the machine, for ICSR).
     pub active: Vec<u32>,
     /// Accesses no model answered, with their counts.
@@ -169,6 +178,7 @@ impl Chip {
             nvic: Nvic::new(),
             scb: Scb::new(),
             dbgmcu: Dbgmcu::default(),
+            backup: Backup::new(),
             active: Vec::new(),
             misses: BTreeMap::new(),
             instr: 0,
@@ -179,8 +189,15 @@ impl Chip {
     }
 
     /// A system reset by `cause` at `now`: every register to its reset value; the flash
-    /// memory, the reset flags and what is on the external lines are kept.
+    /// memory, the reset flags, the backup registers and what is on the external lines are
+    /// kept. A power-on also resets the backup domain (no battery on VBAT: see
+    /// [`crate::periph::backup`]).
     pub fn reset(&mut self, cause: ResetCause, now: Time) {
+        if cause == ResetCause::PowerOn {
+            self.backup.domain_reset();
+        } else {
+            self.backup.reset();
+        }
         self.rcc.reset(cause);
         self.flash.reset();
         self.gpioa.reset();
@@ -299,6 +316,8 @@ impl Chip {
                 self.scb.read(off, now, self.clocks.hclk, icsr)
             }
             Unit::Dbgmcu => self.dbgmcu.read(off),
+            Unit::Pwr => self.backup.read_pwr(off),
+            Unit::Rtc => self.backup.read_rtc(off),
             Unit::Signature => Err(Unmodelled),
         }
     }
@@ -328,6 +347,11 @@ impl Chip {
             Unit::Scb if off == 0xE000_EF00 => self.nvic.trigger(v),
             Unit::Scb => self.scb.write(off, v, now, self.clocks.hclk)?,
             Unit::Dbgmcu => self.dbgmcu.write(off, v)?,
+            Unit::Pwr => {
+                let clock = self.rcc.pwr_clock();
+                self.backup.write_pwr(off, v, clock)?
+            }
+            Unit::Rtc => self.backup.write_rtc(off, v)?,
             Unit::Signature => return Err(Unmodelled),
         }
         Ok(Effect::default())
@@ -413,7 +437,7 @@ impl Chip {
             Unit::Rcc => matches!(off, 0x00 | 0x08 | 0x74),
             Unit::GpioA | Unit::GpioB => off == 0x10,
             Unit::Scb => matches!(off, 0xE000_E010 | 0xE000_E018 | 0xE000_ED04),
-            Unit::Nvic | Unit::Dbgmcu | Unit::Signature => false,
+            Unit::Nvic | Unit::Dbgmcu | Unit::Signature | Unit::Pwr | Unit::Rtc => false,
         }
     }
 

@@ -726,6 +726,28 @@ impl Machine {
 }
 
 impl Machine {
+    /// Whether the function `sym` is on the call chain now: a return address into it (Thumb
+    /// bit set) lies on the live main stack, between SP and the initial stack pointer of the
+    /// vector table, or the PC is in it.
+    pub fn on_call_stack(&self, sym: &crate::elf::Symbol) -> bool {
+        let start = sym.addr & !1;
+        let inside = |a: u32| (start..start + sym.size).contains(&(a & !1));
+        if inside(self.reg(RegisterARM::PC)) {
+            return true;
+        }
+        let (Ok(top), sp) = (self.vector(0), self.reg(RegisterARM::SP)) else {
+            return false;
+        };
+        let mut a = sp & !3;
+        while a + 4 <= top {
+            if self.read_u32(a).is_ok_and(|w| w & 1 == 1 && inside(w)) {
+                return true;
+            }
+            a += 4;
+        }
+        false
+    }
+
     /// Debug summary: PC, SP, PRIMASK, active exceptions.
     pub fn debug_state(&self) -> String {
         format!(

@@ -481,6 +481,48 @@ fn rcc_pll_from_hse_gives_100_mhz_and_reset_flags_accumulate() {
     assert_eq!(r.clocks().sysclk, rcc::HSI_HZ, "clock tree back to HSI");
     r.reset(ResetCause::Software);
     assert_eq!(r.reset_flags(), 0x34, "flags accumulate until RMVF");
+    // A brown-out is a power reset: the flags before it are cleared, BORRSTF and PINRSTF set.
+    r.reset(ResetCause::BrownOut);
+    assert_eq!(r.reset_flags(), 0x06);
+}
+
+#[test]
+fn backup_registers_need_dbp_to_be_written_and_survive_resets_but_not_a_power_loss() {
+    use stm32_harness::chip::Chip;
+    use stm32_harness::periph::backup::{BKP0R, PWR, RTC};
+    let mut chip = Chip::new(Box::new(Slave::default()));
+    const APB1ENR: u32 = 0x4002_3840;
+    let bkp0 = RTC + BKP0R;
+    let bkp19 = RTC + BKP0R + 4 * 19;
+    // Readable at once (0 after a backup-domain reset, §17.6.20); protected against writes
+    // (§5.1.2).
+    assert_eq!(chip.read(bkp0, 4, 0), 0);
+    chip.write(bkp0, 4, 0x1234, 0);
+    assert_eq!(chip.read(bkp0, 4, 0), 0, "written without DBP");
+    // PWR_CR without the PWR clock (RCC_APB1ENR.PWREN, §6.3.11): the write goes nowhere.
+    chip.write(PWR, 4, 1 << 8, 0);
+    assert_eq!(
+        chip.read(PWR, 4, 0) & (1 << 8),
+        0,
+        "PWR written with its clock off"
+    );
+    chip.write(APB1ENR, 4, 1 << 28, 0);
+    let cr = chip.read(PWR, 4, 0);
+    chip.write(PWR, 4, cr | (1 << 8), 0);
+    chip.write(bkp0, 4, 0x1234, 0);
+    chip.write(bkp19, 4, 0xABCD, 0);
+    assert_eq!(chip.read(bkp0, 4, 0), 0x1234);
+    assert_eq!(chip.backup.dropped, 2);
+    // System and power resets keep the backup domain (§6.1.1, §6.1.2) and protect it again.
+    for cause in [ResetCause::Watchdog, ResetCause::Pin, ResetCause::BrownOut] {
+        chip.reset(cause, 0);
+        assert_eq!(chip.read(bkp0, 4, 0), 0x1234, "{cause:?}");
+        assert_eq!(chip.read(bkp19, 4, 0), 0xABCD, "{cause:?}");
+        assert_eq!(chip.read(PWR, 4, 0) & (1 << 8), 0, "DBP after {cause:?}");
+    }
+    // A power-on with no battery on VBAT: a backup-domain reset (§6.1.3).
+    chip.reset(ResetCause::PowerOn, 0);
+    assert_eq!(chip.read(bkp0, 4, 0), 0);
 }
 
 #[test]

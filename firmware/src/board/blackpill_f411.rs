@@ -8,6 +8,7 @@
 //! | tick | TIM5, free-running 10 kHz counter, polled | — |
 //! | watchdog | IWDG, 0.5 s | — |
 //! | record | flash sector 7 (0x0806_0000, 128 KB), append-only slots | — |
+//! | reset-loop count | backup register RTC_BKP0R (PWR_CR.DBP for writes) | — |
 //!
 //! The tick is a free-running 32-bit TIM5 count rather than an interrupt: it keeps counting
 //! while the CPU is stalled by a flash erase, so lost ticks are counted exactly.
@@ -17,14 +18,15 @@ use core::sync::atomic::{AtomicBool, Ordering};
 
 use stm32f4xx_hal::flash::FlashExt;
 use stm32f4xx_hal::gpio::{PA10, PA9};
-use stm32f4xx_hal::pac::{self, interrupt, FLASH, TIM5, USART1};
+use stm32f4xx_hal::pac::{self, interrupt, FLASH, PWR, RTC, TIM5, USART1};
 use stm32f4xx_hal::prelude::*;
-use stm32f4xx_hal::rcc::Rcc;
+use stm32f4xx_hal::rcc::{Enable, Rcc};
 use stm32f4xx_hal::serial::config::InvalidConfig;
 use stm32f4xx_hal::serial::Serial;
 use stm32f4xx_hal::timer::Counter;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
+use ridge_pump_firmware::resets::Resets;
 use ridge_pump_firmware::ring::Ring;
 
 /// Frequency of the TIM5 tick counter.
@@ -364,5 +366,56 @@ impl<const N: usize> FlashStore<N> {
     /// The result of the last save, once.
     pub fn take_result(&mut self) -> Option<bool> {
         self.result.take()
+    }
+}
+
+/// Marks a reset count written by this image in [`ResetCount`]'s register: the top three
+/// bytes, `"RPC"`. The register reads 0 after a backup-domain reset (RM0383 §17.6.20), which
+/// is then no count.
+const COUNT_MARK: u32 = 0x5250_4300;
+
+/// The reset-loop count ([`ridge_pump_firmware::resets`]) in the backup register RTC_BKP0R.
+///
+/// Why there: the backup registers keep their content across every system reset (watchdog,
+/// software, the reset pin) and across a power reset (brown-out, power-down) as long as the
+/// backup domain stays powered (RM0383 §5.1.2, §6.1.2: "a power reset sets all registers to
+/// their reset values except the Backup domain"): from VDD, and from VBAT while VDD is off.
+/// A write is one 32-bit register access, so a reset during it leaves the old count or the
+/// new one. RAM that survives a reset (an `.uninit` section) is not guaranteed to keep its
+/// content through a brown-out; a flash word would be programmed at every boot and need
+/// erasing. The count is lost only when the backup domain loses its supply, i.e. with VDD and
+/// VBAT both off, a power-on, which clears the count anyway.
+///
+/// Reads need nothing (the RTC's own clock stays off); writes need the PWR interface's clock
+/// (RCC_APB1ENR.PWREN) and the backup domain's write protection off (PWR_CR.DBP, RM0383
+/// §5.4.1), both set by [`ResetCount::new`] and left so.
+pub struct ResetCount {
+    _pwr: PWR,
+    rtc: RTC,
+}
+
+impl ResetCount {
+    /// Takes PWR and the RTC (for its backup registers) and allows writes to the backup
+    /// domain.
+    pub fn new(pwr: PWR, rtc: RTC, rcc: &mut Rcc) -> Self {
+        PWR::enable(rcc);
+        pwr.cr().modify(|_, w| w.dbp().set_bit());
+        ResetCount { _pwr: pwr, rtc }
+    }
+
+    /// The count stored (none if the register holds no count of this image).
+    pub fn load(&self) -> Resets {
+        let v = self.rtc.bkp0r().read().bits();
+        if v & !0xFF == COUNT_MARK {
+            Resets::from_byte(v as u8)
+        } else {
+            Resets::default()
+        }
+    }
+
+    /// Stores `resets`.
+    pub fn store(&mut self, resets: Resets) {
+        let v = COUNT_MARK | u32::from(resets.to_byte());
+        self.rtc.bkp0r().write(|w| unsafe { w.bits(v) });
     }
 }

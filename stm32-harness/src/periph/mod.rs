@@ -12,6 +12,7 @@
 //! - a register the model does not know is reported as unmodelled by the bus, never read as a
 //!   silent zero.
 
+pub mod backup;
 pub mod bitband;
 pub mod dbgmcu;
 pub mod flash;

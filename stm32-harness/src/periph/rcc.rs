@@ -12,7 +12,8 @@
 //! - enable and reset registers (§6.3.5–§6.3.16) are stored. Simplification: a peripheral
 //!   whose clock is off still answers (the real one ignores writes and reads 0).
 //! - `RCC_CSR` (§6.3.18): LSION/LSIRDY, RMVF (writing 1 clears the reset flags), reset flags
-//!   set by [`Rcc::reset`] (power-on: reset value 0x0E00_0000, POR + PIN + BOR).
+//!   set by [`Rcc::reset`] (power-on: reset value 0x0E00_0000, POR + PIN + BOR; a power
+//!   reset, power-on or brown-out, clears the flags before setting its own).
 //! - other registers (CIR, BDCR, SSCGR, PLLI2SCFGR, DCKCFGR) are stored with their reset
 //!   values.
 
@@ -52,6 +53,9 @@ pub enum ResetCause {
     Software,
     /// The NRST pin (a reset button): PINRSTF.
     Pin,
+    /// Brown-out (the supply below the BOR level set in the option bytes): a power reset,
+    /// BORRSTF with PINRSTF.
+    BrownOut,
 }
 
 impl ResetCause {
@@ -69,7 +73,14 @@ impl ResetCause {
             ResetCause::Watchdog => IWDG | PIN,
             ResetCause::Software => SFT | PIN,
             ResetCause::Pin => PIN,
+            ResetCause::BrownOut => BOR | PIN,
         }
+    }
+
+    /// Whether this is a power reset (§6.1.2), which clears the reset flags before setting
+    /// its own.
+    pub fn is_power_reset(self) -> bool {
+        matches!(self, ResetCause::PowerOn | ResetCause::BrownOut)
     }
 }
 
@@ -153,7 +164,7 @@ impl Rcc {
     /// flags, which accumulate until RMVF (§6.3.18: "reset by system reset, except reset flags
     /// by power reset only").
     pub fn reset(&mut self, cause: ResetCause) {
-        let flags = if cause == ResetCause::PowerOn {
+        let flags = if cause.is_power_reset() {
             0
         } else {
             self.reg(CSR) & CSR_FLAGS
@@ -161,6 +172,11 @@ impl Rcc {
         *self = Self::new();
         let csr = (self.reg(CSR) & !CSR_FLAGS) | flags | cause.flags();
         self.set(CSR, csr);
+    }
+
+    /// RCC_APB1ENR.PWREN (§6.3.11): the PWR interface's clock.
+    pub fn pwr_clock(&self) -> bool {
+        self.reg(0x40) & (1 << 28) != 0
     }
 
     /// The reset flags now (RCC_CSR bits 31..24 as a byte, as the image prints them).
