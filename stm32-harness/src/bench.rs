@@ -6,7 +6,7 @@
 //! timer drives on the pin, steps `pump_sim::Pump` (its 100 Hz parameters sub-stepped 20×) and
 //! the lung by 0.5 ms, and hands the flow to the sensor. It splits USART1's output into lines,
 //! plays bytes into USART1's receiver at 115 200 baud, and applies scheduled actions (sensor
-//! faults, a stalled blower, a reset, a power cut).
+//! faults, SDA held low, a stalled blower, a reset, a power cut).
 
 use std::cell::RefCell;
 use std::path::PathBuf;
@@ -14,6 +14,7 @@ use std::rc::Rc;
 
 use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
 
+use crate::bus::{BusSlave, Lines, SdaHold};
 use crate::lines::Line;
 use crate::machine::Machine;
 use crate::periph::flash;
@@ -85,6 +86,8 @@ pub enum Action {
     PowerCutAfterProgram(usize),
     /// A fault on the I2C bus during the next byte (BERR, or ARLO: another master).
     Bus(BusFault),
+    /// The sensor holds SDA low from the end of the next STOP condition on ([`crate::bus`]).
+    HoldSda(SdaHold),
 }
 
 /// The duty on the pump's pin, seen at a plant step.
@@ -126,6 +129,8 @@ pub struct Bench {
     pub machine: Machine,
     /// The sensor's shared state.
     pub sensor: Rc<RefCell<SensorState>>,
+    /// The I2C lines at the pins.
+    pub bus: Rc<RefCell<Lines>>,
     /// The blower.
     pub pump: Pump,
     /// The lung, if any.
@@ -163,8 +168,12 @@ impl Bench {
             cfg.sensor.clone(),
             cfg.seed,
         ))));
-        let slave = Sfm3300Slave {
-            state: sensor.clone(),
+        let bus = Rc::new(RefCell::new(Lines::default()));
+        let slave = BusSlave {
+            inner: Box::new(Sfm3300Slave {
+                state: sensor.clone(),
+            }),
+            lines: bus.clone(),
         };
         let mut machine = Machine::new(&cfg.elf, Box::new(slave))?;
         if let Some(mem) = &cfg.flash {
@@ -176,6 +185,7 @@ impl Bench {
         Ok(Bench {
             machine,
             sensor,
+            bus,
             pump: Pump::new(p),
             lung: cfg.lung.clone().map(Lung::new),
             cfg,
@@ -220,6 +230,7 @@ impl Bench {
                 self.machine.core_mut().power_cut_after = Some(done + n);
             }
             Action::Bus(f) => self.machine.chip_mut().i2c1.inject(f),
+            Action::HoldSda(hold) => self.bus.borrow_mut().arm(hold),
         }
         Ok(())
     }

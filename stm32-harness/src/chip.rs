@@ -202,6 +202,8 @@ impl Chip {
         self.flash.reset();
         self.gpioa.reset();
         self.gpiob.reset();
+        // The pins are inputs again: the MCU drives neither line.
+        self.i2c1.device.pins(now, false, false);
         self.tim3.reset();
         self.tim5.reset();
         self.usart1.advance(now);
@@ -304,6 +306,12 @@ impl Chip {
             Unit::I2c1 => self.i2c1.read(off, now),
             Unit::Usart1 => self.usart1.read(off, now),
             Unit::GpioA => self.gpioa.read(off),
+            Unit::GpioB if off == 0x10 => {
+                // IDR: PB6/PB7 read the I2C lines.
+                let (scl, sda) = self.i2c1.device.levels(now);
+                let v = self.gpiob.read(off)? & !((1 << 6) | (1 << 7));
+                Ok(v | u32::from(scl) << 6 | u32::from(sda) << 7)
+            }
             Unit::GpioB => self.gpiob.read(off),
             Unit::Rcc => self.rcc.read(off),
             Unit::Flash => self.flash.read(off, now),
@@ -337,7 +345,11 @@ impl Chip {
             Unit::I2c1 => self.i2c1.write(off, v, now)?,
             Unit::Usart1 => self.usart1.write(off, v, now, self.instr)?,
             Unit::GpioA => self.gpioa.write(off, v)?,
-            Unit::GpioB => self.gpiob.write(off, v)?,
+            Unit::GpioB => {
+                self.gpiob.write(off, v)?;
+                let (scl, sda) = (self.gpiob.drives_low(6), self.gpiob.drives_low(7));
+                self.i2c1.device.pins(now, scl, sda);
+            }
             Unit::Rcc => {
                 self.rcc.write(off, v)?;
                 self.clocks_changed(now);

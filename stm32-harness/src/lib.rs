@@ -14,7 +14,8 @@
 //! - [`periph`]: one model per peripheral: RCC, FLASH (with the flash-size word), GPIO, the
 //!   general-purpose timers (TIM3 PWM, TIM5 counter), USART1, I2C1, IWDG, NVIC, SCB/FPU/SysTick,
 //!   DBGMCU, the bit-band alias.
-//! - [`sensor`]: the SFM3300 as an I2C slave, with faults.
+//! - [`sensor`]: the SFM3300 as an I2C slave, with faults; [`bus`]: the I2C lines at the
+//!   pins (a slave holding SDA low, the firmware's recovery clocks).
 //! - [`bench`]: the machine wired to the plant, closed loop; line capture; scheduled faults,
 //!   resets and power cuts; bytes into the console.
 //! - [`ticks`]: the loop's ticks seen from the bus (no marker in the firmware).
@@ -43,6 +44,7 @@
 //! counts of a tick are the CPU's work; the waits for the buses show in its emulated time.
 
 pub mod bench;
+pub mod bus;
 pub mod chip;
 pub mod elf;
 pub mod firmware;

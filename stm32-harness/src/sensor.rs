@@ -10,8 +10,8 @@
 //! NACK before a new value, first frame after the start invalid); Sensirion, *SF05 sample
 //! code* (CRC-8 0x31, init 0x00); *Datasheet SFM3300* (update time 0.5 ms).
 //!
-//! Faults ([`Fault`]) make the tests of phase 2 easy: an absent sensor, bursts of NACKs, bad
-//! CRCs, a frozen or out-of-range reading, SDA held low.
+//! Faults ([`Fault`]): an absent sensor, bursts of NACKs, bad CRCs, a frozen or out-of-range
+//! reading. A slave holding SDA low is the bus's ([`crate::bus`]).
 
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -43,8 +43,6 @@ pub enum Fault {
     Stuck(u16),
     /// Serves this raw word instead of the measurement, valid CRC.
     Raw(u16),
-    /// SDA held low from the next STOP on (a slave stuck mid-byte): the bus is busy.
-    HoldSda,
 }
 
 /// What the slave did.
@@ -100,7 +98,6 @@ pub struct SensorState {
     tx_pos: usize,
     addressed: bool,
     reading: bool,
-    holding: bool,
 }
 
 impl SensorState {
@@ -121,7 +118,6 @@ impl SensorState {
             tx_pos: 0,
             addressed: false,
             reading: false,
-            holding: false,
         }
     }
 
@@ -321,12 +317,9 @@ impl Device for Sfm3300Slave {
         }
         s.cmd.clear();
         s.addressed = false;
-        if s.fault == Fault::HoldSda {
-            s.holding = true;
-        }
     }
 
     fn holds_sda(&self, _now: Time) -> bool {
-        self.state.borrow().holding
+        false
     }
 }

@@ -1,6 +1,6 @@
 //! The release image of the STM32F411 (`cargo flash-f411`'s), unchanged, in the emulated
 //! chip, closed loop with the simulated blower and SFM3300: the power-up identification, the
-//! record across a reset, the watchdog. Truths: the host rerun of ridge-core's search on the
+//! record across a reset. Truths: the host rerun of ridge-core's search on the
 //! samples the sensor served, the plant's true flow, the reset flags RM0383 defines.
 //!
 //! The image is built (incrementally) if missing or stale; `STM32_ELF` names another.
@@ -9,7 +9,6 @@ use stm32_harness::bench::{ps, secs, Action, Bench, BenchConfig};
 use stm32_harness::firmware;
 use stm32_harness::lines::Line;
 use stm32_harness::periph::rcc::ResetCause;
-use stm32_harness::sensor::Fault;
 use stm32_harness::session::{self, host_search, SessionConfig};
 
 fn elf() -> std::path::PathBuf {
@@ -151,29 +150,6 @@ fn record_survives_a_reset_with_flash_kept() {
         "no identification with a stored model"
     );
     assert!(b.find("CTRL").next().is_some());
-}
-
-#[test]
-fn the_watchdog_resets_a_hung_image_and_the_next_boot_reports_it() {
-    // The sensor holds SDA low from its next STOP on: the HAL's next START never completes
-    // and the loop hangs in the tick's sensor read.
-    let mut b = Bench::new(BenchConfig::new(elf())).unwrap();
-    b.schedule(3.0, Action::Sensor(Fault::HoldSda));
-    b.run_until(6.0, |l| l.keyword() == "BOOT" && l.start > ps(3.0))
-        .unwrap();
-    let resets = &b.machine.resets;
-    assert!(resets.len() >= 2, "{resets:?}");
-    assert_eq!(resets[1].cause, ResetCause::Watchdog);
-    // The image's timeout: 0.5 s (IWDG at 32 kHz), from its last reload within 10 ms of the
-    // hold.
-    let hung = secs(resets[1].at) - 3.0;
-    assert!(
-        (0.49..0.53).contains(&hung),
-        "reset {hung:.3} s after the hold"
-    );
-    // RCC_CSR after an IWDG reset: IWDGRSTF (0x20) with PINRSTF (0x04).
-    let boot = b.find("BOOT").nth(1).expect("second BOOT");
-    assert_eq!(boot.text, "BOOT board=stm32f411 reset=36 record=none");
 }
 
 #[test]

@@ -11,19 +11,15 @@
 //! the_pump_off`, `a_clean_minute_clears_the_reset_count`, `sda_held_low_*` and
 //! `a_save_cut_at_any_point_keeps_the_other_slot` in `simavr-harness/tests/simavr.rs`.
 
+mod common;
+
+use common::{assert_stopped, elf, run_to, texts, transcript, TICK};
 use ridge_pump_firmware::resets::{Resets, CLEAN_TICKS};
-use stm32_harness::bench::{ps, Action, Bench, BenchConfig};
-use stm32_harness::firmware;
-use stm32_harness::lines::Line;
+use ridge_pump_firmware::selfid::Config;
+use stm32_harness::bench::{ps, secs, Action, Bench, BenchConfig, RunEnd};
+use stm32_harness::bus::{BusEvent, Lines, SdaHold};
 use stm32_harness::periph::rcc::ResetCause;
-
-fn elf() -> std::path::PathBuf {
-    firmware::ensure_elf().expect("STM32F411 image")
-}
-
-fn texts(lines: &[Line]) -> Vec<&str> {
-    lines.iter().map(|l| l.text.as_str()).collect()
-}
+use stm32_harness::periph::Time;
 
 /// The reset count in RTC_BKP0R as the image stores it (`ResetCount` in
 /// `firmware/src/board/blackpill_f411.rs`): `"RPC"` in the top three bytes, the count byte of
@@ -43,13 +39,6 @@ fn reset_count(b: &Bench) -> Resets {
 fn reset_with(b: &mut Bench, cause: ResetCause) -> usize {
     b.apply(Action::Reset(cause)).expect("reset");
     b.lines.len()
-}
-
-/// Runs for at most `within_s` more, until a line starting with `prefix`.
-fn run_to(b: &mut Bench, within_s: f64, prefix: &str) {
-    let until = b.time_s() + within_s;
-    b.run_until(until, |l| l.text.starts_with(prefix))
-        .expect("run");
 }
 
 /// Watchdog and brown-out resets: a watchdog reset in the middle of the structure search
@@ -218,4 +207,224 @@ fn a_clean_minute_clears_the_reset_count() {
         texts(&b.lines)
     );
     assert!(b.machine.now() > ps(clean_s));
+}
+
+/// Fault injection starts at 5 s: the firmware is in the excitation record (after the 2 s
+/// settle), as in the ATmega2560's tests.
+const AT: f64 = 5.0;
+/// Standard-mode I2C clock phases (NXP UM10204, Table 10): SCL low ≥ 4.7 µs ...
+const I2C_LOW_MIN: Time = 4_700_000;
+/// ... and SCL high ≥ 4.0 µs.
+const I2C_HIGH_MIN: Time = 4_000_000;
+/// SDA stuck low for good: the pump is off and the FAULT line has started within this long
+/// after SDA went low (docs/boards.md, Faults; the ATmega2560's bound, which includes its
+/// 2.5 ms timeout: here five 10 ms ticks and the tick's work).
+const SDA_STUCK_BOUND_S: f64 = 0.055;
+/// GPIOB_IDR (RM0383 §8.4.5; GPIOB at 0x4002_0400).
+const GPIOB_IDR: u32 = 0x4002_0410;
+
+/// Every SCL phase in `from..to` is as long as standard-mode I2C asks (a high phase longer
+/// than 1 ms is the idle bus between two recoveries, not a phase).
+fn check_clock(bus: &Lines, from: Time, to: Time, what: &str) {
+    let edges: Vec<(Time, bool)> = bus
+        .events
+        .iter()
+        .filter_map(|e| match *e {
+            BusEvent::Scl(t, high) if (from..to).contains(&t) => Some((t, high)),
+            _ => None,
+        })
+        .collect();
+    for w in edges.windows(2) {
+        let ((t0, high), (t1, _)) = (w[0], w[1]);
+        let len = t1 - t0;
+        if high {
+            assert!(
+                len >= I2C_HIGH_MIN || len > ps(1e-3),
+                "{what}: SCL high for {len} ps at {} s",
+                secs(t0)
+            );
+        } else {
+            assert!(
+                len >= I2C_LOW_MIN,
+                "{what}: SCL low for {len} ps at {} s",
+                secs(t0)
+            );
+        }
+    }
+}
+
+/// I2C bus stuck low, a sensor that lets go: after its next frame it keeps SDA low until it
+/// has seen `k` clocks, as a slave stuck in a byte does. For k = 1, 5 and 9 (the most such a
+/// slave needs) in one run in the excitation, on the harness's own view of the pins and of the
+/// slave: exactly k clock pulses, each phase as long as standard-mode I2C asks, a STOP
+/// condition on the pins after the release, no START request reaching I2C1 while the bus was
+/// held (the firmware's guard sees the held bus first: the ATmega2560's TWI times out one
+/// START instead), the frame read in the same pass after the STOP and then at every tick, no
+/// FAULT, the pump running throughout.
+#[test]
+fn sda_held_low_by_the_sensor_is_clocked_free() {
+    let mut b = Bench::new(BenchConfig::new(elf())).expect("bench");
+    b.run_until(AT, |_| false).expect("run");
+    for k in [1u8, 5, 9] {
+        let armed = b.machine.now();
+        b.apply(Action::HoldSda(SdaHold::ReleaseAfter(k)))
+            .expect("hold");
+        b.run_for(0.3).expect("run");
+        let end = b.machine.now();
+        let bus = b.bus.borrow();
+        let what = format!("released after {k} clocks");
+        let within = |t: &Time| (armed..end).contains(t);
+        let holds = bus.times(|e| matches!(e, BusEvent::Hold(t) if within(t)));
+        let releases = bus.times(|e| matches!(e, BusEvent::Release(t) if within(t)));
+        assert!(
+            holds.len() == 1 && releases.len() == 1,
+            "{what}: holds {holds:?}, releases {releases:?}"
+        );
+        let (hold, release) = (holds[0], releases[0]);
+        let pulses = bus.scl_pulses(hold, end);
+        assert_eq!(pulses, usize::from(k), "{what}: clock pulses");
+        check_clock(&bus, hold, end, &what);
+        let blocked = bus.times(|e| matches!(e, BusEvent::BlockedStart(t) if within(t)));
+        assert!(blocked.is_empty(), "{what}: START requests on the held bus");
+        let stops = bus.times(|e| matches!(e, BusEvent::Stop(t) if within(t)));
+        assert!(
+            stops.len() == 1 && stops[0] > release,
+            "{what}: STOP conditions on the pins {stops:?}, release at {release}"
+        );
+        let stop = stops[0];
+        // The recovery starts at the next tick's read, within one tick of the hold.
+        let first_edge = bus.times(|e| matches!(e, BusEvent::Scl(t, false) if *t > hold))[0];
+        assert!(
+            first_edge - hold < TICK,
+            "{what}: first recovery clock {} ms after the hold",
+            (first_edge - hold) as f64 / 1e9
+        );
+        let served: Vec<Time> = b
+            .sensor
+            .borrow()
+            .served()
+            .iter()
+            .map(|&(t, _, _)| t)
+            .filter(|t| (hold..end).contains(t))
+            .collect();
+        assert!(
+            served
+                .first()
+                .is_some_and(|&t| t > stop && t < stop + ps(1e-3)),
+            "{what}: first frame after the hold at {:?} s, STOP at {} s",
+            served.first().map(|&t| secs(t)),
+            secs(stop)
+        );
+        let scl: Vec<f64> = bus
+            .times(|e| matches!(e, BusEvent::Scl(t, _) if (hold..end).contains(t)))
+            .windows(2)
+            .map(|w| (w[1] - w[0]) as f64 / 1e6)
+            .collect();
+        println!(
+            "{what}: recovery {:.3} ms after the hold, SCL phases {scl:.2?} µs, STOP {:.1} µs \
+             after the release, frame {:.1} µs after the STOP",
+            (first_edge - hold) as f64 / 1e9,
+            (stop - release) as f64 / 1e6,
+            (served[0] - stop) as f64 / 1e6
+        );
+        let ticks = (end - stop) / TICK;
+        assert!(
+            served.len() as u64 >= ticks,
+            "{what}: {} frames served in the {ticks} ticks after the STOP",
+            served.len()
+        );
+    }
+    assert!(
+        !b.lines.iter().any(|l| l.text.starts_with("FAULT")),
+        "a fault:\n{}",
+        transcript(&b)
+    );
+    let since = ps(AT);
+    assert!(
+        b.duty_at(since).is_some_and(|d| d.fraction > 0.0)
+            && b.duty_log
+                .iter()
+                .filter(|d| d.at >= since)
+                .all(|d| d.fraction > 0.0),
+        "the pump stopped: {:?}",
+        b.duty_log
+    );
+}
+
+/// I2C bus stuck low for good: the sensor never lets go of SDA. Every read finds the bus
+/// held, clocks 9 pulses that free nothing (no STOP condition can happen) and fails; the fifth
+/// failed read in a row is the fault, `FAULT sensor=bus n=5`, with the pump off (duty 0 on the
+/// pin) and the line started within [`SDA_STUCK_BOUND_S`] of SDA going low, and the pump kept
+/// off.
+#[test]
+fn sda_held_low_for_good_stops_the_pump_within_its_bound() {
+    let mut b = Bench::new(BenchConfig::new(elf())).expect("bench");
+    b.schedule(AT, Action::HoldSda(SdaHold::Forever));
+    let end = b
+        .run_until(AT + 1.0, |l| l.text.starts_with("FAULT"))
+        .expect("run");
+    let RunEnd::Line(idx) = end else {
+        panic!("no FAULT line within 1 s:\n{}", transcript(&b));
+    };
+    b.run_for(0.03).expect("run");
+    assert_eq!(b.lines[idx].text, "FAULT sensor=bus n=5");
+    assert_stopped(&b, idx, "SDA held low");
+    let bus = b.bus.borrow();
+    let hold = bus.times(|e| matches!(e, BusEvent::Hold(_)));
+    assert_eq!(hold.len(), 1, "holds");
+    let hold = hold[0];
+    let line = b.lines[idx].start;
+    let off = b
+        .duty_log
+        .iter()
+        .find(|d| d.at > hold && d.fraction == 0.0)
+        .map_or(Time::MAX, |d| d.at);
+    let bound = ps(SDA_STUCK_BOUND_S);
+    println!(
+        "SDA held for good: pump off {:.2} ms, FAULT line {:.2} ms after SDA went low",
+        (off - hold) as f64 / 1e9,
+        (line - hold) as f64 / 1e9
+    );
+    assert!(
+        off - hold <= bound && line - hold <= bound,
+        "pump off {} ms and FAULT line {} ms after SDA went low (bound {} ms)",
+        (off - hold) as f64 / 1e9,
+        (line - hold) as f64 / 1e9,
+        SDA_STUCK_BOUND_S * 1e3
+    );
+    // One recovery per tick (its clocks within 0.2 ms), each the full 9 clocks; the fifth
+    // failed read in a row faults.
+    let falls = bus.times(|e| matches!(e, BusEvent::Scl(t, false) if *t > hold && *t < line));
+    let mut bursts: Vec<Vec<Time>> = Vec::new();
+    for t in falls {
+        match bursts.last_mut() {
+            Some(burst) if t - burst[0] < ps(2e-4) => burst.push(t),
+            _ => bursts.push(vec![t]),
+        }
+    }
+    assert_eq!(
+        bursts.len(),
+        usize::from(Config::default().sensor_fault_limit),
+        "recoveries before the FAULT line: {bursts:?}"
+    );
+    for (i, burst) in bursts.iter().enumerate() {
+        assert_eq!(burst.len(), 9, "clock pulses of recovery {i}");
+    }
+    check_clock(&bus, hold, line, "SDA held for good");
+    let after = |t: &Time| *t > hold;
+    assert!(
+        bus.times(|e| matches!(e, BusEvent::Release(t) | BusEvent::Stop(t) if after(t)))
+            .is_empty(),
+        "SDA rose while held: {:?}",
+        bus.events
+    );
+    assert!(
+        bus.times(|e| matches!(e, BusEvent::BlockedStart(_)))
+            .is_empty(),
+        "a START requested on the held bus"
+    );
+    // The pins: GPIOB_IDR reads SDA (PB7) low and SCL (PB6) high.
+    let now = b.machine.now();
+    let idr = b.machine.chip_mut().read(GPIOB_IDR, 4, now);
+    assert_eq!((idr >> 6) & 3, 0b01, "GPIOB_IDR {idr:#06x}");
 }

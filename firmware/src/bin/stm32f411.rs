@@ -122,7 +122,7 @@ mod image {
             Mode::standard(I2C_HZ.Hz()),
             &mut rcc,
         );
-        let sensor = Sfm3300::new(i2c);
+        let sensor = Sfm3300::new(bp::Bus::new(i2c));
 
         let store = FlashStore::<RECORD_LEN>::new(dp.FLASH);
         let stored = store.load();

@@ -8,8 +8,8 @@
 //! Reset values of port A and B differ (the debug pins, §8.4.1).
 //!
 //! Simplification: `IDR` reads an output pin's `ODR` bit and an input or alternate-function
-//! pin as its pull (high with a pull-up or an open-drain I2C line, else low): the pins the
-//! image drives are outputs of peripherals, and it never reads them back.
+//! pin as its pull (high with a pull-up or an open-drain I2C line, else low); the bus
+//! ([`crate::chip`]) replaces PB6/PB7 with the I2C lines' levels ([`crate::bus`]).
 
 use super::Unmodelled;
 
@@ -60,6 +60,12 @@ impl Gpio {
     pub fn alternate(&self, n: u32) -> u32 {
         let r = if n < 8 { self.regs[8] } else { self.regs[9] };
         (r >> (4 * (n % 8))) & 0xF
+    }
+
+    /// Whether pin `n` drives its line low: a general-purpose output with its `ODR` bit 0
+    /// (in open-drain or push-pull type alike).
+    pub fn drives_low(&self, n: u32) -> bool {
+        self.mode(n) == 1 && self.regs[5] >> n & 1 == 0
     }
 
     /// `ODR`.

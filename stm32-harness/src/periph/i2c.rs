@@ -105,6 +105,15 @@ pub trait Device {
     fn stop(&mut self, now: Time);
     /// Whether the slave holds SDA low at `now` (a stuck bus).
     fn holds_sda(&self, now: Time) -> bool;
+    /// The interface was asked for a START at `now` while SDA was held: it is not sent.
+    fn start_blocked(&mut self, _now: Time) {}
+    /// The MCU's GPIO drive of SCL / SDA changed at `now` (`true`: driven low), while the
+    /// pins are not the interface's (bus recovery).
+    fn pins(&mut self, _now: Time, _scl_low: bool, _sda_low: bool) {}
+    /// The levels on the wire at `now`: (SCL, SDA), `true` = high.
+    fn levels(&self, now: Time) -> (bool, bool) {
+        (true, !self.holds_sda(now))
+    }
 }
 
 /// Faults injected on the bus.
@@ -469,6 +478,7 @@ impl I2c {
                     if self.device.holds_sda(now) && self.sr2 & SR2_MSL == 0 {
                         // Bus busy: the start condition cannot be sent.
                         self.sr2 |= SR2_BUSY;
+                        self.device.start_blocked(now);
                     } else {
                         self.sr1 &= !(SR1_BTF | SR1_TXE);
                         self.phase = Phase::Start(now + self.scl_period());
