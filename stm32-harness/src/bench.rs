@@ -13,11 +13,12 @@ use std::path::PathBuf;
 use std::rc::Rc;
 
 use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
+use ridge_pump_firmware::flash_store::SECTORS;
 
 use crate::bus::{BusSlave, Lines, SdaHold};
 use crate::lines::Line;
 use crate::machine::Machine;
-use crate::periph::flash;
+use crate::periph::flash::{self, EraseCut};
 use crate::periph::i2c::BusFault;
 use crate::periph::rcc::ResetCause;
 use crate::periph::{Time, PS_PER_S};
@@ -84,6 +85,9 @@ pub enum Action {
     Reset(ResetCause),
     /// Cut the power after this many more flash program accesses, then power up again.
     PowerCutAfterProgram(usize),
+    /// Cut the power during the next sector erase, this far through it (see
+    /// [`crate::periph::flash::EraseCut`]), then power up again.
+    PowerCutInErase(EraseCut),
     /// A fault on the I2C bus during the next byte (BERR, or ARLO: another master).
     Bus(BusFault),
     /// The sensor holds SDA low from the end of the next STOP condition on ([`crate::bus`]).
@@ -229,6 +233,7 @@ impl Bench {
                 let done = self.machine.chip().flash.programmed.len();
                 self.machine.core_mut().power_cut_after = Some(done + n);
             }
+            Action::PowerCutInErase(cut) => self.machine.chip_mut().flash.erase_cut = Some(cut),
             Action::Bus(f) => self.machine.chip_mut().i2c1.inject(f),
             Action::HoldSda(hold) => self.bus.borrow_mut().arm(hold),
         }
@@ -396,11 +401,19 @@ impl Bench {
         self.machine.chip().flash.mem.clone()
     }
 
-    /// The flash sector the image keeps its record in (sector 7) holds anything but 0xFF.
-    pub fn record_sector_used(&self) -> bool {
-        let (start, len) = flash::SECTORS[7];
-        self.machine.chip().flash.mem[start as usize..(start + len) as usize]
-            .iter()
-            .any(|&b| b != flash::ERASED)
+    /// The flash sectors the image keeps its record in (`flash_store::SECTORS`: 6 and 7),
+    /// as they are now.
+    pub fn store(&self) -> [Vec<u8>; 2] {
+        let mem = &self.machine.chip().flash.mem;
+        SECTORS.map(|(n, offset)| {
+            let (start, len) = flash::SECTORS[usize::from(n)];
+            assert_eq!(start, offset, "sector {n}");
+            mem[start as usize..(start + len) as usize].to_vec()
+        })
+    }
+
+    /// Whether the store's sectors hold anything but 0xFF.
+    pub fn store_used(&self) -> bool {
+        self.store().iter().flatten().any(|&b| b != flash::ERASED)
     }
 }

@@ -71,7 +71,7 @@ pub const RAM_FILL: u8 = 0x55;
 /// How a chunk of execution ended, seen by the run loop.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Exit {
-    /// A power cut was due (after a flash program access).
+    /// A power cut was due (after a flash program access, or in an erase).
     PowerCut,
 }
 
@@ -82,6 +82,17 @@ pub struct Reset {
     pub at: Time,
     /// Why.
     pub cause: ResetCause,
+}
+
+/// A flash operation that stalled the CPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Stall {
+    /// When it started, ps.
+    pub at: Time,
+    /// How long the CPU stalled, ps (cut short by a watchdog reset or a power cut).
+    pub len: Time,
+    /// When the IWDG would have reset the chip as the stall began (`None`: not running).
+    pub watchdog: Option<Time>,
 }
 
 /// What the run loop and the bus callbacks share (Unicorn's user data).
@@ -106,6 +117,8 @@ pub struct Core {
     pub ticks: TickMeter,
     /// Cut the power after this many flash program accesses in all (power-cut tests).
     pub power_cut_after: Option<usize>,
+    /// Sector erases (stalls longer than a program access), in order.
+    pub erase_stalls: Vec<Stall>,
     /// Whether polling jumps the clock (on by default; off, every poll iteration runs).
     pub clock_jump: bool,
     /// Bus accesses, exception entries and returns still to print on stderr (debugging: the
@@ -281,6 +294,7 @@ impl Machine {
             poll_first: (0, 0),
             ticks: TickMeter::default(),
             power_cut_after: None,
+            erase_stalls: Vec::new(),
             clock_jump: true,
             trace: std::env::var("STM32_TRACE")
                 .ok()
@@ -395,11 +409,23 @@ impl Machine {
         // (the run loop then resets it at that time). Simplification: an erase cut short by
         // the reset has erased its sector all the same (the chip leaves it undefined).
         let end = c.now + e.stall;
-        c.now = match c.chip.iwdg.expiry() {
+        let start = c.now;
+        let watchdog = c.chip.iwdg.expiry();
+        c.now = match watchdog {
             Some(x) if x < end => x.max(c.now),
             _ => end,
         };
+        if e.stall > flash::PROGRAM_PS {
+            c.erase_stalls.push(Stall {
+                at: start,
+                len: c.now - start,
+                watchdog,
+            });
+        }
         c.chip.advance(c.now);
+        if e.power_cut {
+            c.exit = Some(Exit::PowerCut);
+        }
         true
     }
 

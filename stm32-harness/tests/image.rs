@@ -8,7 +8,6 @@
 use stm32_harness::bench::{ps, secs, Action, Bench, BenchConfig};
 use stm32_harness::firmware;
 use stm32_harness::lines::Line;
-use stm32_harness::periph::rcc::ResetCause;
 use stm32_harness::session::{self, host_search, SessionConfig};
 
 fn elf() -> std::path::PathBuf {
@@ -54,7 +53,7 @@ fn default_blower_boots_identifies_persists_designs_and_tracks() {
     assert_eq!(m.resets.len(), 1);
     assert!(b.sensor.borrow().errors.is_empty());
     // The record is in flash sector 7.
-    assert!(b.record_sector_used());
+    assert!(b.store_used());
     // USART1's interrupt kept every line's bytes back to back: each frame starts when the one
     // before it ends (the interrupt refills DR within the 86.8 µs frame), so neither the clock
     // jump nor the chunking delayed a TXE interrupt past its frame.
@@ -125,57 +124,6 @@ fn identification_equals_the_host_rerun_on_the_samples_served() {
         assert!(err < 1e-4, "max coefficient difference {err:e}");
         assert_eq!(id.eval, host.eval);
     }
-}
-
-#[test]
-fn record_survives_a_reset_with_flash_kept() {
-    let cfg = SessionConfig::new(elf());
-    let first = session::run(&cfg).unwrap();
-    assert!(first.bench.lines.iter().any(|l| l.text == "PERSIST saved"));
-    let id = first.id.clone().expect("ID line");
-    let mut bc: BenchConfig = cfg.bench.clone();
-    bc.flash = Some(first.bench.flash());
-    let mut b = Bench::new(bc).unwrap();
-    b.run_until(30.0, |l| matches!(l.keyword(), "CTRL" | "FAULT"))
-        .unwrap();
-    let boot = b.find("BOOT").next().expect("BOOT");
-    assert_eq!(boot.text, "BOOT board=stm32f411 reset=14 record=stored");
-    let loaded = b.find("LOADED").next().expect("LOADED").parsed();
-    let model = session::IdLine::parse(&loaded).expect("model on LOADED");
-    assert_eq!((model.p, model.q, model.d), (id.p, id.q, id.d));
-    assert_eq!(model.theta, id.theta);
-    assert_eq!(model.phi, id.phi);
-    assert!(
-        b.find("EXCITE").next().is_none(),
-        "no identification with a stored model"
-    );
-    assert!(b.find("CTRL").next().is_some());
-}
-
-#[test]
-fn a_power_cut_in_the_middle_of_the_first_save_leaves_no_record() {
-    // The first save programs the 76-byte record, then its 4-byte header as the commit mark
-    // (firmware/src/board/blackpill_f411.rs): power cut after 40 program accesses.
-    let mut b = Bench::new(BenchConfig::new(elf())).unwrap();
-    b.apply(Action::PowerCutAfterProgram(40)).unwrap();
-    b.run_until(100.0, |l| l.keyword() == "BOOT" && l.start > ps(1.0))
-        .unwrap();
-    let m = &b.machine;
-    assert_eq!(m.resets.len(), 2, "{:?} {:?}", m.resets, keywords(&b.lines));
-    assert_eq!(m.resets[1].cause, ResetCause::PowerOn);
-    assert_eq!(m.chip().flash.programmed.len(), 40);
-    assert!(
-        b.record_sector_used(),
-        "the bytes before the cut stay programmed"
-    );
-    // The ACCEPT line was on its way when the power went: it ends at the cut.
-    let cut = b
-        .lines
-        .iter()
-        .position(|l| l.keyword() == "BOOT" && l.start > ps(1.0));
-    assert!(b.lines[cut.unwrap() - 1].text.starts_with("ACCEPT"));
-    let boot = b.find("BOOT").nth(1).expect("BOOT after the power cut");
-    assert_eq!(boot.text, "BOOT board=stm32f411 reset=14 record=none");
 }
 
 #[test]
@@ -265,21 +213,4 @@ fn console_bytes_reach_the_firmware_through_usart1_receive_interrupt() {
         .filter(|l| l.start > ps(2.0) && l.start <= ps(3.0))
         .count();
     assert!((99..=101).contains(&rows), "{rows} rows in one second");
-}
-
-#[test]
-fn scanning_a_full_record_sector_is_work_not_a_wait() {
-    // At boot the image scans sector 7's 1 638 slots, reading the flash-size register for
-    // each: the same constant read over and over is not polling, so no clock jump may stretch
-    // the scan (it once took 1.6 s of emulated time for 0.09 M instructions).
-    let e = elf();
-    let mut mem = Bench::new(BenchConfig::new(&e)).unwrap().flash();
-    let (start, len) = stm32_harness::periph::flash::SECTORS[7];
-    mem[start as usize..(start + len) as usize].fill(0x00);
-    let mut cfg = BenchConfig::new(&e);
-    cfg.flash = Some(mem);
-    let mut b = Bench::new(cfg).unwrap();
-    b.run_until(0.5, |l| l.keyword() == "BOOT").unwrap();
-    let boot = b.find("BOOT").next().expect("BOOT");
-    assert!(boot.start < ps(0.01), "BOOT at {:.4} s", secs(boot.start));
 }

@@ -23,7 +23,6 @@ mod image {
     use cortex_m_rt::entry;
     use ridge_pump_firmware::app::{App, Board, Console};
     use ridge_pump_firmware::event::FaultReason;
-    use ridge_pump_firmware::persist::RECORD_LEN;
     use ridge_pump_firmware::pump::Pump;
     use ridge_pump_firmware::report::Int;
     use ridge_pump_firmware::resets::{self, Resets};
@@ -43,7 +42,7 @@ mod image {
     struct BlackPill {
         ticker: Ticker,
         watchdog: IndependentWatchdog,
-        store: FlashStore<RECORD_LEN>,
+        store: FlashStore,
         /// The reset count of this boot and where it is kept (`resets`), cleared after
         /// [`resets::CLEAN_TICKS`] unless it is a reset loop.
         resets: Resets,
@@ -124,7 +123,7 @@ mod image {
         );
         let sensor = Sfm3300::new(bp::Bus::new(i2c));
 
-        let store = FlashStore::<RECORD_LEN>::new(dp.FLASH);
+        let store = FlashStore::new(dp.FLASH);
         let stored = store.load();
         let mut sid = SelfIdentification::new(Defaults, stored.as_ref().map(|r| &r[..]));
         // Reset loops (`resets`): count this boot's watchdog / brown-out reset; the third in a

@@ -29,6 +29,10 @@
 //!   programming"): 16 µs per program access, sector erase at x8 parallelism 400 ms (16 KB),
 //!   1.2 s (64 KB), 2 s (128 KB). Simplification: the x16/x32 erase times are taken equal to
 //!   x8's (the image erases at x8).
+//! - an erase cut by a power loss ([`Flash::erase_cut`], armed by the bench): the chip makes
+//!   no promise about the sector then. Modelled as an erase a fraction `f` of the way through:
+//!   every 0 bit of the sector has risen to 1 with probability `f` (seeded noise), and the
+//!   power goes at `f` of the erase time ([`Effect::power_cut`]).
 
 use super::{Time, Unmodelled};
 
@@ -137,6 +141,17 @@ pub struct Effect {
     pub changed: Option<(u32, u32)>,
     /// The CPU stalls this long (the operation's busy time), ps.
     pub stall: Time,
+    /// The power goes at the end of the stall (an erase cut, [`Flash::erase_cut`]).
+    pub power_cut: bool,
+}
+
+/// An erase to cut by a power loss: how far it gets, and the noise's seed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EraseCut {
+    /// Fraction of the erase done, 0..=1: each 0 bit has risen with this probability.
+    pub fraction: f64,
+    /// Seed of the bits' noise.
+    pub seed: u64,
 }
 
 /// The flash memory and its interface.
@@ -159,6 +174,8 @@ pub struct Flash {
     pub erased: Vec<(Time, u8)>,
     /// Protocol errors seen (wrong key, program without PG, …), in words.
     pub errors: Vec<String>,
+    /// The next sector erase is cut by a power loss (see the module docs).
+    pub erase_cut: Option<EraseCut>,
 }
 
 impl Default for Flash {
@@ -182,6 +199,7 @@ impl Flash {
             programmed: Vec::new(),
             erased: Vec::new(),
             errors: Vec::new(),
+            erase_cut: None,
         }
     }
 
@@ -288,16 +306,39 @@ impl Flash {
                 .push(format!("erase of sector {snb}: no such sector"));
             return Ok(Effect::default());
         };
-        self.mem[start as usize..(start + len) as usize].fill(ERASED);
+        let sector = &mut self.mem[start as usize..(start + len) as usize];
         let busy = erase_ps(len);
-        self.busy_until = now.max(self.busy_until) + busy;
         self.erased.push((now, snb as u8));
+        if let Some(cut) = self.erase_cut.take() {
+            let mut noise = cut.seed | 1;
+            for b in sector.iter_mut() {
+                for bit in 0..8 {
+                    // xorshift64*, 53 bits to a uniform in [0, 1).
+                    noise ^= noise >> 12;
+                    noise ^= noise << 25;
+                    noise ^= noise >> 27;
+                    let u = (noise.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64
+                        / (1u64 << 53) as f64;
+                    if u < cut.fraction {
+                        *b |= 1 << bit;
+                    }
+                }
+            }
+            return Ok(Effect {
+                changed: Some((start, len)),
+                stall: (busy as f64 * cut.fraction.clamp(0.0, 1.0)) as Time,
+                power_cut: true,
+            });
+        }
+        sector.fill(ERASED);
+        self.busy_until = now.max(self.busy_until) + busy;
         if self.cr & CR_EOPIE != 0 {
             self.sr |= SR_EOP;
         }
         Ok(Effect {
             changed: Some((start, len)),
             stall: busy,
+            power_cut: false,
         })
     }
 
@@ -348,6 +389,7 @@ impl Flash {
         Effect {
             changed: Some((offset, u32::from(size))),
             stall: PROGRAM_PS,
+            power_cut: false,
         }
     }
 
