@@ -19,7 +19,8 @@
 //! - [`bench`]: the machine wired to the plant, closed loop; line capture; scheduled faults,
 //!   resets and power cuts; bytes into the console.
 //! - [`ticks`]: the loop's ticks seen from the bus (no marker in the firmware).
-//! - [`session`]: one power-up and its figures (model, host rerun, instructions);
+//! - [`session`]: one power-up and its figures (model, host rerun, instructions, a fresh
+//!   validation signal); [`tracking`]: run mode rebuilt from the bench and scored;
 //!   [`report`]: what `stm32-run` prints; [`lines`]: the report lines parsed.
 //! - [`elf`], [`firmware`]: the image, its sizes, its build.
 //!
@@ -55,3 +56,4 @@ pub mod report;
 pub mod sensor;
 pub mod session;
 pub mod ticks;
+pub mod tracking;

@@ -12,14 +12,15 @@
 
 use std::time::Instant;
 
-use ridge_core::{ArxModel, IntGram, Offset, Real, Search};
+use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
+use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Real, Search};
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::pump::duty_to_counts;
 use ridge_pump_firmware::selfid::absolute_model;
 use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::{FLOW_SCALE, SCALE};
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, SCALE};
 
-use crate::bench::{Bench, BenchConfig, RunEnd};
+use crate::bench::{Bench, BenchConfig, RunEnd, SUBSTEPS};
 use crate::elf::Sizes;
 use crate::lines::{Line, ParsedLine};
 use crate::periph::Time;
@@ -438,4 +439,96 @@ pub fn write_capture(
     let counts = cap.finish().map_err(|e| e.to_string())?;
     std::fs::write(path, csv).map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(counts)
+}
+
+/// Free-run fit (%) of `model` on `samples` (duty fractions, flows in slm), ridge-core's
+/// `Evaluation` (eq. 16 of the paper).
+pub fn free_run_fit(model: &ArxModel<f64>, samples: &Samples) -> Option<f64> {
+    let mut ev = Evaluation::new(*model);
+    for (&u, &raw) in samples.u.iter().zip(&samples.raw) {
+        ev.push(
+            f64::from(u) / f64::from(DUTY_FULL_SCALE),
+            pump_sim::sfm3300::raw_to_flow(raw),
+        );
+    }
+    ev.free_run().map(|m| m.fit)
+}
+
+/// A fresh validation signal on the host with the loop's timing, as `simavr-harness` makes
+/// it: the plant (blower `pump`, test lung `lung` if any) sub-stepped as in the bench, the
+/// reading taken at the tick, the new duty (TIM3 counts of a `period`-count PWM period) seen
+/// `latency` sub-steps later, the sensor noise from `seed`; from `base` duty held for 2 s, as
+/// the firmware settles.
+#[allow(clippy::too_many_arguments)]
+pub fn fresh_record(
+    pump: &PumpParams,
+    lung: Option<&LungParams>,
+    sensor: &Sfm3300Params,
+    seed: u64,
+    record: Record,
+    base: u16,
+    latency: usize,
+    period: u32,
+) -> Samples {
+    let mut p = pump.clone();
+    p.ts_s /= SUBSTEPS as f64;
+    p.delay_samples *= SUBSTEPS;
+    let mut pump = Pump::new(p);
+    let mut lung = lung.cloned().map(Lung::new);
+    let mut sfm = Sfm3300::new(sensor.clone(), seed);
+    let frac = |d: u16| f64::from(duty_counts(d, period)) / f64::from(period.max(1));
+    let mut step = |d: u16| {
+        let open = pump.step(frac(d));
+        match &mut lung {
+            Some(l) => {
+                let p = pump.params();
+                l.step(open, p.shutoff_of_speed(pump.speed()), p.ts_s)
+            }
+            None => open,
+        }
+    };
+    let latency = latency.min(SUBSTEPS);
+    let mut prev = base;
+    let mut flow = 0.0;
+    for _ in 0..200 * SUBSTEPS {
+        flow = step(base);
+    }
+    let mut s = Samples {
+        record: Some(record),
+        u0: base,
+        ..Samples::default()
+    };
+    for g in record.generator() {
+        for _ in 0..latency {
+            flow = step(prev);
+        }
+        for _ in latency..SUBSTEPS {
+            flow = step(g);
+        }
+        prev = g;
+        s.u.push(g);
+        s.raw.push(sfm.measure_raw(flow));
+        s.at.push(0);
+    }
+    s
+}
+
+/// Median plant sub-steps (0.5 ms) between a read of `samples` and the PWM change that
+/// follows it in the same tick (the duty written is seen by the plant at the next step).
+pub fn write_latency(bench: &Bench, samples: &Samples) -> usize {
+    let step = TICK_PS / SUBSTEPS as u64;
+    let mut lat: Vec<u64> = samples
+        .at
+        .iter()
+        .filter_map(|&t| {
+            let i = bench.duty_log.partition_point(|d| d.at <= t);
+            let d = bench.duty_log.get(i)?;
+            (d.at - t < TICK_PS).then(|| (d.at - t).div_ceil(step))
+        })
+        .collect();
+    if lat.is_empty() {
+        return 1;
+    }
+    lat.sort_unstable();
+    lat[lat.len() / 2] as usize
 }
