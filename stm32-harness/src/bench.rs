@@ -6,7 +6,7 @@
 //! timer drives on the pin, steps `pump_sim::Pump` (its 100 Hz parameters sub-stepped 20×) and
 //! the lung by 0.5 ms, and hands the flow to the sensor. It splits USART1's output into lines,
 //! plays bytes into USART1's receiver at 115 200 baud, and applies scheduled actions (sensor
-//! faults, SDA held low, a stalled blower, a reset, a power cut).
+//! faults, SDA held low, a stalled blower, a cut PWM line, a reset, a power cut).
 
 use std::cell::RefCell;
 use std::path::PathBuf;
@@ -80,6 +80,9 @@ pub enum Action {
     Sensor(Fault),
     /// Block or free the rotor.
     Stall(bool),
+    /// Cut (`true`) or mend the pump's PWM line: the blower sees duty 0 whatever the pin
+    /// drives (a dead driver or wire).
+    PwmLineCut(bool),
     /// Reset the chip by this cause: the NRST pin, a watchdog expiry (as the IWDG's own would),
     /// a brown-out, or a power cycle (RAM lost, the backup domain too).
     Reset(ResetCause),
@@ -148,6 +151,7 @@ pub struct Bench {
     pub plant_log: Vec<PlantSample>,
     next_step: Time,
     substep: usize,
+    pwm_cut: bool,
     schedule: Vec<(Time, Action)>,
     sent_seen: usize,
     partial: Vec<u8>,
@@ -198,6 +202,7 @@ impl Bench {
             plant_log: Vec::new(),
             next_step: STEP_PS,
             substep: 0,
+            pwm_cut: false,
             schedule: Vec::new(),
             sent_seen: 0,
             partial: Vec::new(),
@@ -227,6 +232,7 @@ impl Bench {
         match action {
             Action::Sensor(f) => self.sensor.borrow_mut().fault = f,
             Action::Stall(s) => self.pump.set_stalled(s),
+            Action::PwmLineCut(c) => self.pwm_cut = c,
             Action::Reset(ResetCause::PowerOn) => self.machine.power_cycle()?,
             Action::Reset(cause) => self.machine.reset(cause)?,
             Action::PowerCutAfterProgram(n) => {
@@ -287,7 +293,7 @@ impl Bench {
         {
             self.duty_log.push(d);
         }
-        let open = self.pump.step(d.fraction);
+        let open = self.pump.step(if self.pwm_cut { 0.0 } else { d.fraction });
         let flow = match &mut self.lung {
             Some(lung) => {
                 let p = self.pump.params();
