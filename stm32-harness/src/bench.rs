@@ -30,6 +30,8 @@ pub const SUBSTEPS: usize = 20;
 pub const STEP_PS: Time = PS_PER_S / 2_000;
 /// The console's baud rate (the image's `BAUD`).
 pub const BAUD: u64 = 115_200;
+/// One 8N1 frame at [`BAUD`] (10 bits), ps.
+pub const FRAME_PS: Time = PS_PER_S * 10 / BAUD;
 
 /// Seconds → ps.
 pub fn ps(seconds: f64) -> Time {
@@ -247,15 +249,15 @@ impl Bench {
     }
 
     /// Plays `bytes` into USART1's receiver from `at_s` seconds on (or when the line is
-    /// free), back to back at 115 200 baud 8N1.
-    pub fn send_at(&mut self, at_s: f64, bytes: &[u8]) {
-        let frame = PS_PER_S * 10 / BAUD;
+    /// free), back to back at 115 200 baud 8N1; returns when the last stop bit ends, ps.
+    pub fn send_at(&mut self, at_s: f64, bytes: &[u8]) -> Time {
         let mut t = ps(at_s).max(self.rx_free).max(self.machine.now());
         for &b in bytes {
-            t += frame;
+            t += FRAME_PS;
             self.machine.chip_mut().usart1.receive_at(t, b);
         }
         self.rx_free = t;
+        t
     }
 
     /// The duty on PA6 now: TIM3 channel 1 when the pin is in alternate function 2, else

@@ -119,6 +119,8 @@ pub struct Core {
     pub power_cut_after: Option<usize>,
     /// Sector erases (stalls longer than a program access), in order.
     pub erase_stalls: Vec<Stall>,
+    /// Writes of the pump's compare register `TIM3_CCR1`: (time, value), in order.
+    pub pwm_writes: Vec<(Time, u32)>,
     /// Whether polling jumps the clock (on by default; off, every poll iteration runs).
     pub clock_jump: bool,
     /// Bus accesses, exception entries and returns still to print on stderr (debugging: the
@@ -225,6 +227,9 @@ impl Core {
         }
         self.poll = None;
         self.poll_run = 0;
+        if addr == TIM3 + CCR1 {
+            self.pwm_writes.push((self.now, v));
+        }
         if self.chip.active.is_empty() {
             self.ticks.other_access();
             if addr == TIM3 + CCR1 {
@@ -295,6 +300,7 @@ impl Machine {
             ticks: TickMeter::default(),
             power_cut_after: None,
             erase_stalls: Vec::new(),
+            pwm_writes: Vec::new(),
             clock_jump: true,
             trace: std::env::var("STM32_TRACE")
                 .ok()

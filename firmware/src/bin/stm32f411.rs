@@ -121,7 +121,7 @@ mod image {
             Mode::standard(I2C_HZ.Hz()),
             &mut rcc,
         );
-        let sensor = Sfm3300::new(bp::Bus::new(i2c));
+        let sensor = Sfm3300::new(bp::bus::Bus::new(i2c));
 
         let store = FlashStore::new(dp.FLASH);
         let stored = store.load();

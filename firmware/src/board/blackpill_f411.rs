@@ -2,7 +2,7 @@
 //!
 //! | function | peripheral | pin |
 //! |---|---|---|
-//! | SFM3300 | I2C1, 100 kHz, bus recovery ([`Bus`]) | PB6 SCL, PB7 SDA (5 V tolerant; external pull-ups) |
+//! | SFM3300 | I2C1, 100 kHz, bus recovery ([`bus::Bus`]) | PB6 SCL, PB7 SDA (5 V tolerant; external pull-ups) |
 //! | pump PWM | TIM3 CH1, 20 kHz | PA6 |
 //! | reports, console | USART1 115200 8N1 (one interrupt: TXE + queue, RXNE + queue) | PA9 TX, PA10 RX |
 //! | tick | TIM5, free-running 10 kHz counter, polled | — |
@@ -32,8 +32,7 @@ use ridge_pump_firmware::resets::Resets;
 use ridge_pump_firmware::ring::Ring;
 use ridge_pump_firmware::slots;
 
-mod bus;
-pub use bus::Bus;
+pub mod bus;
 
 /// Frequency of the TIM5 tick counter.
 pub const COUNTER_HZ: u32 = 10_000;
