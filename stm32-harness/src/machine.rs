@@ -387,9 +387,12 @@ impl Machine {
             },
         )
         .map_err(uc_err("flash hook"))?;
-        // Mirror the loaded flash into Unicorn's memory.
+        // Mirror the loaded flash into Unicorn's memory; RAM holds a pattern at power-up
+        // (its content is undefined on the chip), which also shows how deep the stack went.
         let mem = uc.get_data().chip.flash.mem.clone();
         uc.mem_write(fb, &mem).map_err(uc_err("load flash"))?;
+        uc.mem_write(u64::from(SRAM), &vec![RAM_FILL; SRAM_SIZE as usize])
+            .map_err(uc_err("fill RAM"))?;
         let mut m = Machine {
             uc,
             image,
@@ -758,6 +761,20 @@ impl Machine {
 }
 
 impl Machine {
+    /// Stack high-water mark since power-up, bytes: from the initial stack pointer
+    /// (`_stack_start`) down to the lowest byte below it, above the static RAM (`_stack_end`),
+    /// that no longer holds the power-up pattern [`RAM_FILL`]. `None` without those symbols.
+    /// (A stack byte that happens to be written with the pattern itself is not seen: the
+    /// figure can only be low by the few bytes at the deepest point.)
+    pub fn stack_used(&self) -> Option<u32> {
+        let top = self.image.symbol("_stack_start")?.addr;
+        let end = self.image.symbol("_stack_end")?.addr;
+        let mut ram = vec![0u8; top.checked_sub(end)? as usize];
+        self.uc.mem_read(u64::from(end), &mut ram).ok()?;
+        let deepest = ram.iter().position(|&b| b != RAM_FILL)?;
+        Some(top - end - deepest as u32)
+    }
+
     /// Whether the function `sym` is on the call chain now: a return address into it (Thumb
     /// bit set) lies on the live main stack, between SP and the initial stack pointer of the
     /// vector table, or the PC is in it.

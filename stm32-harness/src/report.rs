@@ -208,13 +208,17 @@ pub fn render(out: &Outcome, all_lines: bool) -> (String, bool) {
     let z = out.sizes;
     let _ = writeln!(
         s,
-        "\n== flash and RAM\n  flash {} B (text {} + data {}) of 512 KB; static RAM {} B (data {} + bss {}) of 128 KB",
+        "\n== flash and RAM\n  flash {} B (text {} + data {}) of the image's 256 KB (sectors 0-5; 6 and 7 hold the record); static RAM {} B (data {} + bss {}) of 128 KB; stack high-water {} B (measured: RAM below the stack top no longer holding the power-up pattern)",
         z.flash(),
         z.text,
         z.data,
         z.ram(),
         z.data,
-        z.bss
+        z.bss,
+        out.bench
+            .machine
+            .stack_used()
+            .map_or_else(|| "n/a".to_string(), |b| b.to_string())
     );
     (s, ok)
 }
