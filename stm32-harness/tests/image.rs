@@ -52,7 +52,7 @@ fn default_blower_boots_identifies_persists_designs_and_tracks() {
     assert!(m.faults.is_empty(), "{:?}", m.faults);
     assert_eq!(m.resets.len(), 1);
     assert!(b.sensor.borrow().errors.is_empty());
-    // The record is in flash sector 7.
+    // The record is in the store's flash sectors (6 and 7).
     assert!(b.store_used());
     // USART1's interrupt kept every line's bytes back to back: each frame starts when the one
     // before it ends (the interrupt refills DR within the 86.8 µs frame), so neither the clock
