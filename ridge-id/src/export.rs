@@ -46,7 +46,7 @@ use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use ridge_pump_firmware::slots::{self, EEPROM_BASE, STORE_LEN};
 
-use crate::Report;
+use crate::outcome::Report;
 
 /// Size of the ATmega2560's EEPROM in bytes: an image must end within it.
 pub const AVR_EEPROM_SIZE: usize = 4096;

@@ -18,8 +18,8 @@ use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 
 use crate::error::IdError;
 use crate::initial::Initial;
-use crate::options::Options;
-use crate::segment::{SegmentOptions, EXCITE_PHASE};
+use crate::options::{GammaScale, Options, Refine, Select};
+use crate::phase::{SegmentOptions, EXCITE_PHASE};
 
 /// The command-line options `--device` stands for, as they would be typed (for messages and
 /// the docs; `device_options_are_the_documented_ones` checks the two agree).
@@ -56,7 +56,9 @@ pub fn apply(opts: &mut Options) -> Result<(), IdError> {
         .name()
         .parse::<Offset>()
         .map_err(|_| unsupported(s.offset.name()))?;
+    // The device's γ is in its data's units (duty fraction, slm), as printed.
     opts.hyper.gamma = decimal(ridge_m.gamma);
+    opts.hyper.gamma_scale = GammaScale::Data;
     opts.hyper.beta = decimal(ridge_m.beta);
     opts.hyper.tol = decimal(ridge_m.tol);
     opts.hyper.max_iter = ridge_m.max_iter;
@@ -71,6 +73,9 @@ pub fn apply(opts: &mut Options) -> Result<(), IdError> {
         d: range(s.grid.d),
     };
     opts.structure = None;
+    // The pump's model is the search's, by its criterion, as it is.
+    opts.select = Select::Criterion;
+    opts.refine = Refine::None;
     if opts.segment.is_none() {
         opts.segment = Some(SegmentOptions::excite());
     }

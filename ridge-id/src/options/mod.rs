@@ -1,57 +1,27 @@
-//! What an identification run does: [`Options`], and the parsers of the order ranges and
-//! structures of the command line. The names of estimators, criteria and offsets are
-//! ridge-core's ([`MethodKind`], [`Criterion`], [`Offset`]: `name()` and `FromStr`).
+//! What an identification run does: [`Options`] and the settings beside it ([`Hyper`], the
+//! choices [`Select`] and [`Refine`], the parsers of order ranges and structures). The names of
+//! estimators, criteria and offsets are ridge-core's ([`MethodKind`], [`Criterion`],
+//! [`Offset`]: `name()` and `FromStr`).
 
 use std::path::PathBuf;
 
+mod choices;
+mod hyper;
+mod parse;
+
+pub use choices::{Refine, Select};
+pub use hyper::{GammaScale, Hyper, STANDARDISED_GAMMA};
+pub use parse::{parse_range, parse_structure};
+
 use ridge_core_host::{
-    AdaptiveLasso, Criterion, Grid, Method as CoreMethod, MethodKind, Offset, OrderRange, Ridge,
-    RidgeM, Structure, D_MAX, P_MAX, Q_MAX,
+    AdaptiveLasso, Criterion, Grid, Method as CoreMethod, MethodKind, Offset, Ridge, RidgeM,
+    Structure,
 };
 
 use crate::control::ControlOptions;
 use crate::error::IdError;
-use crate::refine::{Refine, Select};
-use crate::report::Hyper;
-use crate::segment::SegmentOptions;
-
-/// Parses an inclusive order range: `1..=6` or a single number `3`, checked against
-/// `lo..=hi`.
-pub fn parse_range(s: &str, lo: u8, hi: u8) -> Result<OrderRange, String> {
-    let num = |t: &str| -> Result<u8, String> {
-        let t = t.trim();
-        t.parse::<u8>()
-            .ok()
-            .filter(|v| (lo..=hi).contains(v))
-            .ok_or_else(|| format!("{t:?} is not a whole number in {lo}..={hi}"))
-    };
-    let r = if let Some((a, b)) = s.split_once("..=") {
-        OrderRange::new(num(a)?, num(b)?)
-    } else if s.contains("..") {
-        return Err(format!(
-            "{s:?}: write an inclusive range as a..=b (e.g. {lo}..={hi}) or a single number"
-        ));
-    } else {
-        let v = num(s)?;
-        OrderRange::new(v, v)
-    };
-    if r.min > r.max {
-        return Err(format!("{s:?} is an empty range"));
-    }
-    Ok(r)
-}
-
-/// Parses a fixed structure `P,Q,D`, e.g. `2,2,3`.
-pub fn parse_structure(s: &str) -> Result<Structure, String> {
-    let parts: Vec<&str> = s.split(',').collect();
-    let [p, q, d] = parts.as_slice() else {
-        return Err(format!("{s:?}: expected P,Q,D (three numbers, e.g. 2,2,3)"));
-    };
-    let p = parse_range(p, 1, P_MAX as u8)?.min;
-    let q = parse_range(q, 1, Q_MAX as u8)?.min;
-    let d = parse_range(d, 0, D_MAX as u8)?.min;
-    Structure::new(p, q, d).map_err(|e| format!("{s:?}: {e}"))
-}
+use crate::initial::Initial;
+use crate::phase::SegmentOptions;
 
 /// Largest `--max-iter` accepted. Each Ridge-M iterate costs ~0.16 µs (p = q = 6, two
 /// triangular solves), so the worst case — all 252 candidates of the default grid
@@ -76,25 +46,30 @@ pub struct Options {
     /// Structure criterion (default: delay-free AIC, the core's default, which unlike the
     /// paper's criterion can find a true delay; see [`Criterion`]).
     pub criterion: Criterion,
-    /// Hyper-parameters (defaults: [`Hyper::default`], the paper's).
+    /// Hyper-parameters (defaults: [`Hyper::default`], the paper's but for `γ`, which is
+    /// scale-free; [`Hyper::paper`] is the paper's).
     pub hyper: Hyper,
     /// Search grid (default p 1..=6, q 1..=6, d 0..=6); ignored when `structure` is set.
     pub grid: Grid,
     /// A fixed structure (a single-point grid).
     pub structure: Option<Structure>,
-    /// Constant term (default none, the paper's model).
+    /// Constant term (default [`Offset::Intercept`]: estimated, never shrunk, so that a log
+    /// with an offset — a sensor's zero, a pump's dead zone, an output level — is modelled;
+    /// [`Offset::None`] is the paper's model).
     pub offset: Offset,
     /// Write a PNG of measured, one-step and free-run output here (with `control`, also the
-    /// simulated closed-loop step to [`crate::control_plot_path`] of it).
+    /// simulated closed-loop step to [`crate::plot::control_plot_path`] of it).
     pub plot: Option<PathBuf>,
     /// Design a controller for the identified model (`--control`; see [`crate::control`]).
     pub control: Option<ControlOptions>,
-    /// How the structure is chosen (default: by the criterion; [`Select`]).
+    /// How the structure is chosen (default [`Select::Auto`], see
+    /// [`Options::select_choice`]).
     pub select: Select,
-    /// Output-error refinement of the chosen model (default none; [`Refine`]).
+    /// Output-error refinement of the chosen model (default [`Refine::Auto`], see
+    /// [`Options::refine_choice`]).
     pub refine: Refine,
     /// The estimation record is one segment of a pump's log capture (`--phase`, see
-    /// [`crate::segment`]); `None`: the whole of [`Options::input`].
+    /// [`crate::phase`]); `None`: the whole of [`Options::input`].
     pub segment: Option<SegmentOptions>,
 }
 
@@ -109,13 +84,77 @@ impl Options {
             hyper: Hyper::default(),
             grid: Grid::default(),
             structure: None,
-            offset: Offset::None,
+            offset: Offset::Intercept,
             plot: None,
             control: None,
-            select: Select::Criterion,
-            refine: Refine::None,
+            select: Select::Auto,
+            refine: Refine::Auto,
             segment: None,
         }
+    }
+
+    /// The paper's Ridge-M settings on `input`: [`Hyper::paper`] (`γ = 1000` in the data's
+    /// units), the paper's criterion, zero history before the record (eq. 6), no offset, the
+    /// structure by the criterion and no refinement.
+    pub fn paper(input: impl Into<PathBuf>) -> Self {
+        let mut o = Options::new(input);
+        o.hyper = Hyper {
+            initial: Initial::Zero,
+            ..Hyper::paper()
+        };
+        o.criterion = Criterion::Paper;
+        o.offset = Offset::None;
+        o.select = Select::Criterion;
+        o.refine = Refine::None;
+        o
+    }
+
+    /// [`Options::select`] resolved, and why when it was [`Select::Auto`]: the lowest
+    /// validation free-run RMSE ([`Select::FreeRun`]) when a validation record is given, for
+    /// a search (no fixed structure) of the estimator's own fits (not `rls`), on a whole record
+    /// (not `--phase`, which reads one segment only); else the criterion.
+    pub fn select_choice(&self) -> (Select, Option<&'static str>) {
+        match self.select {
+            Select::Auto if self.validate.is_none() => (Select::Criterion, None),
+            Select::Auto
+                if self.structure.is_none()
+                    && self.method != MethodKind::Rls
+                    && self.segment.is_none() =>
+            {
+                (Select::FreeRun, Some("a validation record is given"))
+            }
+            Select::Auto => (Select::Criterion, None),
+            s => (s, None),
+        }
+    }
+
+    /// [`Options::refine`] resolved, and why when it was [`Refine::Auto`]: the output-error
+    /// refinement ([`Refine::Oe`], kept only if it lowers the validation free-run RMSE) when
+    /// a validation record is given, not with `rls` or `--phase`; else none.
+    pub fn refine_choice(&self) -> (Refine, Option<&'static str>) {
+        match self.refine {
+            Refine::Auto
+                if self.validate.is_some()
+                    && self.method != MethodKind::Rls
+                    && self.segment.is_none() =>
+            {
+                (Refine::Oe, Some("a validation record is given"))
+            }
+            Refine::Auto => (Refine::None, None),
+            r => (r, None),
+        }
+    }
+
+    /// `true` when the estimator runs on the standardised record
+    /// ([`GammaScale::Standardised`]): Ridge-M and Ridge (and the Ridge-M search of `rls`),
+    /// whose `γ` depends on the units. Least squares and the adaptive LASSO do not depend on
+    /// them and run on the data as they are.
+    pub fn standardises(&self) -> bool {
+        self.hyper.gamma_scale == GammaScale::Standardised
+            && matches!(
+                self.method,
+                MethodKind::RidgeM | MethodKind::Ridge | MethodKind::Rls
+            )
     }
 
     /// The grid actually searched: the fixed structure, or [`Options::grid`].
@@ -229,28 +268,6 @@ impl Options {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn ranges() {
-        assert_eq!(parse_range("1..=6", 1, 6), Ok(OrderRange::new(1, 6)));
-        assert_eq!(parse_range("3", 1, 6), Ok(OrderRange::new(3, 3)));
-        assert_eq!(parse_range(" 0 ..= 2", 0, 6), Ok(OrderRange::new(0, 2)));
-        assert!(parse_range("1..6", 1, 6).unwrap_err().contains("a..=b"));
-        assert!(parse_range("0", 1, 6).is_err());
-        assert!(parse_range("7", 1, 6).is_err());
-        assert!(parse_range("4..=2", 1, 6).unwrap_err().contains("empty"));
-        assert!(parse_range("x", 1, 6).is_err());
-    }
-
-    #[test]
-    fn structures() {
-        assert_eq!(
-            parse_structure("2,2,3"),
-            Structure::new(2, 2, 3).map_err(|e| e.to_string())
-        );
-        assert!(parse_structure("2,2").is_err());
-        assert!(parse_structure("0,1,0").is_err());
-    }
 
     #[test]
     fn core_method_is_the_method_and_ridge_m_for_rls() {

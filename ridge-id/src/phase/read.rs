@@ -1,166 +1,19 @@
-//! `--phase`: one segment of a pump's log capture as the estimation record, and the operating
-//! point the pump identified around (`--operating-point`).
-//!
-//! A capture (see `docs/real-logs.md`, "Check the pump's identification on the PC") is the
-//! pump's live log: the header `t,u,y,r,phase`, one row per 10 ms tick, and every other line
-//! the pump printed as a comment `# …`, in order:
-//!
-//! ```text
-//! t,u,y,r,phase
-//! # EXCITE A-Multistep n=3000 u0=30.00 y0=19.058 attempt=1/3
-//! 2.51,0.3000,19.05833,,settle
-//! 2.52,0.5000,19.06667,,excite
-//! …
-//! # ID p=1 q=1 d=3 off=1 theta=0.935000 phi=6.500000 c=-0.125000 score=-1234.5 eval=14/252 skip=0 iters=200
-//! ```
-//!
-//! A *segment* is a maximal run of consecutive rows whose `phase` cell equals the asked
-//! phase. The rows of an `excite` segment are exactly the samples of the pump's estimation
-//! record; the `# EXCITE` comment before it gives the record's length `n` and its operating
-//! point (`u0` in percent, `y0` in slm), and the first `# ID` comment after it the model the
-//! pump identified on it ([`DeviceId`]).
-//!
-//! Which segment: the `--attempt N`-th of the file (counted from 1 in file order), or by
-//! default the last *complete* one (followed by a row of another phase, or holding the `n`
-//! rows its `# EXCITE` line announces; a segment cut off by the end of the capture is not).
-//! The chosen segment is refused, never silently patched, when rows are missing: fewer or
-//! more rows than its `# EXCITE` line's `n`, a step of the `t` column that is not one sample
-//! period (a dropped log row, `# LOG dropped=…`, or a lost tick, `# MISSED … lost=…`), or a
-//! malformed row inside it or at its end. A `# LOG dropped=` comment inside a segment whose
-//! rows are all there (the count covers the whole second before it) is not an error; without
-//! a `t` column such a comment refuses the segment.
-//!
-//! The file is read once, line by line, in memory bounded by two segments of at most
-//! [`MEMORY_ROWS`] rows each; lines are at most [`MAX_LINE`] bytes of UTF-8 text. Cells are
-//! separated by commas and may be blank-padded or double-quoted (a quoted comma is not
-//! supported here: the pump writes none).
+//! The segment `--phase` asks for, read from a capture: which rows, checked complete, with the
+//! `EXCITE` line before them and the `ID` line after them ([`read`], [`Segment`]).
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, Read};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use ridge_core_host::{ArxModel, MeasuredGram, Offset};
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, SAMPLE_RATE_HZ};
-use serde::Serialize;
+use ridge_pump_firmware::units::SAMPLE_RATE_HZ;
 
-use crate::csv::{column, found, number, quote, unquote, Sample, MAX_LINE};
+use super::device_lines::{parse_excite, parse_id, DeviceId, ExciteLine};
+use super::lines::Lines;
+use super::options::{OperatingPoint, SegmentOptions, EXCITE_PHASE};
+use crate::csv::{column, found, number, unquote, Sample};
 use crate::error::IdError;
-use crate::eval::{read_samples, RecordStats};
-use crate::input::{read_input, Input, MEMORY_ROWS};
-
-/// Where the operating point `(u0, y0)` subtracted from the segment's samples comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub enum OperatingPoint {
-    /// From the last `# EXCITE … u0=… y0=…` comment before the segment (the pump's own):
-    /// `u0` percent → fraction, `y0` slm → the nearest 1/120 slm (the pump's `y0` is a whole
-    /// SFM3300 count, printed to 3 decimals). The default of `--phase`.
-    #[default]
-    Log,
-    /// Nothing is subtracted.
-    None,
-    /// These values, in the log's units (`u` as a fraction, `y` in slm).
-    Given {
-        /// Input operating point.
-        u0: f64,
-        /// Output operating point.
-        y0: f64,
-    },
-}
-
-impl std::str::FromStr for OperatingPoint {
-    type Err = String;
-    /// `log`, `none` or `U0,Y0` (two finite numbers, e.g. `0.3,19.058`).
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s.trim() {
-            "log" => Ok(OperatingPoint::Log),
-            "none" => Ok(OperatingPoint::None),
-            other => {
-                let num = |t: &str| {
-                    t.trim()
-                        .parse::<f64>()
-                        .ok()
-                        .filter(|v| v.is_finite())
-                        .ok_or_else(|| format!("{} is not a finite number", quote(t.trim())))
-                };
-                let (u, y) = other
-                    .split_once(',')
-                    .ok_or_else(|| format!("{}: expected log, none or U0,Y0", quote(other)))?;
-                Ok(OperatingPoint::Given {
-                    u0: num(u)?,
-                    y0: num(y)?,
-                })
-            }
-        }
-    }
-}
-
-/// What `--phase` selects.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SegmentOptions {
-    /// The `phase` cell of the wanted rows, e.g. `excite`.
-    pub phase: String,
-    /// The segment's number in the file, from 1 (`--attempt N`); `None`: the last complete one.
-    pub attempt: Option<u32>,
-    /// The operating point subtracted before the statistics (`--operating-point`).
-    pub operating_point: OperatingPoint,
-}
-
-impl SegmentOptions {
-    /// The pump's estimation record: phase `excite`, the last complete segment, the operating
-    /// point of its `# EXCITE` line.
-    pub fn excite() -> Self {
-        SegmentOptions {
-            phase: EXCITE_PHASE.to_string(),
-            attempt: None,
-            operating_point: OperatingPoint::Log,
-        }
-    }
-}
-
-/// The `phase` of the pump's estimation rows (`State::Excite.name()` of the firmware).
-pub const EXCITE_PHASE: &str = "excite";
-
-/// The pump's `# EXCITE` line: the record announced before an excitation segment.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ExciteLine {
-    /// Line number of the comment.
-    pub line: u64,
-    /// The excitation preset, e.g. `A-Multistep`.
-    pub record: String,
-    /// Samples announced (`n`).
-    pub samples: u32,
-    /// Base duty as a fraction 0..1 (the line's `u0`, percent, divided by 100).
-    pub u0: f64,
-    /// Settled flow, slm: the line's `y0` taken to the nearest SFM3300 count (1/120 slm).
-    pub y0: f64,
-    /// The attempt as printed, e.g. `1/3`.
-    pub attempt: String,
-}
-
-/// The model the pump reported after a segment (its `# ID` line): the absolute model
-/// (duty as a fraction, flow in slm) with its intercept.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DeviceId {
-    /// Line number of the comment.
-    pub line: u64,
-    /// Orders and delay.
-    pub p: u8,
-    /// Input order.
-    pub q: u8,
-    /// Input delay, samples.
-    pub d: u8,
-    /// Whether the model has an intercept (`off=1`).
-    pub offset: bool,
-    /// Output coefficients θ_1..θ_p (6 decimals as printed).
-    pub theta: Vec<f64>,
-    /// Input coefficients φ_0..φ_{q−1}, slm per unit duty.
-    pub phi: Vec<f64>,
-    /// Intercept, slm.
-    pub c: f64,
-    /// Ridge-M iterations the pump ran on the chosen structure.
-    pub iterations: Option<u32>,
-}
+use crate::input::{Input, MEMORY_ROWS};
 
 /// The chosen segment.
 #[derive(Debug, Clone, PartialEq)]
@@ -231,13 +84,15 @@ struct Columns {
     phase: usize,
 }
 
-/// Reads the segment `opts` asks for from the capture at `path` (see the [module docs](self)).
+/// Reads the segment `opts` asks for from the capture at `path` (see the [module docs](super)).
 ///
 /// Errors (file and line named): the file cannot be read, has no header or no `u`, `y` or
 /// `phase` column, a line longer than [`MAX_LINE`] or not UTF-8, a malformed `# EXCITE`
 /// line, no segment of the phase, `--attempt` past the last one, no complete one, rows
 /// missing from the chosen one, a bad number in it, more than [`MEMORY_ROWS`] rows, and for
 /// [`OperatingPoint::Log`] no `# EXCITE` line before it.
+///
+/// [`MAX_LINE`]: crate::csv::MAX_LINE
 pub fn read(path: &Path, opts: &SegmentOptions) -> Result<Segment, IdError> {
     let file = File::open(path).map_err(|source| IdError::Io {
         path: path.to_path_buf(),
@@ -521,83 +376,6 @@ fn finish(b: Building, count: u32, name: &Path, opts: &SegmentOptions) -> Result
     })
 }
 
-/// The value after `key=` among the space-separated fields of `text`.
-fn field<'a>(text: &'a str, key: &str) -> Option<&'a str> {
-    text.split_ascii_whitespace()
-        .find_map(|w| w.strip_prefix(key)?.strip_prefix('='))
-}
-
-/// Parses the rest of an `EXCITE` comment: `A-Multistep n=3000 u0=30.00 y0=19.058
-/// attempt=1/3`.
-fn parse_excite(rest: &str, name: &Path, line: u64) -> Result<ExciteLine, IdError> {
-    let bad = |what: &str| {
-        IdError::line(
-            name,
-            line,
-            format!(
-                "EXCITE line: {what} (expected `# EXCITE <record> n=<samples> u0=<duty %> \
-                 y0=<slm> attempt=<k>/<n>`)"
-            ),
-        )
-    };
-    let num = |key: &str| -> Result<f64, IdError> {
-        field(rest, key)
-            .and_then(|v| v.parse::<f64>().ok())
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| bad(&format!("no number {key}=")))
-    };
-    let samples = field(rest, "n")
-        .and_then(|v| v.parse::<u32>().ok())
-        .ok_or_else(|| bad("no whole number n="))?;
-    let u0_percent = num("u0")?;
-    let y0_slm = num("y0")?;
-    // The pump prints u0 (1/10 000 duty) in percent with 2 decimals and y0 (whole counts of
-    // 1/120 slm) in slm with 3: both are recovered exactly.
-    let full = f64::from(DUTY_FULL_SCALE);
-    let scale = f64::from(FLOW_SCALE);
-    let u0 = (u0_percent * full / 100.0).round() / full;
-    let y0 = (y0_slm * scale).round() / scale;
-    Ok(ExciteLine {
-        line,
-        record: rest
-            .split_ascii_whitespace()
-            .next()
-            .unwrap_or("")
-            .to_string(),
-        samples,
-        u0,
-        y0,
-        attempt: field(rest, "attempt").unwrap_or("").to_string(),
-    })
-}
-
-/// Parses the rest of an `ID` comment (`p=1 q=1 d=3 off=1 theta=… phi=… c=… … iters=200`);
-/// `None` when it is not one (the pump's line is informative here, never required).
-fn parse_id(rest: &str, line: u64) -> Option<DeviceId> {
-    let order = |k: &str| field(rest, k)?.parse::<u8>().ok();
-    let list = |k: &str| -> Option<Vec<f64>> {
-        field(rest, k)?
-            .split(',')
-            .map(|v| v.parse::<f64>().ok().filter(|v| v.is_finite()))
-            .collect()
-    };
-    let id = DeviceId {
-        line,
-        p: order("p")?,
-        q: order("q")?,
-        d: order("d")?,
-        offset: field(rest, "off")? == "1",
-        theta: list("theta")?,
-        phi: list("phi")?,
-        c: field(rest, "c")?
-            .parse()
-            .ok()
-            .filter(|c: &f64| c.is_finite())?,
-        iterations: field(rest, "iters").and_then(|v| v.parse().ok()),
-    };
-    (id.theta.len() == usize::from(id.p) && id.phi.len() == usize::from(id.q)).then_some(id)
-}
-
 /// The header's columns: `u`, `y` and `phase` required, `t` optional.
 fn parse_header(text: &str, name: &Path, line: u64) -> Result<Columns, IdError> {
     let names: Vec<&str> = text.split(',').map(unquote).collect();
@@ -624,80 +402,6 @@ fn parse_header(text: &str, name: &Path, line: u64) -> Result<Columns, IdError> 
     })
 }
 
-/// Lines of a reader, at most [`MAX_LINE`] bytes each, UTF-8, numbered from 1; a `\r`
-/// before the `\n` and a byte order mark at the start are removed.
-struct Lines<R> {
-    reader: BufReader<R>,
-    name: PathBuf,
-    line: u64,
-    buf: Vec<u8>,
-}
-
-impl<R: Read> Lines<R> {
-    fn new(reader: R, name: &Path) -> Self {
-        Lines {
-            reader: BufReader::with_capacity(1 << 16, reader),
-            name: name.to_path_buf(),
-            line: 0,
-            buf: Vec::new(),
-        }
-    }
-
-    fn next_line(&mut self) -> Result<Option<(u64, &str)>, IdError> {
-        self.buf.clear();
-        self.line += 1;
-        let n = (&mut self.reader)
-            .take(MAX_LINE + 2)
-            .read_until(b'\n', &mut self.buf)
-            .map_err(|source| IdError::Io {
-                path: self.name.clone(),
-                line: Some(self.line),
-                source,
-            })?;
-        if n == 0 {
-            return Ok(None);
-        }
-        if self.buf.last() == Some(&b'\n') {
-            self.buf.pop();
-        }
-        if self.buf.last() == Some(&b'\r') {
-            self.buf.pop();
-        }
-        if self.buf.len() as u64 > MAX_LINE {
-            return Err(IdError::line(
-                &self.name,
-                self.line,
-                format!("line longer than {MAX_LINE} bytes (1 MiB): not a log capture"),
-            ));
-        }
-        let mut text = std::str::from_utf8(&self.buf)
-            .map_err(|_| IdError::line(&self.name, self.line, "not valid UTF-8 text"))?;
-        if self.line == 1 {
-            text = text.strip_prefix('\u{feff}').unwrap_or(text);
-        }
-        Ok(Some((self.line, text)))
-    }
-}
-
-/// What the report says about the segment (`--phase`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct SegmentInfo {
-    /// The phase asked for.
-    pub phase: String,
-    /// Which segment of that phase (from 1) and how many the file has.
-    pub index: u32,
-    /// Segments of the phase in the file.
-    pub count: u32,
-    /// Lines of its first and last row.
-    pub lines: (u64, u64),
-    /// The `# EXCITE` line before it, if any.
-    pub excite: Option<ExciteLine>,
-    /// The pump's `# ID` line after it, if any.
-    pub device: Option<DeviceId>,
-    /// The operating point subtracted, `(u0, y0)` in the log's units.
-    pub operating_point: Option<(f64, f64)>,
-}
-
 impl Segment {
     /// The segment's rows as an in-memory record (absolute values).
     pub fn input(&self) -> Input {
@@ -706,216 +410,12 @@ impl Segment {
             samples: Arc::new(self.samples.clone()),
         }
     }
-
-    /// The report's account of it, for the phase of `opts`.
-    pub fn info(&self, opts: &Option<SegmentOptions>) -> SegmentInfo {
-        SegmentInfo {
-            phase: opts.as_ref().map(|o| o.phase.clone()).unwrap_or_default(),
-            index: self.index,
-            count: self.count,
-            lines: self.lines(),
-            excite: self.excite.clone(),
-            device: self.device.clone(),
-            operating_point: self.operating_point,
-        }
-    }
-}
-
-/// The statistics of `input` with the operating point `shift = (u0, y0)` subtracted from
-/// every sample (none: [`read_input`]), into the empty `gram`; the reported ranges are those
-/// of the absolute samples.
-///
-/// Errors: as [`read_input`].
-pub fn read_shifted(
-    input: &Input,
-    gram: MeasuredGram<f64>,
-    shift: Option<(f64, f64)>,
-) -> Result<RecordStats, IdError> {
-    let Some((u0, y0)) = shift else {
-        return read_input(input, gram);
-    };
-    let mut stats = read_samples(
-        input.name(),
-        input.samples()?.map(|s| {
-            s.map(|s| Sample {
-                u: s.u - u0,
-                y: s.y - y0,
-                ..s
-            })
-        }),
-        gram,
-    )?;
-    stats.u_range = (stats.u_range.0 + u0, stats.u_range.1 + u0);
-    stats.y_range = (stats.y_range.0 + y0, stats.y_range.1 + y0);
-    Ok(stats)
-}
-
-/// The absolute model of a model `dev` identified on the deviations from the operating point
-/// `(u0, y0)`: the same θ, φ and delay, with the intercept
-/// `c = c_dev + y0 (1 − Σθ) − u0 Σφ` (the firmware's `selfid::absolute_model`, in `f64`).
-///
-/// Errors: [`ridge_core_host::Error::NonFinite`] for non-finite coefficients.
-pub fn absolute_model(
-    dev: &ArxModel<f64>,
-    (u0, y0): (f64, f64),
-) -> Result<ArxModel<f64>, ridge_core_host::Error> {
-    let sum_theta: f64 = dev.theta().iter().sum();
-    let sum_phi: f64 = dev.phi().iter().sum();
-    let c = dev.intercept() + y0 * (1.0 - sum_theta) - u0 * sum_phi;
-    ArxModel::new(
-        dev.theta(),
-        dev.phi(),
-        dev.structure().d,
-        Offset::Intercept,
-        c,
-    )
-}
-
-/// `ridge-id`'s model against the pump's `# ID` line.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct Agreement {
-    /// Same `p`, `q`, `d` and offset flag.
-    pub same_structure: bool,
-    /// Largest |Δθ_i| (with the same structure; else `None`).
-    pub theta: Option<f64>,
-    /// Largest |Δφ_j|, slm per unit duty.
-    pub phi: Option<f64>,
-    /// |Δc|, slm.
-    pub c: Option<f64>,
-}
-
-/// Largest absolute difference of two equally long lists (`None` when they are not).
-fn max_diff(a: &[f64], b: &[f64]) -> Option<f64> {
-    (a.len() == b.len()).then(|| {
-        a.iter()
-            .zip(b)
-            .map(|(x, y)| (x - y).abs())
-            .fold(0.0, f64::max)
-    })
-}
-
-impl DeviceId {
-    /// How `model` agrees with this line.
-    pub fn agreement(&self, model: &ArxModel<f64>) -> Agreement {
-        let s = model.structure();
-        let same = (s.p, s.q, s.d, model.offset() == Offset::Intercept)
-            == (self.p, self.q, self.d, self.offset);
-        let c = same.then(|| (model.intercept() - self.c).abs());
-        Agreement {
-            same_structure: same,
-            theta: max_diff(model.theta(), &self.theta).filter(|_| same),
-            phi: max_diff(model.phi(), &self.phi).filter(|_| same),
-            c,
-        }
-    }
-}
-
-impl SegmentInfo {
-    /// The report's lines about the segment and, when the pump's `ID` line is there, how
-    /// `model` agrees with it (indented by two spaces, each ending with a line end).
-    pub fn to_text(&self, model: &ArxModel<f64>) -> String {
-        let mut o = String::new();
-        let excite = self
-            .excite
-            .as_ref()
-            .map(|e| {
-                format!(
-                    ", announced by EXCITE {} n={} attempt={} (line {})",
-                    e.record, e.samples, e.attempt, e.line
-                )
-            })
-            .unwrap_or_default();
-        o += &format!(
-            "  segment     phase {}: segment {} of {} (lines {}–{}){excite}\n",
-            self.phase, self.index, self.count, self.lines.0, self.lines.1
-        );
-        match self.operating_point {
-            Some((u0, y0)) => {
-                o += &format!(
-                    "  op. point   u0 = {u0}, y0 = {y0} subtracted; the model below is the \
-                     absolute one, c = y0 (1 - sum theta) - u0 sum phi\n"
-                )
-            }
-            None => o += "  op. point   none subtracted\n",
-        }
-        if let Some(d) = &self.device {
-            let a = d.agreement(model);
-            let list = |v: &[f64]| {
-                v.iter()
-                    .map(|x| format!("{x}"))
-                    .collect::<Vec<_>>()
-                    .join(",")
-            };
-            o += &format!(
-                "  pump's ID   (line {}) p = {}, q = {}, d = {}, offset {}, theta = [{}], phi = [{}], c = {}\n",
-                d.line,
-                d.p,
-                d.q,
-                d.d,
-                if d.offset { "intercept" } else { "none" },
-                list(&d.theta),
-                list(&d.phi),
-                d.c
-            );
-            o += &match (a.same_structure, a.theta, a.phi, a.c) {
-                (true, Some(t), Some(f), Some(c)) => format!(
-                    "  agreement   same structure; largest |ridge-id - pump|: theta {t:.2e}, \
-                     phi {f:.2e}, c {c:.2e} (the pump prints 6 decimals and computes in f32)\n"
-                ),
-                _ => "  agreement   DIFFERENT structure from the pump's\n".to_string(),
-            };
-        }
-        o
-    }
-
-    /// The `"segment"` object of the JSON report.
-    pub fn to_json(&self, model: &ArxModel<f64>) -> serde_json::Value {
-        #[derive(Serialize)]
-        struct Device<'a> {
-            line: u64,
-            structure: [u8; 3],
-            offset: bool,
-            theta: &'a [f64],
-            phi: &'a [f64],
-            c: f64,
-            iterations: Option<u32>,
-            agreement: Agreement,
-        }
-        #[derive(Serialize)]
-        struct Json<'a> {
-            phase: &'a str,
-            index: u32,
-            count: u32,
-            lines: [u64; 2],
-            excite_line: Option<u64>,
-            operating_point: Option<[f64; 2]>,
-            device: Option<Device<'a>>,
-        }
-        let j = Json {
-            phase: &self.phase,
-            index: self.index,
-            count: self.count,
-            lines: [self.lines.0, self.lines.1],
-            excite_line: self.excite.as_ref().map(|e| e.line),
-            operating_point: self.operating_point.map(|(u, y)| [u, y]),
-            device: self.device.as_ref().map(|d| Device {
-                line: d.line,
-                structure: [d.p, d.q, d.d],
-                offset: d.offset,
-                theta: &d.theta,
-                phi: &d.phi,
-                c: d.c,
-                iterations: d.iterations,
-                agreement: d.agreement(model),
-            }),
-        };
-        serde_json::to_value(j).unwrap_or(serde_json::Value::Null)
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::csv::MAX_LINE;
 
     const EXCITE1: &str = "# EXCITE A-Multistep n=3 u0=30.00 y0=19.058 attempt=1/3";
     const EXCITE2: &str = "# EXCITE A-Multistep n=3 u0=30.00 y0=20.000 attempt=2/3";
@@ -1107,15 +607,5 @@ mod tests {
         assert!("0.3".parse::<OperatingPoint>().is_err());
         assert!("0.3,nan".parse::<OperatingPoint>().is_err());
         assert_eq!("log".parse::<OperatingPoint>(), Ok(OperatingPoint::Log));
-    }
-
-    #[test]
-    fn absolute_model_moves_the_operating_point_into_the_intercept() {
-        let dev = ArxModel::new(&[0.5, 0.2], &[10.0], 1, Offset::None, 0.0).unwrap();
-        let abs = absolute_model(&dev, (0.3, 20.0)).unwrap();
-        assert_eq!(abs.offset(), Offset::Intercept);
-        // At the operating point the absolute model is in equilibrium.
-        let y = 0.5 * 20.0 + 0.2 * 20.0 + 10.0 * 0.3 + abs.intercept();
-        assert!((y - 20.0).abs() < 1e-12, "{y}");
     }
 }
