@@ -68,12 +68,6 @@ pub mod refine;
 pub mod residuals;
 pub mod warnings;
 
-/// The former name of [`device_check`], kept while the workspace's other crates (host-tests,
-/// simavr-harness) name `ridge_id::device::DEVICE_OPTIONS`; remove once they use
-/// `device_check`.
-#[doc(hidden)]
-pub use device_check as device;
-
 pub use control::{ControlOptions, ControlReport};
 pub use error::IdError;
 pub use eval::{

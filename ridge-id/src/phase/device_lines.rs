@@ -1,11 +1,13 @@
 //! The pump's report lines in a capture that `--phase` reads: `# EXCITE` (the record
 //! announced before an excitation segment, [`ExciteLine`]) and `# ID` (the model the pump
-//! identified on it, [`DeviceId`]), and their parsers. The firmware writes them
-//! (`firmware/src/event.rs`); this file is ridge-id's only reader of them.
+//! identified on it, [`DeviceId`]). The firmware writes them (`firmware/src/event.rs`) and
+//! parses them (`firmware/src/lines.rs`, its one host-side parser); here they become
+//! ridge-id's records, in physical units and with the capture's line numbers.
 
 use std::path::Path;
 
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE};
+use ridge_core::Offset;
+use ridge_pump_firmware::lines;
 
 use crate::error::IdError;
 
@@ -50,79 +52,48 @@ pub struct DeviceId {
     pub iterations: Option<u32>,
 }
 
-/// The value after `key=` among the space-separated fields of `text`.
-fn field<'a>(text: &'a str, key: &str) -> Option<&'a str> {
-    text.split_ascii_whitespace()
-        .find_map(|w| w.strip_prefix(key)?.strip_prefix('='))
-}
-
 /// Parses the rest of an `EXCITE` comment: `A-Multistep n=3000 u0=30.00 y0=19.058
-/// attempt=1/3`.
+/// attempt=1/3` (the firmware's parser; the operating point exactly in its units).
 pub(super) fn parse_excite(rest: &str, name: &Path, line: u64) -> Result<ExciteLine, IdError> {
-    let bad = |what: &str| {
+    let parsed = lines::ExciteLine::parse(&format!("EXCITE {rest}")).map_err(|e| {
         IdError::line(
             name,
             line,
             format!(
-                "EXCITE line: {what} (expected `# EXCITE <record> n=<samples> u0=<duty %> \
+                "EXCITE line: {e} (expected `# EXCITE <record> n=<samples> u0=<duty %> \
                  y0=<slm> attempt=<k>/<n>`)"
             ),
         )
-    };
-    let num = |key: &str| -> Result<f64, IdError> {
-        field(rest, key)
-            .and_then(|v| v.parse::<f64>().ok())
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| bad(&format!("no number {key}=")))
-    };
-    let samples = field(rest, "n")
-        .and_then(|v| v.parse::<u32>().ok())
-        .ok_or_else(|| bad("no whole number n="))?;
-    let u0_percent = num("u0")?;
-    let y0_slm = num("y0")?;
-    // The pump prints u0 (1/10 000 duty) in percent with 2 decimals and y0 (whole counts of
-    // 1/120 slm) in slm with 3: both are recovered exactly.
-    let full = f64::from(DUTY_FULL_SCALE);
-    let scale = f64::from(FLOW_SCALE);
-    let u0 = (u0_percent * full / 100.0).round() / full;
-    let y0 = (y0_slm * scale).round() / scale;
+    })?;
+    let (u0, y0) = parsed.operating_point();
     Ok(ExciteLine {
         line,
-        record: rest
-            .split_ascii_whitespace()
-            .next()
-            .unwrap_or("")
-            .to_string(),
-        samples,
+        record: parsed.record,
+        samples: parsed.samples,
         u0,
         y0,
-        attempt: field(rest, "attempt").unwrap_or("").to_string(),
+        attempt: parsed
+            .attempt
+            .map(|(k, n)| format!("{k}/{n}"))
+            .unwrap_or_default(),
     })
 }
 
-/// Parses the rest of an `ID` comment (`p=1 q=1 d=3 off=1 theta=… phi=… c=… … iters=200`);
-/// `None` when it is not one (the pump's line is informative here, never required).
+/// Parses the rest of an `ID` comment (`p=1 q=1 d=3 off=1 theta=… phi=… c=… … iters=200`,
+/// the firmware's parser); `None` when it is not one (the pump's line is informative here,
+/// never required).
 pub(super) fn parse_id(rest: &str, line: u64) -> Option<DeviceId> {
-    let order = |k: &str| field(rest, k)?.parse::<u8>().ok();
-    let list = |k: &str| -> Option<Vec<f64>> {
-        field(rest, k)?
-            .split(',')
-            .map(|v| v.parse::<f64>().ok().filter(|v| v.is_finite()))
-            .collect()
-    };
-    let id = DeviceId {
+    let id = lines::IdLine::parse(&format!("ID {rest}")).ok()?;
+    let m = id.model;
+    Some(DeviceId {
         line,
-        p: order("p")?,
-        q: order("q")?,
-        d: order("d")?,
-        offset: field(rest, "off")? == "1",
-        theta: list("theta")?,
-        phi: list("phi")?,
-        c: field(rest, "c")?
-            .parse()
-            .ok()
-            .filter(|c: &f64| c.is_finite())?,
-        iterations: field(rest, "iters").and_then(|v| v.parse().ok()),
-    };
-    (id.theta.len() == usize::from(id.p) && id.phi.len() == usize::from(id.q)).then_some(id)
+        p: m.p,
+        q: m.q,
+        d: m.d,
+        offset: m.offset == Offset::Intercept,
+        theta: m.theta,
+        phi: m.phi,
+        c: m.c,
+        iterations: Some(id.iterations),
+    })
 }

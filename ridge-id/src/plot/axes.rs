@@ -36,15 +36,4 @@ impl Axes {
             ts: Some(1.0 / f64::from(SAMPLE_RATE_HZ)),
         }
     }
-
-    /// The labels of the plots before they named their units (`output y`, `input u`, time in
-    /// samples), for [`super::write_png`] and [`super::write_step_png`], which the
-    /// simavr harness still calls.
-    pub(super) fn unnamed() -> Self {
-        Axes {
-            output: "output y".into(),
-            input: "input u".into(),
-            ts: None,
-        }
-    }
 }

@@ -36,12 +36,6 @@ fn y_range(trace: &Trace) -> (f64, f64) {
     (a - pad, b + 4.0 * pad)
 }
 
-/// [`write_fit_png`] with the axes of before the plots named their units (`output y`, time in
-/// samples): the simavr harness's plots, until it names the pump's units ([`Axes::pump`]).
-pub fn write_png(path: &Path, panels: &[Panel<'_>]) -> Result<(), IdError> {
-    write_fit_png(path, &Axes::unnamed(), panels)
-}
-
 /// Writes `panels` stacked vertically into the PNG file `path` (1200 px wide, 420 px per
 /// panel), the output axis labelled `axes.output`, time in samples or, with `axes.ts`, in
 /// seconds. Values outside a panel's axis range are clipped to its edge. A decimated trace is

@@ -13,9 +13,9 @@ mod residuals;
 mod step;
 
 pub use axes::Axes;
-pub use fit::{write_fit_png, write_png, Panel};
+pub use fit::{write_fit_png, Panel};
 pub use residuals::write_residuals_png;
-pub use step::{write_control_png, write_step_png};
+pub use step::write_control_png;
 
 use std::path::{Path, PathBuf};
 

@@ -28,13 +28,6 @@ fn padded_range<'a>(series: impl IntoIterator<Item = &'a [f64]>) -> (f64, f64) {
     (lo - pad, hi + 4.0 * pad)
 }
 
-/// [`write_control_png`] with the labels of before the plots named their units (`output`,
-/// `input u`): the simavr harness's plot, until it names the pump's units ([`Axes::pump`]).
-pub fn write_step_png(path: &Path, title: &str, step: &StepResponse) -> Result<(), IdError> {
-    let a = Axes::unnamed();
-    draw(path, title, step, "output", &a.output, &a.input)
-}
-
 /// Writes the simulated closed-loop setpoint response `step` of `--control` into the PNG
 /// file `path` (1200 × 840 px): setpoint and output on top (labelled `axes.output`), the input
 /// with its limits below (`axes.input`), time in seconds. Every sample is drawn (a step
@@ -45,19 +38,7 @@ pub fn write_control_png(
     title: &str,
     step: &StepResponse,
 ) -> Result<(), IdError> {
-    draw(path, title, step, &axes.output, &axes.output, &axes.input)
-}
-
-/// The plot of [`write_control_png`], the output's axis labelled `output_axis`, its line
-/// `output`, the input's axis and line `input`.
-fn draw(
-    path: &Path,
-    title: &str,
-    step: &StepResponse,
-    output_axis: &str,
-    output: &str,
-    input: &str,
-) -> Result<(), IdError> {
+    let (output, input) = (axes.output.as_str(), axes.input.as_str());
     register_fonts();
     let err = |e: &dyn std::fmt::Display| IdError::Plot {
         path: path.to_path_buf(),
@@ -82,7 +63,7 @@ fn draw(
     let panels = [
         (
             &top,
-            output_axis,
+            output,
             vec![
                 ("setpoint r", &step.r[..], RGBColor(110, 110, 110)),
                 (output, &step.y[..], RGBColor(225, 50, 20)),
@@ -137,7 +118,7 @@ fn draw(
                 }
             }
         }
-        // 1-pixel lines, as in `write_png`.
+        // 1-pixel lines, as in `write_fit_png`.
         for (label, v, color) in lines {
             chart
                 .draw_series(LineSeries::new(series(v), color.stroke_width(1)))

@@ -4,7 +4,7 @@
 //! the comments), not produced by the code under test.
 
 use heapless::String;
-use ridge_pump_firmware::report::{Decimal, Fixed, Int, Milli, FIXED_LIMIT, MAX_DIGITS};
+use ridge_pump_firmware::numfmt::{Decimal, Fixed, Int, Milli, FIXED_LIMIT, MAX_DIGITS};
 use ufmt::{uDisplay, uwrite};
 
 fn show<T: uDisplay>(value: T) -> String<64> {

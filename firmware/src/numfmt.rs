@@ -14,10 +14,11 @@
 //!   decimals → percent.
 //! - [`Int`]: an unsigned integer (counts, orders).
 //!
-//! Output format (stable, for host-side parsers): an optional `-`, the integer part without
-//! leading zeros (at least one digit), then `.` and the fractional digits when there are any.
-//! No `+`, no exponent, no negative zero (a value that rounds to zero prints unsigned). Special
-//! values of [`Fixed`] print as `nan`, `inf`, `-inf` and `ovf` (see there).
+//! Output format (stable, for host-side parsers; `lines::number` reads it): an optional `-`,
+//! the integer part without leading zeros (at least one digit), then `.` and the fractional
+//! digits when there are any. No `+`, no exponent, no negative zero (a value that rounds to
+//! zero prints unsigned). Special values of [`Fixed`] print as `nan`, `inf`, `-inf` and `ovf`
+//! (see there).
 //!
 //! All arithmetic is 32-bit at most where it divides: a printed number, without its point, is
 //! below 2³² ([`FIXED_LIMIT`]). A [`Fixed`] that would need more prints with fewer fractional
@@ -27,7 +28,7 @@
 //! # Example
 //!
 //! ```
-//! use ridge_pump_firmware::report::{Fixed, Milli};
+//! use ridge_pump_firmware::numfmt::{Fixed, Milli};
 //! # let mut line = heapless::String::<64>::new();
 //! // `line` is any `ufmt::uWrite`, e.g. a UART writer or a `heapless::String`.
 //! ufmt::uwrite!(line, "y,{},{}", Milli(-273_067), Fixed::new(-1.9472, 4)).ok();
@@ -56,7 +57,7 @@ pub const FIXED_LIMIT: u64 = 1 << 32;
 /// - `digits` above [`MAX_DIGITS`] is reduced to [`MAX_DIGITS`].
 ///
 /// ```
-/// use ridge_pump_firmware::report::Fixed;
+/// use ridge_pump_firmware::numfmt::Fixed;
 /// # fn show(x: Fixed) -> heapless::String<32> {
 /// #     let mut s = heapless::String::new();
 /// #     ufmt::uwrite!(s, "{}", x).ok();
@@ -104,7 +105,7 @@ impl Fixed {
     /// `None` for NaN, infinities, and magnitudes at or above [`FIXED_LIMIT`] with 0 digits.
     ///
     /// ```
-    /// use ridge_pump_firmware::report::Fixed;
+    /// use ridge_pump_firmware::numfmt::Fixed;
     /// assert_eq!(Fixed::new(-1.9472, 4).scaled(), Some((-19_472, 4)));
     /// assert_eq!(Fixed::new(f32::INFINITY, 0).scaled(), None);
     /// ```
@@ -150,7 +151,7 @@ impl uDisplay for Fixed {
 /// `Milli(-5)` → `-0.005`. Used for milli-slm flow and other milli-unit quantities.
 ///
 /// ```
-/// use ridge_pump_firmware::report::Milli;
+/// use ridge_pump_firmware::numfmt::Milli;
 /// # let mut s = heapless::String::<16>::new();
 /// ufmt::uwrite!(s, "{}", Milli(-273_067)).ok();
 /// assert_eq!(s.as_str(), "-273.067");
@@ -173,7 +174,7 @@ impl uDisplay for Milli {
 /// `digits` above [`MAX_DIGITS`] is reduced to [`MAX_DIGITS`].
 ///
 /// ```
-/// use ridge_pump_firmware::report::Decimal;
+/// use ridge_pump_firmware::numfmt::Decimal;
 /// # let mut s = heapless::String::<16>::new();
 /// ufmt::uwrite!(s, "{}", Decimal::new(-7, 4)).ok();
 /// assert_eq!(s.as_str(), "-0.0007");
@@ -213,7 +214,7 @@ impl uDisplay for Decimal {
 /// ATmega2560 flash beside it and divide once per digit.
 ///
 /// ```
-/// use ridge_pump_firmware::report::Int;
+/// use ridge_pump_firmware::numfmt::Int;
 /// # let mut s = heapless::String::<16>::new();
 /// ufmt::uwrite!(s, "n={} t={}", Int::from(7u8), Int(4_294_967_295)).ok();
 /// assert_eq!(s.as_str(), "n=7 t=4294967295");

@@ -15,7 +15,7 @@
 #![cfg_attr(all(target_arch = "arm", target_os = "none"), no_std, no_main)]
 
 #[cfg(all(target_arch = "arm", target_os = "none"))]
-#[path = "../board/mod.rs"]
+#[path = "../../../firmware/src/board/mod.rs"]
 #[allow(dead_code)] // the flash store, watchdog and pump helpers are not used here
 mod board;
 

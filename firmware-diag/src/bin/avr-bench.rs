@@ -22,7 +22,7 @@
 //! | `crc8-notable`, `crc8-table1`, `crc8-table16` | `crc::Crc<u8, NoTable / Table<1> / Table<16>>` |
 //! | `crc32-ours` | `ridge_pump_firmware::persist::crc32` |
 //! | `crc32-notable`, `crc32-table1`, `crc32-table16` | `crc::Crc<u32, …>`, `CRC_32_ISO_HDLC` |
-//! | `fmt-ours` | `ridge_pump_firmware::report::Fixed` with `ufmt` |
+//! | `fmt-ours` | `ridge_pump_firmware::numfmt::Fixed` with `ufmt` |
 //! | `fmt-ufmt-float` | `ufmt_float::uFmt_f32::Four` with `ufmt` |
 //! | `fmt-core` | `core::fmt`'s `{:.4}` |
 //!
@@ -553,7 +553,7 @@ mod image {
 
     #[inline(never)]
     fn fmt_ours(v: f32, buf: &mut Buf) {
-        uwrite!(buf, "{}", ridge_pump_firmware::report::Fixed::new(v, 4)).ok();
+        uwrite!(buf, "{}", ridge_pump_firmware::numfmt::Fixed::new(v, 4)).ok();
     }
 
     #[cfg(feature = "bench-crates")]

@@ -34,7 +34,7 @@ mod image {
         dp.USART0.ucsr0a().write(|w| unsafe { w.bits(1 << 1) });
         dp.USART0.ucsr0b().write(|w| unsafe { w.bits(1 << 3) });
         dp.USART0.ucsr0c().write(|w| unsafe { w.bits(0b110) });
-        ridge_pump_firmware::arith::write(&mut Tx);
+        firmware_diag::arith_check::write(&mut Tx);
         loop {}
     }
 

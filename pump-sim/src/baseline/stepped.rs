@@ -17,9 +17,10 @@ pub trait Plant {
     fn apply(&mut self, u: f64) -> f64;
 }
 
-/// Duty fraction (0..1) → duty counts (1/10 000), rounded as the firmware rounds its
-/// controller's output (`u · 10 000 + 0.5`, truncated), clamped to `0..=10 000` (NaN → 0).
-pub fn duty_counts(u: f64) -> u16 {
+/// Duty fraction (0..1) → duty (1/10 000 of full scale, the firmware's `u16` duty), rounded as
+/// the firmware rounds its controller's output (`u · 10 000 + 0.5`, truncated), clamped to
+/// `0..=10 000` (NaN → 0).
+pub fn fraction_to_duty(u: f64) -> u16 {
     if u.is_nan() {
         return 0;
     }
@@ -28,10 +29,10 @@ pub fn duty_counts(u: f64) -> u16 {
 }
 
 impl Plant for Rig {
-    /// The duty rounded to counts ([`duty_counts`]) drives the rig; returns its true flow, slm
-    /// (the sensor is not read, so its noise stream does not advance).
+    /// The duty rounded to 1/10 000 ([`fraction_to_duty`]) drives the rig; returns its true
+    /// flow, slm (the sensor is not read, so its noise stream does not advance).
     fn apply(&mut self, u: f64) -> f64 {
-        self.true_flow(duty_counts(u))
+        self.true_flow(fraction_to_duty(u))
     }
 }
 
@@ -143,10 +144,10 @@ mod tests {
 
     #[test]
     fn duty_rounds_like_the_firmware() {
-        assert_eq!(duty_counts(0.30004), 3000);
-        assert_eq!(duty_counts(0.30006), 3001);
-        assert_eq!(duty_counts(-1.0), 0);
-        assert_eq!(duty_counts(2.0), 10_000);
-        assert_eq!(duty_counts(f64::NAN), 0);
+        assert_eq!(fraction_to_duty(0.30004), 3000);
+        assert_eq!(fraction_to_duty(0.30006), 3001);
+        assert_eq!(fraction_to_duty(-1.0), 0);
+        assert_eq!(fraction_to_duty(2.0), 10_000);
+        assert_eq!(fraction_to_duty(f64::NAN), 0);
     }
 }

@@ -1,7 +1,7 @@
 //! A fixed computation through ridge-core's statistics path, printed value by value, for
 //! comparing a board's arithmetic with the host's (`src/bin/avr-arith.rs`,
-//! `scripts/avr-arith-check`). Diagnostics: on the ATmega2560 build this currently
-//! disagrees with the host (see README, "Known limits").
+//! `scripts/avr-arith-check`, whose diff must stay empty). It caught the AVR backend's
+//! miscompilations (README, "Known limits").
 use ridge_core::{IntGram, Offset, Real, Scale, Search, Structure};
 
 fn record() -> (IntGram, i64, i64, i64) {
@@ -118,7 +118,7 @@ pub fn write<W: ufmt::uWrite>(w: &mut W) {
             );
         }
     }
-    let Ok(mut nn) = g.normal::<f32>(crate::units::SCALE) else {
+    let Ok(mut nn) = g.normal::<f32>(ridge_pump_firmware::units::SCALE) else {
         let _ = ufmt::uwriteln!(w, "normal error");
         return;
     };
