@@ -23,7 +23,7 @@
 use ufmt::{uDisplay, uWrite, Formatter};
 
 use crate::event::{write_list, write_model, FaultReason, COEF_DIGITS};
-use crate::report::{Decimal, Fixed, Milli};
+use crate::numfmt::{Decimal, Fixed, Milli};
 use crate::selfid::State;
 use crate::sfm3300::counts_to_millislm;
 use crate::units::FLOW_SCALE;

@@ -3,8 +3,10 @@
 //!
 //! Every [`Event`] prints (with [`ufmt`], no `core::fmt`, no float formatting code) as one line
 //! without the line terminator: a keyword, then `key=value` fields separated by single spaces.
-//! Numbers use [`crate::report`]: flows in slm with 3 decimals, duties in percent with 2
+//! Numbers use [`crate::numfmt`]: flows in slm with 3 decimals, duties in percent with 2
 //! decimals, fit in percent with 1 decimal, coefficients with 6 decimals, lists comma-separated.
+//! The host tools read them back with the parsers of `lines` (host builds only), which the
+//! round-trip test `tests/lines.rs` checks against every event kind printed here.
 //!
 //! | Event | Line |
 //! |---|---|
@@ -27,8 +29,8 @@ use ridge_core::control::{DesignError, ModelFault};
 use ridge_core::{ArxModel, Error as CoreError, Offset};
 use ufmt::{uDisplay, uWrite, Formatter};
 
+use crate::numfmt::{Decimal, Fixed, Int, Milli};
 use crate::persist::PersistError;
-use crate::report::{Decimal, Fixed, Int, Milli};
 use crate::sfm3300;
 
 /// Why a flow reading failed, as the board reports it to

@@ -2,7 +2,8 @@
 #![warn(missing_docs)]
 #![deny(unsafe_code)]
 //! ridge-pump firmware: everything the pump runs, as a `no_std` library that is tested on the
-//! host, plus thin board images (`src/bin/`, board glue in `src/board/`).
+//! host, plus thin board images (`src/bin/`, board glue in `src/board/`). The diagnostic images
+//! (measurements, the arithmetic check, the QEMU console test) are the crate `firmware-diag`.
 //!
 //! | module | what |
 //! |---|---|
@@ -13,24 +14,31 @@
 //! | [`pump`] | blower PWM output with limits and a ramp limit (embedded-hal PWM) |
 //! | [`persist`] | the stored model record (magic, version, CRC-32) |
 //! | [`slots`] | two slots for that record: a write cut at any byte keeps the previous model |
+//! | [`flash_store`] | the record in flash (STM32F411): a slot log over two sectors, cut-proof too |
 //! | [`resets`] | reset loops: watchdog and brown-out resets counted across boots |
-//! | [`event`], [`report`] | report lines and their fixed-point formatting (ufmt) |
+//! | [`event`], [`numfmt`] | report lines and their fixed-point number formatting (ufmt) |
+//! | `lines` | host builds only: the report lines' parsers, for the host tools and tests |
 //! | [`command`], [`console`] | the operator's console: command lines, their answers, the CSV log |
 //! | [`units`] | the rig's units: duty scale, SFM3300 encoding, loop rate, [`units::SCALE`] |
 //! | [`excitation`] | the pump's excitation presets ([`excitation::Record`]) |
 //! | [`ring`] | the lock-free UART queues (the crate's only `unsafe`) |
-//! | [`arith`] | a fixed computation for `scripts/avr-arith-check` |
 
 pub mod app;
-pub mod arith;
 pub mod command;
 pub mod console;
 pub mod event;
 pub mod excitation;
+// Offsets in a 512 KB flash: not for the 16-bit AVR (its store is `slots`, in EEPROM).
+#[cfg(not(target_arch = "avr"))]
+pub mod flash_store;
+// Host-side parsing of the report lines (std); no board target has an OS, so neither image
+// contains it.
+#[cfg(not(target_os = "none"))]
+pub mod lines;
 pub mod monitor;
+pub mod numfmt;
 pub mod persist;
 pub mod pump;
-pub mod report;
 pub mod resets;
 // The one module with `unsafe`: a lock-free SPSC byte queue for UART interrupts.
 #[allow(unsafe_code)]

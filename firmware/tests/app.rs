@@ -1,8 +1,9 @@
-//! The 100 Hz application loop (`ridge_pump_firmware::app`) on the host, with fakes of what a
-//! board provides: an SFM3300 on an embedded-hal I2C bus serving the readings of a simulated
-//! plant, a PWM channel that drives that plant, a UART that collects the lines, and a [`Board`]
-//! with a simulated clock (every `poll_tick` costs [`POLL_US`], every sensor read the time the
-//! test gives it), a watchdog counter and a record store.
+//! The 100 Hz application loop (`ridge_pump_firmware::app`) on the host, with the fakes of
+//! what a board provides (`firmware-testkit`): an SFM3300 on an embedded-hal I2C bus serving
+//! the readings of the synthetic plant (`common::Plant`), a PWM channel that drives that
+//! plant, a UART that collects the lines, and a `Board` with a simulated clock (every
+//! `poll_tick` costs [`POLL_US`], every sensor read the time the test gives it), a watchdog
+//! counter and a record store.
 //!
 //! Checked: tick accounting (late passes, lost ticks, the `MISSED` line), the event lines of a
 //! whole identification, the persistence request and its `PERSIST` line, the search in both
@@ -12,295 +13,47 @@
 
 mod common;
 
-use std::cell::RefCell;
-use std::rc::Rc;
-
-use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, NoAcknowledgeSource, Operation};
-use embedded_hal::pwm::{self, SetDutyCycle};
-use ridge_pump_firmware::app::{App, Board, Console, ANSWER_ROOM, START_TICKS};
+use firmware_testkit::{self as testkit, FakePwm, FakeSensor, Uart, POLL_US, TICK_US};
+use ridge_pump_firmware::app::{App, Console, ANSWER_ROOM, START_TICKS};
+use ridge_pump_firmware::lines::ParsedLine;
 use ridge_pump_firmware::persist;
 use ridge_pump_firmware::pump::Pump;
 use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, DEFAULT_CONFIG};
-use ridge_pump_firmware::sfm3300::{crc8, Sfm3300, ADDRESS};
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_OFFSET};
+use ridge_pump_firmware::sfm3300::Sfm3300;
+use ridge_pump_firmware::units::DUTY_FULL_SCALE;
 
 use common::Plant;
 
-/// Simulated time one `poll_tick` call costs, µs.
-const POLL_US: u64 = 500;
-/// Tick period, µs.
-const TICK_US: u64 = 10_000;
 /// Resolution of the fake PWM channel (`max_duty_cycle`).
 const PWM_MAX: u16 = 1000;
 
-/// Everything the fakes share: the plant, the clock and the fault switches.
-struct World {
-    plant: Plant,
-    /// Simulated time, µs.
-    clock: u64,
-    /// Clock at the last tick boundary handed out by `poll_tick`.
-    last_boundary: u64,
-    /// The latest reading (counts), advanced once per tick boundary.
-    reading: i16,
-    /// PWM counts written last.
-    pwm: u16,
-    /// `(clock, counts)` of every PWM write.
-    pwm_log: Vec<(u64, u16)>,
-    /// The sensor acknowledges nothing (absent or dead) while this is set.
-    sensor_dead: bool,
-    /// The sensor acknowledged `start continuous measurement`.
-    started: bool,
-    /// The first frame after the start is discarded by the driver: served once.
-    first_frame: bool,
-    /// Extra simulated time of the next sensor read, µs (a slow tick), then 0.
-    next_read_us: u64,
-    /// The PWM channel refuses writes while this is set.
-    pwm_broken: bool,
-    /// `pet` calls.
-    pets: u64,
-    /// Largest simulated time between two `pet` calls, µs.
-    longest_unpetted: u64,
-    last_pet: u64,
-}
+type World = testkit::World<Plant>;
+type Shared = testkit::Shared<Plant>;
+type FakeBoard<const TICKING: bool> = testkit::FakeBoard<Plant, TICKING>;
 
-type Shared = Rc<RefCell<World>>;
-
+/// The world of these tests: the synthetic plant behind a PWM channel of [`PWM_MAX`] counts.
 fn world(plant: Plant) -> Shared {
-    Rc::new(RefCell::new(World {
-        plant,
-        clock: 0,
-        last_boundary: 0,
-        reading: 0,
-        pwm: 0,
-        pwm_log: Vec::new(),
-        sensor_dead: false,
-        started: false,
-        first_frame: true,
-        next_read_us: 0,
-        pwm_broken: false,
-        pets: 0,
-        longest_unpetted: 0,
-        last_pet: 0,
-    }))
+    testkit::world(plant, PWM_MAX)
 }
 
-/// The SFM3300 on the bus: `0x1000` starts it, every read returns the latest reading as
-/// `[MSB, LSB, CRC]` (datasheet frame; CRC-8 poly 0x31, init 0x00).
-struct FakeSensor(Shared);
-
-impl ErrorType for FakeSensor {
-    type Error = ErrorKind;
-}
-
-impl I2c for FakeSensor {
-    fn transaction(&mut self, address: u8, ops: &mut [Operation<'_>]) -> Result<(), ErrorKind> {
-        let mut w = self.0.borrow_mut();
-        if w.sensor_dead || address != ADDRESS {
-            return Err(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address));
-        }
-        for op in ops {
-            match op {
-                Operation::Write(bytes) => {
-                    if *bytes == [0x10, 0x00] {
-                        w.started = true;
-                        w.first_frame = true;
-                    }
-                }
-                Operation::Read(buf) => {
-                    if !w.started {
-                        return Err(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address));
-                    }
-                    w.clock += std::mem::take(&mut w.next_read_us);
-                    let raw = if std::mem::take(&mut w.first_frame) {
-                        0xFFFF
-                    } else {
-                        (i32::from(w.reading) + i32::from(FLOW_OFFSET)) as u16
-                    };
-                    let [hi, lo] = raw.to_be_bytes();
-                    let frame = [hi, lo, crc8(&[hi, lo])];
-                    for (b, f) in buf.iter_mut().zip(frame) {
-                        *b = f;
-                    }
-                }
-            }
-        }
-        Ok(())
+/// A board without a console; the ticking one reports stack figures (1234 B used, 4321 B
+/// free) as a board that measures its stack.
+fn board<const TICKING: bool>(w: &Shared) -> FakeBoard<TICKING> {
+    FakeBoard {
+        stack: TICKING.then_some((1234, 4321)),
+        ..FakeBoard::new(w)
     }
 }
 
-/// A PWM channel of [`PWM_MAX`] counts.
-struct FakePwm(Shared);
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct PwmBroken;
-
-impl pwm::Error for PwmBroken {
-    fn kind(&self) -> pwm::ErrorKind {
-        pwm::ErrorKind::Other
+/// The blocking board with a console.
+fn console_board(w: &Shared) -> FakeBoard<false> {
+    FakeBoard {
+        console: Some(Console::new()),
+        ..board(w)
     }
 }
 
-impl pwm::ErrorType for FakePwm {
-    type Error = PwmBroken;
-}
-
-impl SetDutyCycle for FakePwm {
-    fn max_duty_cycle(&self) -> u16 {
-        PWM_MAX
-    }
-    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), PwmBroken> {
-        let mut w = self.0.borrow_mut();
-        if w.pwm_broken {
-            return Err(PwmBroken);
-        }
-        w.pwm = duty;
-        let t = w.clock;
-        w.pwm_log.push((t, duty));
-        Ok(())
-    }
-}
-
-/// The UART: every line the loop prints.
-#[derive(Clone, Default)]
-struct Uart(Rc<RefCell<String>>);
-
-impl ufmt::uWrite for Uart {
-    type Error = core::convert::Infallible;
-    fn write_str(&mut self, s: &str) -> Result<(), Self::Error> {
-        self.0.borrow_mut().push_str(s);
-        Ok(())
-    }
-}
-
-impl Uart {
-    fn lines(&self) -> Vec<String> {
-        self.0.borrow().lines().map(str::to_owned).collect()
-    }
-}
-
-/// A board whose search mode is `TICKING`, with a record store that finishes a write
-/// [`STORE_TICKS`] polls after it was asked for.
-struct FakeBoard<const TICKING: bool> {
-    w: Shared,
-    saves: Vec<Vec<u8>>,
-    store_in: Option<u32>,
-    store_ok: bool,
-    /// Console bytes and the simulated time (µs) they arrive at.
-    rx: std::collections::VecDeque<(u64, u8)>,
-    rx_lost: bool,
-    room: usize,
-    console: Option<Console>,
-}
-
-const STORE_TICKS: u32 = 30;
-
-impl<const TICKING: bool> FakeBoard<TICKING> {
-    fn new(w: &Shared) -> Self {
-        FakeBoard {
-            w: w.clone(),
-            saves: Vec::new(),
-            store_in: None,
-            store_ok: true,
-            rx: Default::default(),
-            rx_lost: false,
-            room: usize::MAX,
-            console: None,
-        }
-    }
-
-    /// A board with a console.
-    fn with_console(w: &Shared) -> Self {
-        FakeBoard {
-            console: Some(Console::new()),
-            ..Self::new(w)
-        }
-    }
-
-    /// Queues `line` to arrive `after_us` from now.
-    fn send(&mut self, line: &str, after_us: u64) {
-        let t = self.w.borrow().clock + after_us;
-        self.rx.extend(line.bytes().map(|b| (t, b)));
-    }
-}
-
-impl<const TICKING: bool> Board for FakeBoard<TICKING> {
-    const TICK_DURING_SEARCH: bool = TICKING;
-
-    fn poll_tick(&mut self) -> Option<u16> {
-        let mut w = self.w.borrow_mut();
-        w.clock += POLL_US;
-        let elapsed = (w.clock - w.last_boundary) / TICK_US;
-        if elapsed == 0 {
-            return None;
-        }
-        w.last_boundary += elapsed * TICK_US;
-        // The plant runs for each interval at the duty the PWM holds; the reading is the flow
-        // at the end of the last one.
-        for _ in 0..elapsed {
-            let duty = (u32::from(w.pwm) * u32::from(DUTY_FULL_SCALE) / u32::from(PWM_MAX)) as u16;
-            w.reading = w.plant.step(duty);
-        }
-        Some(elapsed as u16)
-    }
-
-    fn pet(&mut self) {
-        let mut w = self.w.borrow_mut();
-        let gap = w.clock - w.last_pet;
-        w.longest_unpetted = w.longest_unpetted.max(gap);
-        w.last_pet = w.clock;
-        w.pets += 1;
-    }
-
-    fn save(&mut self, record: &[u8]) {
-        self.saves.push(record.to_vec());
-        self.store_in = Some(STORE_TICKS);
-    }
-
-    fn poll_store(&mut self) -> Option<bool> {
-        let left = self.store_in.as_mut()?;
-        *left -= 1;
-        if *left == 0 {
-            self.store_in = None;
-            return Some(self.store_ok);
-        }
-        None
-    }
-
-    fn stack(&self) -> Option<(u16, u16)> {
-        TICKING.then_some((1234, 4321))
-    }
-
-    fn receive(&mut self) -> Option<u8> {
-        let now = self.w.borrow().clock;
-        match self.rx.front() {
-            Some(&(t, b)) if t <= now => {
-                self.rx.pop_front();
-                Some(b)
-            }
-            _ => None,
-        }
-    }
-
-    /// As the STM32F411's receiver: a loss is reported once the bytes received before it have
-    /// been read.
-    fn receive_overrun(&mut self) -> bool {
-        let now = self.w.borrow().clock;
-        if self.rx.front().is_some_and(|&(t, _)| t <= now) {
-            return false;
-        }
-        std::mem::take(&mut self.rx_lost)
-    }
-
-    fn tx_room(&self) -> usize {
-        self.room
-    }
-
-    fn console(&mut self) -> Option<&mut Console> {
-        self.console.as_mut()
-    }
-}
-
-type TestApp = App<FakeSensor, FakePwm, Uart>;
+type TestApp = App<FakeSensor<Plant>, FakePwm<Plant>, Uart>;
 
 fn app(w: &Shared, uart: &Uart) -> TestApp {
     let sensor = Sfm3300::new(FakeSensor(w.clone()));
@@ -335,13 +88,12 @@ fn count(lines: &[String], prefix: &str) -> usize {
     lines.iter().filter(|l| l.starts_with(prefix)).count()
 }
 
-fn field<'a>(line: &'a str, key: &str) -> &'a str {
-    let pat = format!("{key}=");
-    let at = line
-        .split(' ')
-        .find_map(|w| w.strip_prefix(pat.as_str()))
-        .unwrap_or_else(|| panic!("{key} in {line}"));
-    at
+/// The text of field `key` in a report line (the firmware's parser).
+fn field(line: &str, key: &str) -> String {
+    ParsedLine::parse(line)
+        .get(key)
+        .unwrap_or_else(|| panic!("{key} in {line}"))
+        .to_owned()
 }
 
 /// A whole power-up identification, in either search mode: the expected lines in order,
@@ -351,7 +103,7 @@ fn field<'a>(line: &'a str, key: &str) -> &'a str {
 fn identifies<const TICKING: bool>() {
     let w = world(Plant::reference());
     let uart = Uart::default();
-    let mut board = FakeBoard::<TICKING>::new(&w);
+    let mut board = board::<TICKING>(&w);
     let mut app = app(&w, &uart);
     app.start(&mut board);
     run_until(&mut app, &mut board, 8_000, |a| {
@@ -429,7 +181,7 @@ fn identifies_with_a_ticking_search() {
 fn ticking_search_keeps_writing_the_pump() {
     let w = world(Plant::reference());
     let uart = Uart::default();
-    let mut board = FakeBoard::<true>::new(&w);
+    let mut board = board::<true>(&w);
     let mut app = app(&w, &uart);
     app.start(&mut board);
     run_until(&mut app, &mut board, 8_000, search_is_next);
@@ -465,7 +217,7 @@ fn ticking_search_keeps_writing_the_pump() {
 fn late_passes_and_lost_ticks_are_counted_and_reported() {
     let w = world(Plant::reference());
     let uart = Uart::default();
-    let mut board = FakeBoard::<false>::new(&w);
+    let mut board = board::<false>(&w);
     let mut app = app(&w, &uart);
     app.start(&mut board);
     for _ in 0..150 {
@@ -516,7 +268,7 @@ fn sensor_fault_during_the_blocking_search_stops_the_pump_at_once() {
 fn fault_during_the_blocking_search(fault: impl FnOnce(&mut World)) -> (u64, u64, String) {
     let w = world(Plant::reference());
     let uart = Uart::default();
-    let mut board = FakeBoard::<false>::new(&w);
+    let mut board = board::<false>(&w);
     let mut app = app(&w, &uart);
     app.start(&mut board);
     run_until(&mut app, &mut board, 8_000, search_is_next);
@@ -550,7 +302,7 @@ fn fault_during_the_blocking_search(fault: impl FnOnce(&mut World)) -> (u64, u64
     (stop, searched, fault)
 }
 
-/// A sensor that freezes at its current reading while the blocking search runs: the watch's
+/// A sensor that freezes at its current reading while the blocking search runs: the keepalive's
 /// guard sees `frozen_ticks` identical readings and stops the pump within them (plus the
 /// boundary in progress), before the search returns.
 #[test]
@@ -562,7 +314,7 @@ fn frozen_sensor_during_the_blocking_search_stops_the_pump() {
 }
 
 /// A pump that gives no flow any more (the plant's reading drops to 0 at once) while the
-/// blocking search holds the 30 % base duty, below the 40 % stall duty: the watch's guard
+/// blocking search holds the 30 % base duty, below the 40 % stall duty: the keepalive's guard
 /// expects the settled operating point (about 20 slm) and stops the pump after `loss_ticks`
 /// ticks below a quarter of it.
 #[test]
@@ -583,7 +335,7 @@ fn lost_flow_during_the_blocking_search_stops_the_pump() {
 fn sensor_fault_during_the_ticking_search_stops_the_pump_at_once() {
     let w = world(Plant::reference());
     let uart = Uart::default();
-    let mut board = FakeBoard::<true>::new(&w);
+    let mut board = board::<true>(&w);
     let mut app = app(&w, &uart);
     app.start(&mut board);
     run_until(&mut app, &mut board, 8_000, search_is_next);
@@ -620,7 +372,7 @@ fn sensor_fault_during_the_ticking_search_stops_the_pump_at_once() {
 fn pwm_error_is_reported() {
     let w = world(Plant::reference());
     let uart = Uart::default();
-    let mut board = FakeBoard::<false>::new(&w);
+    let mut board = board::<false>(&w);
     let mut app = app(&w, &uart);
     app.start(&mut board);
     for _ in 0..10 {
@@ -639,7 +391,7 @@ fn absent_sensor_fails_the_start_and_faults() {
     let w = world(Plant::reference());
     w.borrow_mut().sensor_dead = true;
     let uart = Uart::default();
-    let mut board = FakeBoard::<false>::new(&w);
+    let mut board = board::<false>(&w);
     let mut app = app(&w, &uart);
     app.start(&mut board);
     assert_eq!(uart.lines(), ["SENSOR start failed"]);
@@ -662,7 +414,7 @@ fn absent_sensor_fails_the_start_and_faults() {
 fn failed_store_is_reported() {
     let w = world(Plant::reference());
     let uart = Uart::default();
-    let mut board = FakeBoard::<false>::new(&w);
+    let mut board = board::<false>(&w);
     board.store_ok = false;
     let mut app = app(&w, &uart);
     app.start(&mut board);
@@ -677,7 +429,7 @@ fn failed_store_is_reported() {
 fn running() -> (Shared, Uart, FakeBoard<false>, TestApp) {
     let w = world(Plant::reference());
     let uart = Uart::default();
-    let mut board = FakeBoard::<false>::with_console(&w);
+    let mut board = console_board(&w);
     let mut app = app(&w, &uart);
     app.start(&mut board);
     run_until(&mut app, &mut board, 8_000, |a| {
@@ -824,7 +576,7 @@ fn answers_wait_for_room_in_the_transmit_queue() {
 fn stop_during_the_blocking_search_stops_the_pump_at_the_next_tick_boundary() {
     let w = world(Plant::reference());
     let uart = Uart::default();
-    let mut board = FakeBoard::<false>::with_console(&w);
+    let mut board = console_board(&w);
     let mut app = app(&w, &uart);
     app.start(&mut board);
     run_until(&mut app, &mut board, 8_000, search_is_next);
@@ -839,7 +591,7 @@ fn stop_during_the_blocking_search_stops_the_pump_at_the_next_tick_boundary() {
         .find(|&&(_, d)| d == 0)
         .map(|&(t, _)| t);
     let t_sent = w.borrow().pwm_log.first().map(|&(t, _)| t).unwrap();
-    let t_stop = t_stop.expect("the watch stopped the pump");
+    let t_stop = t_stop.expect("the keepalive stopped the pump");
     assert!(
         t_stop <= t_sent + 25_000 + TICK_US + POLL_US,
         "stopped {} µs after the search began",
@@ -1056,7 +808,7 @@ fn status_model_and_forget_answer() {
 fn log_rows_are_the_samples_of_the_record() {
     let w = world(Plant::reference());
     let uart = Uart::default();
-    let mut board = FakeBoard::<false>::with_console(&w);
+    let mut board = console_board(&w);
     let mut app = app(&w, &uart);
     app.start(&mut board);
     assert_eq!(ask(&mut board, &mut app, &uart, "LOG on\n"), "OK log");

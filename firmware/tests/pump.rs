@@ -1,72 +1,16 @@
-//! Pump driver against a fake PWM channel that logs every write, and against the
-//! `embedded-hal-mock` PWM mock. Expected counts are worked out by hand in the comments.
+//! Pump driver against the fake PWM channel (`firmware-testkit`) that logs every write, and
+//! against the `embedded-hal-mock` PWM mock. Expected counts are worked out by hand in the
+//! comments.
 
-use std::cell::RefCell;
-use std::rc::Rc;
-
-use embedded_hal::pwm::{ErrorKind, ErrorType, SetDutyCycle};
 use embedded_hal_mock::eh1::pwm::{Mock, Transaction};
 use embedded_hal_mock::eh1::MockError;
+use firmware_testkit::{FakePwm, PwmBroken};
 use ridge_pump_firmware::pump::{duty_to_counts, Error, Pump, NO_RAMP_LIMIT};
 use ridge_pump_firmware::units::DUTY_FULL_SCALE;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct FakeError;
-
-impl embedded_hal::pwm::Error for FakeError {
-    fn kind(&self) -> ErrorKind {
-        ErrorKind::Other
-    }
-}
-
-/// A PWM channel that records the counts written to it and can be told to fail.
-#[derive(Clone)]
-struct FakePwm {
-    max: u16,
-    writes: Rc<RefCell<Vec<u16>>>,
-    fail: Rc<RefCell<bool>>,
-}
-
-impl FakePwm {
-    fn new(max: u16) -> Self {
-        FakePwm {
-            max,
-            writes: Rc::new(RefCell::new(Vec::new())),
-            fail: Rc::new(RefCell::new(false)),
-        }
-    }
-
-    fn writes(&self) -> Vec<u16> {
-        self.writes.borrow().clone()
-    }
-
-    fn set_failing(&self, fail: bool) {
-        *self.fail.borrow_mut() = fail;
-    }
-}
-
-impl ErrorType for FakePwm {
-    type Error = FakeError;
-}
-
-impl SetDutyCycle for FakePwm {
-    fn max_duty_cycle(&self) -> u16 {
-        self.max
-    }
-
-    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), FakeError> {
-        assert!(duty <= self.max, "duty {duty} above max {}", self.max);
-        if *self.fail.borrow() {
-            return Err(FakeError);
-        }
-        self.writes.borrow_mut().push(duty);
-        Ok(())
-    }
-}
-
 /// A pump whose channel has max duty 10 000, so counts equal duty units.
-fn unit_pump() -> (Pump<FakePwm>, FakePwm) {
-    let pwm = FakePwm::new(DUTY_FULL_SCALE);
+fn unit_pump() -> (Pump<FakePwm<()>>, FakePwm<()>) {
+    let pwm = FakePwm::alone(DUTY_FULL_SCALE);
     let pump = Pump::new(pwm.clone()).unwrap();
     (pump, pwm)
 }
@@ -123,7 +67,7 @@ fn mapping_is_monotonic_and_bounded_for_any_max() {
 
 #[test]
 fn new_writes_zero() {
-    let pwm = FakePwm::new(799);
+    let pwm = FakePwm::alone(799);
     let pump = Pump::new(pwm.clone()).unwrap();
     assert_eq!(pwm.writes(), vec![0]);
     assert_eq!(pump.applied(), 0);
@@ -135,7 +79,7 @@ fn new_writes_zero() {
 
 #[test]
 fn set_maps_to_channel_counts() {
-    let pwm = FakePwm::new(799);
+    let pwm = FakePwm::alone(799);
     let mut pump = Pump::new(pwm.clone()).unwrap();
     assert_eq!(pump.set(5_000), Ok(5_000));
     assert_eq!(pump.set(10_000), Ok(10_000));
@@ -255,14 +199,14 @@ fn pwm_error_propagates_and_keeps_applied() {
     let (mut pump, pwm) = unit_pump();
     pump.set_ramp_limit(1_000);
     assert_eq!(pump.set(1_500), Ok(1_000));
-    pwm.set_failing(true);
-    assert_eq!(pump.tick(), Err(Error::Pwm(FakeError)));
+    pwm.set_broken(true);
+    assert_eq!(pump.tick(), Err(Error::Pwm(PwmBroken)));
     assert_eq!(pump.applied(), 1_000);
     assert_eq!(pump.commanded(), 1_500);
-    assert_eq!(pump.stop(), Err(Error::Pwm(FakeError)));
+    assert_eq!(pump.stop(), Err(Error::Pwm(PwmBroken)));
     assert_eq!(pump.applied(), 1_000);
     assert_eq!(pump.commanded(), 0);
-    pwm.set_failing(false);
+    pwm.set_broken(false);
     // The next tick writes again, ramping down towards the 0 command.
     assert_eq!(pump.tick(), Ok(0));
     assert_eq!(pwm.writes(), vec![0, 1_000, 0]);
@@ -270,9 +214,9 @@ fn pwm_error_propagates_and_keeps_applied() {
 
 #[test]
 fn new_fails_if_pwm_fails() {
-    let pwm = FakePwm::new(799);
-    pwm.set_failing(true);
-    assert!(matches!(Pump::new(pwm), Err(Error::Pwm(FakeError))));
+    let pwm = FakePwm::alone(799);
+    pwm.set_broken(true);
+    assert!(matches!(Pump::new(pwm), Err(Error::Pwm(PwmBroken))));
 }
 
 #[test]

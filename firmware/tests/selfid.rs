@@ -9,6 +9,7 @@ use ridge_pump_firmware::event::{
     Event, FaultReason, RejectReason, Residuals, SearchStats, SensorFault, StoredReason,
 };
 use ridge_pump_firmware::excitation::Record;
+use ridge_pump_firmware::lines::ParsedLine;
 use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
 use ridge_pump_firmware::selfid::{
     Config, Defaults, SelfIdentification, Settings, State, Tick, DEFAULT_CONFIG, REFERENCE_POLE,
@@ -42,13 +43,11 @@ fn millislm(counts: i16) -> String {
     )
 }
 
-/// The number after `key=` in a report line.
+/// The number of field `key` in a report line (the firmware's parser).
 fn field(line: &str, key: &str) -> f64 {
-    let pat = format!(" {key}=");
-    let at = line.find(&pat).unwrap_or_else(|| panic!("{key} in {line}")) + pat.len();
-    let rest = &line[at..];
-    let end = rest.find([' ', '<', ',']).unwrap_or(rest.len());
-    rest[..end].parse().unwrap()
+    ParsedLine::parse(line)
+        .num(key)
+        .unwrap_or_else(|| panic!("{key} in {line}"))
 }
 
 fn line(e: &Event) -> String {

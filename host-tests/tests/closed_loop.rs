@@ -13,6 +13,7 @@ use nalgebra::DMatrix;
 use pump_sim::{Pump, PumpParams, Rig, Sfm3300Params};
 use ridge_core::{IntGram, Offset, Regressor, Search, Structure};
 use ridge_pump_firmware::event::{Event, LINE_MAX};
+use ridge_pump_firmware::lines::ParsedLine;
 use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, SETTLE_MEAN_TICKS};
 use ridge_pump_firmware::setpoint::Program;
 use ridge_pump_firmware::sfm3300::raw_to_counts;
@@ -36,13 +37,11 @@ fn line(e: &Event) -> String {
     l.as_str().to_owned()
 }
 
-/// The number after `key=` in a report line.
+/// The number of field `key` in a report line (the firmware's parser).
 fn field(line: &str, key: &str) -> f64 {
-    let pat = format!(" {key}=");
-    let at = line.find(&pat).unwrap_or_else(|| panic!("{key} in {line}")) + pat.len();
-    let rest = &line[at..];
-    let end = rest.find([' ', '<', ',']).unwrap_or(rest.len());
-    rest[..end].parse().unwrap()
+    ParsedLine::parse(line)
+        .num(key)
+        .unwrap_or_else(|| panic!("{key} in {line}"))
 }
 
 impl Loop {

@@ -18,161 +18,19 @@
 //! deviations from the operating point against measured initial conditions, scored on the
 //! pump's validation record (`device_zero_history_validates_as_measured_initial_conditions`).
 
-use std::cell::RefCell;
-use std::collections::VecDeque;
-use std::rc::Rc;
-
 use clap::Parser;
-use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, NoAcknowledgeSource, Operation};
-use embedded_hal::pwm::{self, SetDutyCycle};
+use firmware_testkit::{self as testkit, FakeBoard, FakePwm, FakeSensor, Uart};
 use pump_sim::{PumpParams, Rig, Sfm3300Params};
+use ridge_core::Offset;
 use ridge_id::cli::{Cli, Command};
-use ridge_id::device::DEVICE_OPTIONS;
+use ridge_id::device_check::DEVICE_OPTIONS;
 use ridge_id::Report;
-use ridge_pump_firmware::app::{App, Board, Console};
+use ridge_pump_firmware::app::App;
+use ridge_pump_firmware::lines::{IdLine, PrintedModel};
 use ridge_pump_firmware::pump::Pump;
 use ridge_pump_firmware::selfid::{SelfIdentification, State, DEFAULT_CONFIG};
-use ridge_pump_firmware::sfm3300::{crc8, Sfm3300, ADDRESS};
+use ridge_pump_firmware::sfm3300::Sfm3300;
 use ridge_pump_firmware::units::DUTY_FULL_SCALE;
-
-/// Simulated time one `poll_tick` costs, µs (as `firmware/tests/app.rs`).
-const POLL_US: u64 = 500;
-/// Tick period, µs.
-const TICK_US: u64 = 10_000;
-
-/// The plant, the sensor word it shows and the clock, shared by the fakes.
-struct World {
-    rig: Rig,
-    clock: u64,
-    last_boundary: u64,
-    /// The SFM3300 word of the latest reading.
-    raw: u16,
-    /// The duty the PWM holds, 1/10 000 (the fake PWM has exactly that resolution).
-    pwm: u16,
-    started: bool,
-    first_frame: bool,
-}
-
-type Shared = Rc<RefCell<World>>;
-
-/// The SFM3300 on the bus: `0x1000` starts it, reads return the latest word with its CRC.
-struct FakeSensor(Shared);
-
-impl ErrorType for FakeSensor {
-    type Error = ErrorKind;
-}
-
-impl I2c for FakeSensor {
-    fn transaction(&mut self, address: u8, ops: &mut [Operation<'_>]) -> Result<(), ErrorKind> {
-        let mut w = self.0.borrow_mut();
-        if address != ADDRESS {
-            return Err(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address));
-        }
-        for op in ops {
-            match op {
-                Operation::Write(bytes) => {
-                    if *bytes == [0x10, 0x00] {
-                        w.started = true;
-                        w.first_frame = true;
-                    }
-                }
-                Operation::Read(buf) => {
-                    if !w.started {
-                        return Err(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address));
-                    }
-                    let raw = if std::mem::take(&mut w.first_frame) {
-                        0xFFFF
-                    } else {
-                        w.raw
-                    };
-                    let [hi, lo] = raw.to_be_bytes();
-                    for (b, f) in buf.iter_mut().zip([hi, lo, crc8(&[hi, lo])]) {
-                        *b = f;
-                    }
-                }
-            }
-        }
-        Ok(())
-    }
-}
-
-/// A PWM channel of [`DUTY_FULL_SCALE`] counts: the plant gets the duty exactly.
-struct FakePwm(Shared);
-
-impl pwm::ErrorType for FakePwm {
-    type Error = core::convert::Infallible;
-}
-
-impl SetDutyCycle for FakePwm {
-    fn max_duty_cycle(&self) -> u16 {
-        DUTY_FULL_SCALE
-    }
-    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Self::Error> {
-        self.0.borrow_mut().pwm = duty;
-        Ok(())
-    }
-}
-
-/// The UART: everything the loop prints.
-#[derive(Clone, Default)]
-struct Uart(Rc<RefCell<String>>);
-
-impl ufmt::uWrite for Uart {
-    type Error = core::convert::Infallible;
-    fn write_str(&mut self, s: &str) -> Result<(), Self::Error> {
-        self.0.borrow_mut().push_str(s);
-        Ok(())
-    }
-}
-
-/// A board with a console; `TICKING` is its search mode (the STM32's `true`, the
-/// ATmega2560's `false`).
-struct FakeBoard<const TICKING: bool> {
-    w: Shared,
-    rx: VecDeque<u8>,
-    console: Console,
-}
-
-impl<const TICKING: bool> Board for FakeBoard<TICKING> {
-    const TICK_DURING_SEARCH: bool = TICKING;
-
-    fn poll_tick(&mut self) -> Option<u16> {
-        let mut w = self.w.borrow_mut();
-        w.clock += POLL_US;
-        let elapsed = (w.clock - w.last_boundary) / TICK_US;
-        if elapsed == 0 {
-            return None;
-        }
-        w.last_boundary += elapsed * TICK_US;
-        // The plant runs each interval at the duty the PWM holds; the reading is the flow
-        // at the end of the last one.
-        for _ in 0..elapsed {
-            let duty = w.pwm;
-            w.raw = w.rig.step(duty);
-        }
-        Some(elapsed as u16)
-    }
-
-    fn pet(&mut self) {}
-
-    fn save(&mut self, _record: &[u8]) {}
-
-    fn poll_store(&mut self) -> Option<bool> {
-        None
-    }
-
-    fn stack(&self) -> Option<(u16, u16)> {
-        None
-    }
-
-    fn receive(&mut self) -> Option<u8> {
-        self.rx.pop_front()
-    }
-
-    fn console(&mut self) -> Option<&mut Console> {
-        Some(&mut self.console)
-    }
-}
 
 /// What one simulated session left: the pump's output and its models.
 struct Session {
@@ -185,27 +43,21 @@ struct Session {
 /// Boots the pump on `rig` with the log turned on, runs it into run mode, and `reid` more
 /// times sends `REID` and runs it into run mode again.
 fn session<const TICKING: bool>(rig: Rig, reid: usize) -> Session {
-    let w = Rc::new(RefCell::new(World {
-        rig,
-        clock: 0,
-        last_boundary: 0,
-        raw: 0,
-        pwm: 0,
-        started: false,
-        first_frame: true,
-    }));
+    // A PWM channel of DUTY_FULL_SCALE counts: the plant gets the duty exactly. The board's
+    // store never finishes a write and it measures no stack.
+    let w = testkit::world(rig, DUTY_FULL_SCALE);
     let uart = Uart::default();
-    let mut board = FakeBoard::<TICKING> {
-        w: w.clone(),
-        rx: "LOG on\n".bytes().collect(),
-        console: Console::new(),
+    let mut board = FakeBoard::<Rig, TICKING> {
+        store_ticks: None,
+        ..FakeBoard::with_console(&w)
     };
+    board.send("LOG on\n", 0);
     let sensor = Sfm3300::new(FakeSensor(w.clone()));
     let pwm = Pump::new(FakePwm(w.clone())).unwrap();
     let sid = SelfIdentification::new(&DEFAULT_CONFIG, None);
     let mut app = App::new(sensor, pwm, uart.clone(), sid, 400_000);
     app.start(&mut board);
-    let run_mode = |app: &mut App<_, _, _>, board: &mut FakeBoard<TICKING>| {
+    let run_mode = |app: &mut App<_, _, _>, board: &mut FakeBoard<Rig, TICKING>| {
         // Out of run mode first (a REID settles before it excites).
         for _ in 0..5 {
             app.step(board);
@@ -224,7 +76,7 @@ fn session<const TICKING: bool>(rig: Rig, reid: usize) -> Session {
     };
     run_mode(&mut app, &mut board);
     for _ in 0..reid {
-        board.rx.extend(b"REID\n");
+        board.send("REID\n", 0);
         run_mode(&mut app, &mut board);
     }
     let lines = uart.0.borrow().lines().map(str::to_owned).collect();
@@ -264,49 +116,37 @@ fn ridge_id(path: &std::path::Path, args: &str) -> Report {
     ridge_id::run(&a.options().unwrap()).unwrap_or_else(|e| panic!("ridge-id: {e}"))
 }
 
-/// A model as the pump's `ID` line prints it.
-#[derive(Debug, PartialEq)]
-struct IdLine {
-    structure: (u8, u8, u8),
-    offset: bool,
-    theta: Vec<f64>,
-    phi: Vec<f64>,
-    c: f64,
+/// The model of the pump's `ID` line (the firmware's own parser).
+fn id_line(line: &str) -> PrintedModel {
+    IdLine::parse(line)
+        .unwrap_or_else(|e| panic!("{e}: {line}"))
+        .model
 }
 
-fn id_line(line: &str) -> IdLine {
-    let field = |k: &str| {
-        line.split(' ')
-            .find_map(|w| w.strip_prefix(k)?.strip_prefix('='))
-            .unwrap_or_else(|| panic!("{k} in {line}"))
-    };
-    let list = |k: &str| -> Vec<f64> { field(k).split(',').map(|v| v.parse().unwrap()).collect() };
-    IdLine {
-        structure: (
-            field("p").parse().unwrap(),
-            field("q").parse().unwrap(),
-            field("d").parse().unwrap(),
-        ),
-        offset: field("off") == "1",
-        theta: list("theta"),
-        phi: list("phi"),
-        c: field("c").parse().unwrap(),
-    }
-}
-
-fn id_of(m: &ridge_core_host::ArxModel<f64>) -> IdLine {
+/// ridge-id's model in the same form.
+fn id_of(m: &ridge_core_host::ArxModel<f64>) -> PrintedModel {
     let s = m.structure();
-    IdLine {
-        structure: (s.p, s.q, s.d),
-        offset: m.offset() == ridge_core_host::Offset::Intercept,
+    PrintedModel {
+        p: s.p,
+        q: s.q,
+        d: s.d,
+        offset: match m.offset() {
+            ridge_core_host::Offset::Intercept => Offset::Intercept,
+            ridge_core_host::Offset::None => Offset::None,
+        },
         theta: m.theta().to_vec(),
         phi: m.phi().to_vec(),
         c: m.intercept(),
     }
 }
 
+/// Orders and delay.
+fn structure(m: &PrintedModel) -> (u8, u8, u8) {
+    (m.p, m.q, m.d)
+}
+
 /// Largest differences `(θ, φ relative, c)` of ridge-id's model from the pump's.
-fn differences(host: &IdLine, pump: &IdLine) -> (f64, f64, f64) {
+fn differences(host: &PrintedModel, pump: &PrintedModel) -> (f64, f64, f64) {
     let max = |a: &[f64], b: &[f64], rel: bool| {
         a.iter()
             .zip(b)
@@ -335,22 +175,22 @@ fn check<const TICKING: bool>(name: &str, pump: PumpParams, seed: u64) {
     let path = write_capture(&format!("{name}.csv"), &capture(&s.lines));
     // The last identification (the default), against the model the pump holds (exact f32).
     let report = ridge_id(&path, "--device --json");
-    let pump_last = IdLine {
-        structure: {
-            let st = s.last_model.structure();
-            (st.p, st.q, st.d)
-        },
-        offset: true,
+    let st = s.last_model.structure();
+    let pump_last = PrintedModel {
+        p: st.p,
+        q: st.q,
+        d: st.d,
+        offset: Offset::Intercept,
         theta: s.last_model.theta().iter().map(|&v| f64::from(v)).collect(),
         phi: s.last_model.phi().iter().map(|&v| f64::from(v)).collect(),
         c: f64::from(s.last_model.intercept()),
     };
     let printed = id_line(ids[1]);
-    assert_eq!(printed.structure, pump_last.structure);
+    assert_eq!(structure(&printed), structure(&pump_last));
     let host = id_of(&report.model);
     assert_eq!(
-        (host.structure, host.offset),
-        (pump_last.structure, pump_last.offset),
+        (structure(&host), host.offset),
+        (structure(&pump_last), pump_last.offset),
         "{name}: ridge-id {host:?}, pump {}",
         ids[1]
     );
@@ -358,13 +198,14 @@ fn check<const TICKING: bool>(name: &str, pump: PumpParams, seed: u64) {
     println!(
         "{name} (last): {:?} |dtheta| {dt:.2e}, |dphi|/max(1,|phi|) {dp:.2e}, |dc| {dc:.2e} slm \
          (phi {:?})",
-        host.structure, pump_last.phi
+        structure(&host),
+        pump_last.phi
     );
     within_f32_tolerance(name, (dt, dp, dc), 0.0);
     // The report names the pump's line and agrees with it.
     let seg = report.segment.as_ref().unwrap();
     let dev = seg.device.as_ref().unwrap();
-    assert_eq!((dev.p, dev.q, dev.d), printed.structure);
+    assert_eq!((dev.p, dev.q, dev.d), structure(&printed));
     assert_eq!(
         (&dev.theta, &dev.phi, dev.c),
         (&printed.theta, &printed.phi, printed.c)
@@ -372,7 +213,7 @@ fn check<const TICKING: bool>(name: &str, pump: PumpParams, seed: u64) {
     assert_eq!((seg.index, seg.count), (2, 2));
     // The same with every option spelled out as the docs name them.
     let spelled = id_of(&ridge_id(&path, DEVICE_OPTIONS).model);
-    assert_eq!(spelled.structure, host.structure);
+    assert_eq!(structure(&spelled), structure(&host));
     let (a, b, c) = differences(&spelled, &host);
     assert!(
         a.max(b).max(c) < 1e-9,
@@ -382,8 +223,8 @@ fn check<const TICKING: bool>(name: &str, pump: PumpParams, seed: u64) {
     let first = id_of(&ridge_id(&path, "--device --attempt 1").model);
     let printed = id_line(ids[0]);
     assert_eq!(
-        (first.structure, first.offset),
-        (printed.structure, printed.offset),
+        (structure(&first), first.offset),
+        (structure(&printed), printed.offset),
         "{name}: ridge-id {first:?}, pump {}",
         ids[0]
     );
@@ -391,7 +232,7 @@ fn check<const TICKING: bool>(name: &str, pump: PumpParams, seed: u64) {
     println!(
         "{name} (attempt 1, vs the printed line): {:?} |dtheta| {dt1:.2e}, \
          |dphi|/max(1,|phi|) {dp1:.2e}, |dc| {dc1:.2e} slm",
-        first.structure
+        structure(&first)
     );
     // The ID line prints 6 decimals: half a unit of the last one more.
     within_f32_tolerance(name, (dt1, dp1, dc1), 5e-7);

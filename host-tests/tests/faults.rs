@@ -6,8 +6,9 @@
 //!
 //! The search and the controller design run the blocking way of the ATmega2560: meanwhile a copy
 //! of the tick's checks (`SelfIdentification::guard`) reads the sensor at every tick boundary
-//! with the pump holding its duty, as `app::Watch` does, and a fault it finds is handed to
-//! `SelfIdentification::fault_detected` (the watch stops the pump itself).
+//! with the pump holding its duty, as the loop's keepalive does (`firmware/src/app/jobs.rs`),
+//! and a fault it finds is handed to `SelfIdentification::fault_detected` (the keepalive stops
+//! the pump itself).
 //!
 //! The bounds asserted are the documented ones (`Config::frozen_ticks`, `Config::loss_ticks`,
 //! `Config::settle_ticks`), with the blower's coast-down computed from its parameters; the
@@ -19,7 +20,7 @@ use ridge_pump_firmware::event::{Event, FaultReason};
 use ridge_pump_firmware::selfid::{Config, SelfIdentification, State};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
 
-/// Tick boundaries the watch handles while the blocking search runs (the ATmega2560's search
+/// Tick boundaries the keepalive handles while the blocking search runs (the ATmega2560's search
 /// takes several seconds) and while the design runs (tens of milliseconds).
 const SEARCH_TICKS: usize = 300;
 const DESIGN_TICKS: usize = 6;
@@ -30,7 +31,7 @@ enum Inject {
     DeadPwm,
 }
 
-/// A fault the state machine (or the watch) latched: the tick it was raised in, the reason
+/// A fault the state machine (or the keepalive) latched: the tick it was raised in, the reason
 /// and the duty applied from that tick on.
 #[derive(Debug, Clone, Copy)]
 struct Raised {
@@ -129,10 +130,10 @@ impl Loop {
                 self.raise(r, 0);
             }
         }
-        if self.sm.needs_search() && self.watch(SEARCH_TICKS) {
+        if self.sm.needs_search() && self.keepalive(SEARCH_TICKS) {
             let _ = self.sm.search(|| {});
         }
-        if self.sm.needs_design() && self.watch(DESIGN_TICKS) {
+        if self.sm.needs_design() && self.keepalive(DESIGN_TICKS) {
             let _ = self.sm.design(|| {});
             if let Some(r) = self.sm.fault() {
                 self.duty = 0;
@@ -141,9 +142,10 @@ impl Loop {
         }
     }
 
-    /// The blocking job's tick boundaries, as `app::Watch`: the pump holds its duty, a copy of
-    /// the checks reads the sensor. `false` when it found a fault (latched, pump stopped).
-    fn watch(&mut self, ticks: usize) -> bool {
+    /// The blocking job's tick boundaries, as the loop's keepalive: the pump holds its duty, a
+    /// copy of the checks reads the sensor. `false` when it found a fault (latched, pump
+    /// stopped).
+    fn keepalive(&mut self, ticks: usize) -> bool {
         let mut guard = self.sm.guard();
         let applied = self.duty;
         for _ in 0..ticks {

@@ -7,11 +7,12 @@ use pump_sim::baseline::experiment::{
     identify, run_case, run_identified, score, tune_zn, Controller,
 };
 use pump_sim::baseline::knobs::{design_with, run_design, Knobs};
-use pump_sim::baseline::pid::{DutyLimits, Pid, PidGains};
-use pump_sim::baseline::plant::{ArxPlant, Plant};
+use pump_sim::baseline::pid::{firmware_limits, Pid, PidGains};
 use pump_sim::baseline::simc::{fit_fopdt, simc_pi};
+use pump_sim::baseline::stepped::{ArxPlant, Plant};
 use pump_sim::baseline::zn::{relay_test, ultimate, ZnSearch};
 use pump_sim::{Blower, Outlet, PlantArgs, Sfm3300Params, TS_S};
+use ridge_core::control::Limits;
 use ridge_pump_firmware::selfid::{SelfIdentification, State, DEFAULT_CONFIG};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
 
@@ -145,7 +146,7 @@ fn pid_on_a_linear_plant_has_no_steady_error_and_no_windup() {
     let a = (-TS_S / tau).exp();
     let fit = fit_fopdt(&[a], &[k * (1.0 - a)], d, TS_S).unwrap();
     let gains = simc_pi(&fit, TS_S).unwrap().gains;
-    let limits = DutyLimits::firmware();
+    let limits = firmware_limits();
     // Settle at 30 % duty: 45 slm.
     let mut plant = ArxPlant::fopdt(k, tau, d, TS_S);
     let mut y = 0.0;
@@ -210,11 +211,11 @@ struct NaivePi {
     bi: f64,
     i: f64,
     u: f64,
-    limits: DutyLimits,
+    limits: Limits<f64>,
 }
 
 impl NaivePi {
-    fn new(g: PidGains, limits: DutyLimits) -> Self {
+    fn new(g: PidGains, limits: Limits<f64>) -> Self {
         NaivePi {
             kp: g.kp,
             bi: g.kp * TS_S / g.ti_s,

@@ -16,10 +16,9 @@ use crate::control::{ControlOptions, DEFAULT_TS, EXIT_REFUSED};
 use crate::error::IdError;
 use crate::initial::Initial;
 use crate::options::{parse_range, parse_structure, Options, MAX_ITER_LIMIT};
-use crate::refine::{Refine, Select};
-use crate::report::Hyper;
-use crate::run;
-use crate::segment::{OperatingPoint, SegmentOptions};
+use crate::options::{GammaScale, Hyper, Refine, Select, STANDARDISED_GAMMA};
+use crate::phase::{OperatingPoint, SegmentOptions};
+use crate::pipeline::run;
 use ridge_core::control::Spec;
 
 /// `ridge-id`: identify an ARX model from a logged CSV record.
@@ -160,23 +159,24 @@ pub struct IdentifyArgs {
     /// Validation record (same format), scored like the estimation record.
     #[arg(long, value_name = "VAL.csv")]
     pub validate: Option<PathBuf>,
-    /// Estimator.
+    /// Estimator [default: ridge-m].
     #[arg(
         long,
-        default_value_t = MethodKind::default(),
         value_parser = names(&MethodKind::ALL, MethodKind::name, method_help)
     )]
-    pub method: MethodKind,
-    /// Structure criterion (aic: delay-free AIC, the core's default; validation needs --validate).
+    pub method: Option<MethodKind>,
+    /// Structure criterion [default: aic] (aic: delay-free AIC, the core's default; validation
+    /// needs --validate).
     #[arg(
         long,
-        default_value_t = Criterion::default(),
         value_parser = names(&Criterion::ALL, Criterion::name, criterion_help)
     )]
-    pub criterion: Criterion,
-    /// Ridge / Ridge-M regularisation gamma, above 0.
-    #[arg(long, value_name = "G", default_value_t = Hyper::default().gamma, allow_negative_numbers = true)]
-    pub gamma: f64,
+    pub criterion: Option<Criterion>,
+    /// Ridge / Ridge-M regularisation gamma, above 0, in the data's units (eq. 12 of the
+    /// paper as printed: the paper's is 1000) [default: 1 on the standardised record, u and y
+    /// divided by their standard deviations: scale-free, about one sample's weight].
+    #[arg(long, value_name = "G", allow_negative_numbers = true)]
+    pub gamma: Option<f64>,
     /// Ridge-M momentum beta, in [0, 1).
     #[arg(long, value_name = "B", default_value_t = Hyper::default().beta, allow_negative_numbers = true)]
     pub beta: f64,
@@ -207,10 +207,10 @@ pub struct IdentifyArgs {
     /// Fix the structure instead of searching.
     #[arg(long, value_name = "P,Q,D", value_parser = parse_structure, conflicts_with_all = ["p", "q", "d"])]
     pub structure: Option<Structure>,
-    /// Constant term.
+    /// Constant term (intercept, the default, is estimated and never shrunk).
     #[arg(
         long,
-        default_value_t = Offset::default(),
+        default_value_t = Offset::Intercept,
         value_parser = names(&Offset::ALL, Offset::name, offset_help)
     )]
     pub offset: Offset,
@@ -224,7 +224,8 @@ pub struct IdentifyArgs {
     )]
     pub initial: Initial,
     /// How the structure is chosen: by --criterion, or by the lowest free-run RMSE on the
-    /// --validate record over all candidates.
+    /// --validate record (auto: the latter with --validate, unless a particular model is asked
+    /// for).
     #[arg(
         long,
         default_value_t = Select::default(),
@@ -233,7 +234,8 @@ pub struct IdentifyArgs {
     pub select: Select,
     /// Output-error refinement of the chosen model (Gauss-Newton on the free-run error of the
     /// estimation record, from the ARX estimate); with --validate kept only if it lowers the
-    /// validation free-run RMSE.
+    /// validation free-run RMSE (auto: oe with --validate, unless a particular model is asked
+    /// for).
     #[arg(
         long,
         default_value_t = Refine::default(),
@@ -245,10 +247,11 @@ pub struct IdentifyArgs {
     pub json: bool,
     /// Exit with status 1 when the report has warnings (an unstable model, a negative fit,
     /// a record too short or too little excited for the structure, a Ridge-M run that
-    /// stopped without converging); the report is printed all the same.
+    /// stopped without converging, Ridge or LASSO coefficients shrunk); the report is printed
+    /// all the same.
     #[arg(long)]
     pub strict: bool,
-    /// The model for the pump: --eeprom, --record, --stm32-slot (src/export.rs).
+    /// The model for the pump: --eeprom, --record, --stm32-store (src/export.rs).
     #[command(flatten)]
     pub export: crate::export::ExportArgs,
     /// Write a PNG of measured vs one-step vs free-run output (with --control, also
@@ -264,13 +267,13 @@ pub struct IdentifyArgs {
     /// docs/real-logs.md.
     #[arg(long, value_name = "NAME")]
     pub phase: Option<String>,
-    /// --phase (or --device): take the N-th segment of the phase in the file (from 1) instead of the last
-    /// complete one.
+    /// --phase (or --device): take the N-th segment of the phase in the file (from 1) instead
+    /// of the last complete one.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub attempt: Option<u32>,
-    /// --phase (or --device): the operating point subtracted before the statistics (the model printed is
-    /// the absolute one, with the intercept): log = u0, y0 of the `# EXCITE` line before the
-    /// segment (the pump's; the default), none, or U0,Y0 in the log's units.
+    /// --phase (or --device): the operating point subtracted before the statistics (the model
+    /// printed is the absolute one, with the intercept): log = u0, y0 of the `# EXCITE` line
+    /// before the segment (the pump's; the default), none, or U0,Y0 in the log's units.
     #[arg(
         long,
         value_name = "log|none|U0,Y0",
@@ -356,15 +359,25 @@ impl IdentifyArgs {
     /// The library options of these arguments.
     ///
     /// Errors: `--device` with firmware settings ridge-id cannot express (see
-    /// [`crate::device::apply`]).
+    /// [`crate::device_check::apply`]).
     pub fn options(&self) -> Result<Options, IdError> {
+        // A particular model asked for: the structure by its criterion, the estimator's model
+        // as it is, unless --select or --refine says otherwise (see Select::Auto).
+        let particular = self.method.is_some()
+            || self.criterion.is_some()
+            || self.gamma.is_some()
+            || self.structure.is_some();
         let mut opts = Options {
             input: self.input.clone(),
             validate: self.validate.clone(),
-            method: self.method,
-            criterion: self.criterion,
+            method: self.method.unwrap_or_default(),
+            criterion: self.criterion.unwrap_or_default(),
             hyper: Hyper {
-                gamma: self.gamma,
+                gamma: self.gamma.unwrap_or(STANDARDISED_GAMMA),
+                gamma_scale: match self.gamma {
+                    Some(_) => GammaScale::Data,
+                    None => GammaScale::Standardised,
+                },
                 beta: self.beta,
                 alpha: self.alpha,
                 max_iter: self.max_iter,
@@ -380,8 +393,14 @@ impl IdentifyArgs {
             },
             structure: self.structure,
             offset: self.offset,
-            select: self.select,
-            refine: self.refine,
+            select: match self.select {
+                Select::Auto if particular => Select::Criterion,
+                s => s,
+            },
+            refine: match self.refine {
+                Refine::Auto if particular => Refine::None,
+                r => r,
+            },
             plot: self.plot.clone(),
             control: self.control.then_some(ControlOptions {
                 ts: self.ts,
@@ -400,7 +419,7 @@ impl IdentifyArgs {
             }),
         };
         if self.device {
-            crate::device::apply(&mut opts)?;
+            crate::device_check::apply(&mut opts)?;
             if let Some(seg) = &mut opts.segment {
                 seg.attempt = self.attempt.or(seg.attempt);
                 if let Some(op) = self.operating_point {
@@ -524,10 +543,10 @@ mod tests {
 
     #[test]
     fn names_on_the_command_line() {
-        let a = identify(&[]).unwrap();
+        let o = identify(&[]).unwrap().options().unwrap();
         assert_eq!(
-            (a.method, a.criterion, a.offset),
-            (MethodKind::RidgeM, Criterion::Aic, Offset::None)
+            (o.method, o.criterion, o.offset),
+            (MethodKind::RidgeM, Criterion::Aic, Offset::Intercept)
         );
         for (word, want) in [
             ("ridge-m", MethodKind::RidgeM),
@@ -536,7 +555,7 @@ mod tests {
             ("rls", MethodKind::Rls),
             ("alasso", MethodKind::AdaptiveLasso),
         ] {
-            assert_eq!(identify(&["--method", word]).unwrap().method, want);
+            assert_eq!(identify(&["--method", word]).unwrap().method, Some(want));
         }
         for (word, want) in [
             ("paper", Criterion::Paper),
@@ -544,7 +563,10 @@ mod tests {
             ("bic", Criterion::Bic),
             ("validation", Criterion::Validation),
         ] {
-            assert_eq!(identify(&["--criterion", word]).unwrap().criterion, want);
+            assert_eq!(
+                identify(&["--criterion", word]).unwrap().criterion,
+                Some(want)
+            );
         }
         for (word, want) in [("none", Offset::None), ("intercept", Offset::Intercept)] {
             assert_eq!(identify(&["--offset", word]).unwrap().offset, want);
@@ -563,5 +585,72 @@ mod tests {
                 "{flag} {word}"
             );
         }
+    }
+
+    /// The defaults leave the model to the tool (scale-free γ, `auto` selection and
+    /// refinement); naming a method, a criterion, a γ or a structure asks for that model as it
+    /// is (the paper's settings included), unless --select or --refine says otherwise.
+    #[test]
+    fn a_particular_model_asked_for_turns_the_auto_choices_off() {
+        let opts = |extra: &[&str]| {
+            let mut a = vec!["--validate", "v.csv"];
+            a.extend(extra);
+            identify(&a).unwrap().options().unwrap()
+        };
+        let o = opts(&[]);
+        assert_eq!((o.select, o.refine), (Select::Auto, Refine::Auto));
+        assert_eq!(o.select_choice().0, Select::FreeRun);
+        assert_eq!(o.refine_choice().0, Refine::Oe);
+        assert_eq!(
+            (o.hyper.gamma, o.hyper.gamma_scale),
+            (STANDARDISED_GAMMA, GammaScale::Standardised)
+        );
+        for extra in [
+            &["--method", "ridge-m"][..],
+            &["--criterion", "aic"],
+            &["--gamma", "1000"],
+            &["--structure", "2,1,1"],
+            &[
+                "--gamma",
+                "1000",
+                "--criterion",
+                "paper",
+                "--initial",
+                "zero",
+                "--offset",
+                "none",
+            ],
+        ] {
+            let o = opts(extra);
+            assert_eq!(
+                (o.select, o.refine),
+                (Select::Criterion, Refine::None),
+                "{extra:?}"
+            );
+        }
+        let o = opts(&["--gamma", "1000"]);
+        assert_eq!(
+            (o.hyper.gamma, o.hyper.gamma_scale),
+            (1000.0, GammaScale::Data)
+        );
+        // Asked for all the same.
+        let o = opts(&[
+            "--criterion",
+            "bic",
+            "--select",
+            "free-run",
+            "--refine",
+            "oe",
+        ]);
+        assert_eq!((o.select, o.refine), (Select::FreeRun, Refine::Oe));
+        // `auto` spelled out is the default: the particular model keeps its criterion.
+        let o = opts(&["--method", "ols", "--select", "auto"]);
+        assert_eq!(o.select, Select::Criterion);
+        // Without a validation record `auto` is the criterion and no refinement.
+        let o = identify(&[]).unwrap().options().unwrap();
+        assert_eq!(
+            (o.select_choice().0, o.refine_choice().0),
+            (Select::Criterion, Refine::None)
+        );
     }
 }

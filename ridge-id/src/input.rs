@@ -145,41 +145,6 @@ impl Input {
     }
 }
 
-/// Checks, before any work, that a PNG can be written to `path` (`--plot`): its directory
-/// exists and a file can be created there. A file that did not exist is removed again.
-///
-/// Errors: [`IdError::Plot`] saying which.
-pub fn check_output(path: &Path) -> Result<(), IdError> {
-    let err = |message: String| IdError::Plot {
-        path: path.to_path_buf(),
-        message,
-    };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        return Err(err(format!(
-            "the directory {} does not exist",
-            dir.display()
-        )));
-    }
-    if path.is_dir() {
-        return Err(err("it is a directory".into()));
-    }
-    let existed = path.exists();
-    std::fs::OpenOptions::new()
-        .write(true)
-        .create(true)
-        .truncate(false)
-        .open(path)
-        .map_err(|e| err(format!("cannot create it: {e}")))?;
-    if !existed {
-        let _ = std::fs::remove_file(path);
-    }
-    Ok(())
-}
-
 /// [`crate::read_record_with`] of an [`Input`]: its statistics in one pass into the empty
 /// `gram` (its first [`MeasuredGram::initial`] samples filling the lag history only).
 pub fn read_input(input: &Input, gram: MeasuredGram<f64>) -> Result<RecordStats, IdError> {

@@ -8,7 +8,8 @@
 //!   first `m = max(p, d + q − 1)` measured outputs and its error summed over `m..N`, as the
 //!   scores are. The sensitivities `ψ_t = ∂ŷ_t/∂w` follow `ψ_t = x̂_t + Σ θ_i ψ_{t−i}`, `x̂_t`
 //!   the regressor of the simulated outputs.
-//! - [`best_free_run`]: the candidate of a list with the lowest free-run RMSE on a record.
+//! - [`best_free_run`]: the candidate of a list with the lowest free-run RMSE on a record
+//!   (ties within 1 % broken by the criterion).
 //!
 //! Both hold the record in memory (16 bytes a sample): they run only when asked for.
 
@@ -34,23 +35,37 @@ pub fn free_run_rmse(model: &ArxModel<f64>, data: &[(f64, f64)]) -> Option<f64> 
     ev.free_run().map(|m| m.rmse).filter(|r| r.is_finite())
 }
 
-/// The model whose free-run RMSE on `data` is lowest, with it.
+/// Free-run RMSEs within this fraction of the lowest are a tie for [`best_free_run`]: a
+/// validation record cannot tell them apart (the RMSE of `N` samples of white errors varies by
+/// about `1/√(2N)`: 2.4 % at `N` = 900, 0.7 % at 10 000), and the lowest of them is often a
+/// larger structure fitting the record's noise.
+pub const FREE_RUN_TIE: f64 = 0.01;
+
+/// The candidate whose free-run RMSE on `data` is lowest, with it, among `candidates`
+/// (models with their criterion value): of those within [`FREE_RUN_TIE`] of the lowest RMSE,
+/// the one the criterion ranks first (it penalises the number of coefficients).
 pub fn best_free_run(
-    models: &[ArxModel<f64>],
+    candidates: &[(ArxModel<f64>, f64)],
     data: &[(f64, f64)],
 ) -> Option<(ArxModel<f64>, f64)> {
-    let mut evs: Vec<Evaluation<f64>> = models.iter().map(|m| Evaluation::new(*m)).collect();
+    let mut evs: Vec<Evaluation<f64>> = candidates.iter().map(|c| Evaluation::new(c.0)).collect();
     for &(u, y) in data {
         for ev in &mut evs {
             ev.push(u, y);
         }
     }
-    models
+    let scored: Vec<(ArxModel<f64>, f64, f64)> = candidates
         .iter()
         .zip(&evs)
-        .filter_map(|(m, ev)| ev.free_run().map(|f| (*m, f.rmse)))
-        .filter(|(_, r)| r.is_finite())
+        .filter_map(|(&(m, score), ev)| ev.free_run().map(|f| (m, score, f.rmse)))
+        .filter(|c| c.2.is_finite())
+        .collect();
+    let lowest = scored.iter().map(|c| c.2).min_by(f64::total_cmp)?;
+    scored
+        .into_iter()
+        .filter(|c| c.2 <= lowest * (1.0 + FREE_RUN_TIE))
         .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(m, _, rmse)| (m, rmse))
 }
 
 /// Parameters as a vector `[θ_1 … θ_p, φ_0 … φ_{q−1}, (c)]`.
@@ -208,6 +223,54 @@ pub fn output_error(
     (model_of(start, &w).unwrap_or(*start), steps)
 }
 
+/// What `--refine oe` did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Refinement {
+    /// Gauss–Newton steps taken.
+    pub steps: u32,
+    /// Free-run RMSE on the estimation record before and after (output units).
+    pub estimation: (f64, f64),
+    /// Free-run RMSE on the validation record before and after, if one was given.
+    pub validation: Option<(f64, f64)>,
+    /// `true` when the refined model replaced the ARX one (always without a validation
+    /// record, else when it lowered the validation free-run RMSE).
+    pub kept: bool,
+}
+
+/// Applies [`Refine::Oe`] to `model` (estimation record `input`, validation record `val`).
+///
+/// [`Refine::Oe`]: crate::options::Refine::Oe
+pub fn refine(
+    model: ArxModel<f64>,
+    input: &Input,
+    val: Option<&[(f64, f64)]>,
+) -> Result<(ArxModel<f64>, Refinement), IdError> {
+    let est = load(input)?;
+    let (oe, steps) = output_error(&model, &est, 200);
+    let nan = f64::NAN;
+    let estimation = (
+        free_run_rmse(&model, &est).unwrap_or(nan),
+        free_run_rmse(&oe, &est).unwrap_or(nan),
+    );
+    let validation = val.map(|v| {
+        (
+            free_run_rmse(&model, v).unwrap_or(nan),
+            free_run_rmse(&oe, v).unwrap_or(nan),
+        )
+    });
+    let kept = match validation {
+        Some((before, after)) => after < before,
+        None => steps > 0,
+    };
+    let r = Refinement {
+        steps,
+        estimation,
+        validation,
+        kept,
+    };
+    Ok((if kept { oe } else { model }, r))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -247,113 +310,4 @@ mod tests {
         let clean: Vec<(f64, f64)> = u.iter().zip(&x).map(|(&u, &x)| (u, x)).collect();
         assert!(free_run_rmse(&m, &clean).unwrap() < free_run_rmse(&start, &clean).unwrap());
     }
-}
-
-/// `--refine`: the output-error refinement of the chosen model, or none.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Refine {
-    /// The estimator's (ARX, equation-error) model as it is. The default.
-    #[default]
-    None,
-    /// [`output_error`] from it; with a validation record kept only when it lowers the
-    /// validation free-run RMSE.
-    Oe,
-}
-
-/// `--select`: how the structure is chosen.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Select {
-    /// By the `--criterion` (the search). The default.
-    #[default]
-    Criterion,
-    /// Every candidate of the grid fitted by the estimator, the one with the lowest free-run
-    /// RMSE on the validation record chosen (needs `--validate`; the validation figures then
-    /// no longer test the model on unseen data).
-    FreeRun,
-}
-
-macro_rules! names {
-    ($t:ty, $what:literal, $($v:path => $name:literal, $help:literal;)+) => {
-        impl $t {
-            /// All choices, in declaration order.
-            pub const ALL: [$t; [$($name),+].len()] = [$($v),+];
-            /// The name on the command line and in reports.
-            pub const fn name(self) -> &'static str {
-                match self { $($v => $name),+ }
-            }
-            /// `--help` text.
-            pub const fn help(self) -> &'static str {
-                match self { $($v => $help),+ }
-            }
-        }
-        impl std::str::FromStr for $t {
-            type Err = ridge_core_host::UnknownName;
-            fn from_str(s: &str) -> Result<Self, Self::Err> {
-                const NAMES: [&str; [$($name),+].len()] = [$($name),+];
-                Self::ALL.into_iter().find(|v| v.name() == s).ok_or(
-                    ridge_core_host::UnknownName { what: $what, expected: &NAMES },
-                )
-            }
-        }
-        impl std::fmt::Display for $t {
-            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-                f.write_str(self.name())
-            }
-        }
-    };
-}
-
-names!(Refine, "refinement",
-    Refine::None => "none", "The estimator's ARX model as it is";
-    Refine::Oe => "oe", "Output-error fit (Gauss-Newton on the free-run error) from it; with --validate kept only if it lowers the validation free-run RMSE";
-);
-names!(Select, "structure selection",
-    Select::Criterion => "criterion", "By --criterion (the search)";
-    Select::FreeRun => "free-run", "Lowest free-run RMSE on the --validate record over all candidates";
-);
-
-/// What `--refine oe` did.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Refinement {
-    /// Gauss–Newton steps taken.
-    pub steps: u32,
-    /// Free-run RMSE on the estimation record before and after (output units).
-    pub estimation: (f64, f64),
-    /// Free-run RMSE on the validation record before and after, if one was given.
-    pub validation: Option<(f64, f64)>,
-    /// `true` when the refined model replaced the ARX one (always without a validation
-    /// record, else when it lowered the validation free-run RMSE).
-    pub kept: bool,
-}
-
-/// Applies [`Refine::Oe`] to `model` (estimation record `input`, validation record `val`).
-pub fn refine(
-    model: ArxModel<f64>,
-    input: &Input,
-    val: Option<&[(f64, f64)]>,
-) -> Result<(ArxModel<f64>, Refinement), IdError> {
-    let est = load(input)?;
-    let (oe, steps) = output_error(&model, &est, 200);
-    let nan = f64::NAN;
-    let estimation = (
-        free_run_rmse(&model, &est).unwrap_or(nan),
-        free_run_rmse(&oe, &est).unwrap_or(nan),
-    );
-    let validation = val.map(|v| {
-        (
-            free_run_rmse(&model, v).unwrap_or(nan),
-            free_run_rmse(&oe, v).unwrap_or(nan),
-        )
-    });
-    let kept = match validation {
-        Some((before, after)) => after < before,
-        None => steps > 0,
-    };
-    let r = Refinement {
-        steps,
-        estimation,
-        validation,
-        kept,
-    };
-    Ok((if kept { oe } else { model }, r))
 }

@@ -12,14 +12,22 @@
 //! | [`WarningKind::TooShort`] | fewer than [`ROWS_PER_COEFFICIENT`] (10) estimation rows past the `m` seed samples per coefficient |
 //! | [`WarningKind::LittleExcitation`] | the input is not persistently exciting of order `q`: the smallest eigenvalue of the covariance of its `q` lags is below [`EXCITATION_MIN`] (1e-5) of the largest |
 //! | [`WarningKind::NonMove`] | Ridge-M stopped on a step below `--tol` while still more than [`NON_MOVE_GAP`] (1 %) away from its fixed point, the least-squares fit: it barely moved, it did not converge |
+//! | [`WarningKind::MaxIter`] | Ridge-M stopped at `--max-iter` while still more than [`NON_MOVE_GAP`] (1 %) away from its fixed point: it did not converge |
+//! | [`WarningKind::Shrunk`] | Ridge or the adaptive LASSO returned coefficients more than [`NON_MOVE_GAP`] (1 %) away from least squares on the same columns |
+//!
+//! The distances to least squares are measured on the standardised coefficients (`θ`,
+//! `φ σ_u / σ_y`, `c / σ_y`, with the estimation record's standard deviations), so that they do
+//! not depend on the units of `u` and `y`; least squares is fitted to the same structure on the
+//! same statistics.
 
 use std::path::Path;
 
 use nalgebra::{DMatrix, SymmetricEigen};
-use ridge_core_host::{ArxModel, Estimator, MethodKind, Normal, Offset, Ols, Regressor};
+use ridge_core_host::{ArxModel, Estimator, MethodKind, Normal, Offset, Ols, Regressor, System};
 
 use crate::control::{denominator, roots};
 use crate::eval::Figures;
+use crate::numfmt::typed;
 use crate::options::Options;
 
 /// Rows per coefficient below which a record is too short for a structure (a rule of
@@ -33,8 +41,9 @@ pub const ROWS_PER_COEFFICIENT: usize = 10;
 /// `shared/data` 5e-4 … 0.05.
 pub const EXCITATION_MIN: f64 = 1e-5;
 
-/// Relative distance `‖w − w_ls‖ / ‖w_ls‖` from the least-squares fit above which a Ridge-M
-/// run that stopped on its tolerance did not converge.
+/// Relative distance `‖w − w_ls‖ / ‖w_ls‖` of the standardised coefficients from the
+/// least-squares fit above which a Ridge-M run did not converge, and a shrinking estimator's
+/// coefficients are shrunk.
 pub const NON_MOVE_GAP: f64 = 0.01;
 
 /// What a warning is about.
@@ -50,10 +59,15 @@ pub enum WarningKind {
     LittleExcitation,
     /// Ridge-M stopped on its tolerance far from its fixed point.
     NonMove,
+    /// Ridge-M stopped at its iteration limit far from its fixed point.
+    MaxIter,
+    /// Ridge or the adaptive LASSO shrunk the coefficients away from least squares.
+    Shrunk,
 }
 
 impl WarningKind {
-    /// Short name: `unstable`, `negative-fit`, `too-short`, `little-excitation`, `non-move`.
+    /// Short name: `unstable`, `negative-fit`, `too-short`, `little-excitation`, `non-move`,
+    /// `max-iter`, `shrunk`.
     pub const fn name(self) -> &'static str {
         match self {
             WarningKind::Unstable => "unstable",
@@ -61,6 +75,8 @@ impl WarningKind {
             WarningKind::TooShort => "too-short",
             WarningKind::LittleExcitation => "little-excitation",
             WarningKind::NonMove => "non-move",
+            WarningKind::MaxIter => "max-iter",
+            WarningKind::Shrunk => "shrunk",
         }
     }
 }
@@ -85,12 +101,18 @@ impl Warning {
 pub struct Run<'a> {
     /// The run's options.
     pub opts: &'a Options,
-    /// Statistics of the estimation record (physical units).
+    /// Statistics of the estimation record (physical units; the deviations from the operating
+    /// point with `--phase`).
     pub normal: &'a Normal<f64>,
     /// The identified model.
     pub model: &'a ArxModel<f64>,
-    /// Iterations reported for the model (Ridge-M iterates for `ridge-m`).
+    /// The estimator's fit of the model's structure before any refinement, on the statistics
+    /// of [`Run::normal`] in their units.
+    pub fitted: &'a ArxModel<f64>,
+    /// The estimator's iterations for it (Ridge-M iterates for `ridge-m`).
     pub iterations: u32,
+    /// The estimation record's standard deviations `(σ_u, σ_y)`.
+    pub std: (f64, f64),
     /// The estimation record's name and scores.
     pub estimation: (&'a Path, &'a Figures),
     /// The validation record's name and scores, if any.
@@ -108,8 +130,10 @@ pub fn warnings(run: &Run<'_>) -> Vec<Warning> {
     }
     out.extend(too_short(run.normal.samples(), run.model));
     out.extend(little_excitation(run.normal, run.model));
-    if run.opts.method == MethodKind::RidgeM {
-        out.extend(non_move(run.opts, run.normal, run.model, run.iterations));
+    match run.opts.method {
+        MethodKind::RidgeM => out.extend(non_move(run)),
+        MethodKind::Ridge | MethodKind::AdaptiveLasso => out.extend(shrunk(run)),
+        MethodKind::Ols | MethodKind::Rls => {}
     }
     out
 }
@@ -221,60 +245,67 @@ pub fn little_excitation(normal: &Normal<f64>, model: &ArxModel<f64>) -> Option<
     })
 }
 
-/// A hyper-parameter as typed: `1000`, `0.01`, `1e-6`, `1e300`.
-pub(crate) fn number(v: f64) -> String {
-    let a = v.abs();
-    if a != 0.0 && !(1e-3..1e7).contains(&a) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
-}
-
-/// `(θ, φ, c)` of a model as one vector.
-fn coefficients(m: &ArxModel<f64>) -> Vec<f64> {
-    let mut w: Vec<f64> = m.theta().iter().chain(m.phi()).copied().collect();
+/// `(θ, φ σ_u / σ_y, c / σ_y)` of a model as one vector: its coefficients on the record
+/// standardised by `std = (σ_u, σ_y)`.
+fn standardised(m: &ArxModel<f64>, (su, sy): (f64, f64)) -> Vec<f64> {
+    let mut w: Vec<f64> = m.theta().to_vec();
+    w.extend(m.phi().iter().map(|f| f * su / sy));
     if m.offset() == Offset::Intercept {
-        w.push(m.intercept());
+        w.push(m.intercept() / sy);
     }
     w
 }
 
-/// [`WarningKind::NonMove`]: Ridge-M (`opts`) stopped after `iterations` on a step below
-/// its tolerance, but `model` is still more than [`NON_MOVE_GAP`] from its fixed point, the
-/// least-squares fit of the same structure on `normal`.
-pub fn non_move(
-    opts: &Options,
-    normal: &Normal<f64>,
-    model: &ArxModel<f64>,
-    iterations: u32,
-) -> Option<Warning> {
-    let h = &opts.hyper;
-    if iterations >= h.max_iter {
-        return None;
-    }
-    let sys = normal.system(model.structure(), model.offset()).ok()?;
+/// The relative distance `‖w − w_ls‖ / ‖w_ls‖` of `run`'s fit from least squares on the same
+/// structure and statistics, on the standardised coefficients, with the least-squares
+/// system; `None` when least squares cannot be fitted or the distance is not a number (a zero
+/// least-squares fit).
+fn distance_to_least_squares<'a>(run: &Run<'a>) -> Option<(f64, System<'a, f64>)> {
+    let m = run.fitted;
+    let sys = run.normal.system(m.structure(), m.offset()).ok()?;
     let ls = Ols.fit(&sys).ok()?.model();
-    let (w, w_ls) = (coefficients(model), coefficients(&ls));
+    let (w, w_ls) = (standardised(m, run.std), standardised(&ls, run.std));
     let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
     let gap = norm(&mut w.iter().zip(&w_ls).map(|(a, b)| a - b)) / norm(&mut w_ls.iter().copied());
-    // (A NaN gap, from a zero least-squares fit, is no warning.)
-    if gap.is_nan() || gap <= NON_MOVE_GAP {
+    (!gap.is_nan()).then_some((gap, sys))
+}
+
+/// [`WarningKind::NonMove`] or [`WarningKind::MaxIter`]: Ridge-M (`run.opts`) stopped after
+/// `run.iterations`, on a step below its tolerance or at its limit, while its fit is still more
+/// than [`NON_MOVE_GAP`] from its fixed point, the least-squares fit of the same structure.
+pub fn non_move(run: &Run<'_>) -> Option<Warning> {
+    let h = &run.opts.hyper;
+    let (gap, sys) = distance_to_least_squares(run)?;
+    if gap <= NON_MOVE_GAP {
         return None;
     }
+    // The mean diagonal of the XᵀX the estimator ran on (standardised or the data's).
     let k = sys.params();
+    let (su, sy) = run.std;
+    let standard = run.opts.standardises();
     let diag = (0..k)
-        .filter(|&i| sys.regressor(i) != Some(Regressor::Constant))
-        .map(|i| sys.augmented(i, i))
+        .filter_map(|i| match sys.regressor(i) {
+            Some(Regressor::Output(_)) if standard => Some(sys.augmented(i, i) / (sy * sy)),
+            Some(Regressor::Input(_)) if standard => Some(sys.augmented(i, i) / (su * su)),
+            Some(Regressor::Constant) => None,
+            _ => Some(sys.augmented(i, i)),
+        })
         .sum::<f64>()
         / (k as f64);
+    let units = if standard {
+        " of the standardised record"
+    } else {
+        ""
+    };
     let mut why = Vec::new();
+    let at_limit = run.iterations >= h.max_iter;
     if h.gamma > diag {
         why.push(format!(
-            "gamma {} is {:.1e} times the mean diagonal of XᵀX ({diag:.2e}): rescale the \
-             data or lower --gamma",
-            number(h.gamma),
-            h.gamma / diag
+            "gamma {} is {:.1e} times the mean diagonal of XᵀX{units} ({diag:.2e}): lower \
+             --gamma{}",
+            typed(h.gamma),
+            h.gamma / diag,
+            if standard { "" } else { " or rescale the data" }
         ));
     }
     if h.beta >= 0.9 {
@@ -284,17 +315,53 @@ pub fn non_move(
         ));
     }
     if why.is_empty() {
-        why.push("lower --tol".into());
+        why.push(if at_limit {
+            "raise --max-iter or lower --gamma".into()
+        } else {
+            "lower --tol".into()
+        });
     }
-    Some(Warning::new(
-        WarningKind::NonMove,
-        format!(
-            "ridge-m stopped after {iterations} iteration(s) on a step below --tol {}, but \
-             still {:.0} % (relative distance) from its fixed point, the least-squares fit: it \
-             barely moved, it did not converge; {}",
-            number(h.tol),
-            100.0 * gap.min(1e6),
-            why.join("; ")
-        ),
-    ))
+    let percent = 100.0 * gap.min(1e6);
+    Some(if at_limit {
+        Warning::new(
+            WarningKind::MaxIter,
+            format!(
+                "ridge-m did not converge: it stopped at --max-iter {} still {percent:.0} % \
+                 (relative distance, standardised coefficients) from its fixed point, the \
+                 least-squares fit; {}",
+                h.max_iter,
+                why.join("; ")
+            ),
+        )
+    } else {
+        Warning::new(
+            WarningKind::NonMove,
+            format!(
+                "ridge-m stopped after {} iteration(s) on a step below --tol {}, but still \
+                 {percent:.0} % (relative distance, standardised coefficients) from its fixed \
+                 point, the least-squares fit: it barely moved, it did not converge; {}",
+                run.iterations,
+                typed(h.tol),
+                why.join("; ")
+            ),
+        )
+    })
+}
+
+/// [`WarningKind::Shrunk`]: the coefficients of Ridge or the adaptive LASSO are more than
+/// [`NON_MOVE_GAP`] from least squares on the same structure and statistics.
+pub fn shrunk(run: &Run<'_>) -> Option<Warning> {
+    let (gap, _) = distance_to_least_squares(run)?;
+    (gap > NON_MOVE_GAP).then(|| {
+        Warning::new(
+            WarningKind::Shrunk,
+            format!(
+                "coefficients shrunk: {} returned them {:.0} % (relative distance, standardised \
+                 coefficients) from least squares on the same columns; if that is not the \
+                 regularisation wanted, use a smaller --gamma or --method ridge-m",
+                run.opts.method.name(),
+                100.0 * gap.min(1e6)
+            ),
+        )
+    })
 }

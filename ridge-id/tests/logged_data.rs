@@ -7,8 +7,9 @@
 //! least squares by SVD, the Ridge-M iteration written out, and one-step / free-run
 //! predictions simulated by hand. Then sanity of the fits on the validation halves.
 //!
-//! Measured (f64, default hyper-parameters γ = 1000, β = 0.01, α = 12, 200 iterations,
-//! delay-free AIC, scores from measured initial conditions on samples m..N):
+//! Measured (f64, the paper's hyper-parameters γ = 1000 in the data's units, β = 0.01, α = 12,
+//! 200 iterations, delay-free AIC, the structure by the criterion and no refinement, zero
+//! history; scores from measured initial conditions on samples m..N):
 //!
 //! | record | method | offset | structure | val one-step RMSE | val free-run RMSE | val free-run fit |
 //! |---|---|---|---|---|---|---|
@@ -33,7 +34,8 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{DMatrix, DVector};
 use ridge_core_host::{MethodKind, Offset, Structure};
-use ridge_id::{run, Figures, Initial, Options, Report};
+use ridge_id::options::{Refine, Select};
+use ridge_id::{run, Figures, Hyper, Initial, Options, Report};
 
 fn data(record: &str, half: &str) -> PathBuf {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -142,10 +144,17 @@ fn ridge_m(
     (w_prev, max_iter)
 }
 
-/// Zero history (`--initial zero`): the regression of eq. (6) that these tests rebuild.
+/// The paper's Ridge-M hyper-parameters (`γ = 1000` in the data's units) with zero history
+/// (`--initial zero`: the regression of eq. (6) that these tests rebuild), the structure by the
+/// criterion and no refinement.
 fn options(record: &str, method: MethodKind, offset: Offset) -> Options {
     let mut o = Options::new(data(record, "estimation"));
-    o.hyper.initial = Initial::Zero;
+    o.hyper = Hyper {
+        initial: Initial::Zero,
+        ..Hyper::paper()
+    };
+    o.select = Select::Criterion;
+    o.refine = Refine::None;
     o.validate = Some(data(record, "validation"));
     o.method = method;
     o.offset = offset;
@@ -509,11 +518,11 @@ fn adaptive_lasso_default_converges_on_real_records() {
 }
 
 /// `--select free-run` picks, among the candidates of the grid, the one whose validation
-/// free-run RMSE is lowest: checked against every candidate run alone (`--structure`).
+/// free-run RMSE is lowest, a tie within 1 % going to the lower criterion: checked against
+/// every candidate run alone (`--structure`).
 #[test]
 fn select_free_run_is_the_best_candidate_on_validation() {
     use ridge_core_host::{Grid, OrderRange};
-    use ridge_id::refine::Select;
     for record in RECORDS {
         // Zero history: a candidate fitted alone has the same rows as in the search.
         let mut o = options(record, MethodKind::Ols, Offset::Intercept);
@@ -522,25 +531,42 @@ fn select_free_run_is_the_best_candidate_on_validation() {
             q: OrderRange::new(1, 3),
             d: OrderRange::new(0, 2),
         };
-        let mut best = (f64::INFINITY, None);
+        // Every candidate alone: its validation free-run RMSE and criterion value.
+        let mut all = Vec::new();
         for s in o.grid.iter() {
             let mut one = o.clone();
             one.structure = Some(s);
             let r = run(&one).unwrap();
-            let v = r.validation.unwrap().rmse_free_run;
-            if v < best.0 {
-                best = (v, Some(s));
-            }
+            // (Every input of these orders is excited on both records: no candidate is left
+            // out for that.)
+            assert!(
+                r.warnings
+                    .iter()
+                    .all(|w| w.kind != ridge_id::warnings::WarningKind::LittleExcitation),
+                "{record} {s:?}: {:?}",
+                r.warnings
+            );
+            all.push((s, r.validation.unwrap().rmse_free_run, r.score));
         }
+        let lowest = all.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
+        let best = all
+            .iter()
+            .filter(|c| c.1 <= lowest * 1.01)
+            .min_by(|a, b| a.2.total_cmp(&b.2))
+            .unwrap();
         o.select = Select::FreeRun;
         let r = run(&o).unwrap();
         let v = r.validation.unwrap().rmse_free_run;
-        eprintln!("{record}: {:?} {v}", r.model.structure());
-        assert_eq!(Some(r.model.structure()), best.1, "{record}");
+        eprintln!(
+            "{record}: {:?} {v} (lowest {lowest}, {} within 1 %)",
+            r.model.structure(),
+            all.iter().filter(|c| c.1 <= lowest * 1.01).count()
+        );
+        assert_eq!(r.model.structure(), best.0, "{record}");
         assert!(
-            (v - best.0).abs() <= 1e-12 * best.0,
+            (v - best.1).abs() <= 1e-12 * best.1,
             "{record}: {v} vs {}",
-            best.0
+            best.1
         );
     }
 }
@@ -549,7 +575,7 @@ fn select_free_run_is_the_best_candidate_on_validation() {
 /// validation figure is then the refined model's.
 #[test]
 fn output_error_refinement_is_kept_only_where_it_helps_on_validation() {
-    use ridge_id::refine::Refine;
+    use ridge_id::options::Refine;
     for record in RECORDS {
         let mut o = options(record, MethodKind::Ols, Offset::Intercept);
         o.hyper.initial = Initial::Measured;

@@ -119,6 +119,8 @@ fn kinds(j: &Value) -> Vec<String> {
                 ("record too short", "too-short"),
                 ("input too little excited", "little-excitation"),
                 ("ridge-m stopped", "non-move"),
+                ("ridge-m did not converge", "max-iter"),
+                ("coefficients shrunk", "shrunk"),
             ] {
                 if w.starts_with(prefix) {
                     return kind.to_string();
@@ -404,26 +406,44 @@ fn unstable_models_are_flagged_by_their_poles() {
 
 #[test]
 fn the_issue_reproductions_warn_and_strict_exits_1() {
-    // Data scaled by 1e-4: Ridge-M's gamma 1000 dwarfs XᵀX, the first step is below tol.
+    // Data scaled by 1e-4 and the paper's gamma 1000 in the data's units (the defaults before
+    // they were scale-free): gamma dwarfs XᵀX, the first step is below tol.
     let small = known("scaled.csv", 1000, 6, 1e-4);
-    let j = json(&ridge_id(&["--input", small.to_str().unwrap(), "--json"]));
+    let paper = ["--gamma", "1000", "--offset", "none"];
+    let mut args = vec!["--input", small.to_str().unwrap(), "--json"];
+    args.extend(paper);
+    let j = json(&ridge_id(&args));
     let fit = j["estimation"]["fit_free_run"].as_f64().unwrap();
     let k = kinds(&j);
     assert!(fit < 0.0, "{fit}");
     assert!(k.contains(&"negative-fit".into()), "{k:?}");
     assert!(k.contains(&"non-move".into()), "{k:?}");
     // --strict: the same report on stdout, exit 1, one line on stderr.
-    let out = ridge_id(&["--input", small.to_str().unwrap(), "--json", "--strict"]);
+    args.push("--strict");
+    let out = ridge_id(&args);
     assert_eq!(out.status.code(), Some(1));
     let again: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(again, j);
     let e = stderr(&out);
     assert_eq!(e.lines().count(), 1, "{e}");
     assert!(e.starts_with("error: --strict: 2 warning(s)"), "{e}");
+    // The defaults are scale-free: the same record gives the plant, nothing to warn about.
+    let j = json(&ridge_id(&["--input", small.to_str().unwrap(), "--json"]));
+    let s = &j["structure"];
+    assert_eq!(
+        (s["p"].as_u64(), s["q"].as_u64(), s["d"].as_u64()),
+        (Some(2), Some(2), Some(2)),
+        "{j}"
+    );
+    assert!(
+        j["estimation"]["fit_free_run"].as_f64().unwrap() > 90.0,
+        "{j}"
+    );
+    assert!(kinds(&j).is_empty(), "{}", j["warnings"]);
 
-    // Four rows: 3 rows past the seed for 2 coefficients, fewer than 10 a coefficient (with
-    // zero history: measured initial conditions refuse 4 rows outright, the grid's longest
-    // lag being 11).
+    // Four rows: 3 rows past the seed for 2 coefficients (no intercept), fewer than 10 a
+    // coefficient (with zero history: measured initial conditions refuse 4 rows outright, the
+    // grid's longest lag being 11).
     let four = tmp("four.csv");
     fs::write(&four, "u,y\n1,0.5\n-1,0.9\n0.5,-0.2\n1,0.3\n").unwrap();
     let j = json(&ridge_id(&[
@@ -431,6 +451,8 @@ fn the_issue_reproductions_warn_and_strict_exits_1() {
         four.to_str().unwrap(),
         "--initial",
         "zero",
+        "--offset",
+        "none",
         "--json",
     ]));
     assert!(kinds(&j).contains(&"too-short".into()), "{}", j["warnings"]);
@@ -450,6 +472,8 @@ fn the_issue_reproductions_warn_and_strict_exits_1() {
         "1,1,0",
         "--initial",
         "zero",
+        "--offset",
+        "none",
         "--json",
     ]));
     assert!(

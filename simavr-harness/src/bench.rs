@@ -33,11 +33,11 @@ use std::path::PathBuf;
 use std::rc::Rc;
 
 use crate::bus::{self, BusState, SdaHold};
-use crate::machine::{Halt, IrqEvent, Machine, UartByte, UartInput};
+use crate::machine::{Halt, IrqEvent, Machine, UartByte};
 use crate::pwm::{self, Channel};
-use crate::report::{Line, LineSplitter};
 use crate::sensor::{Fault, SensorState, Sfm3300Slave};
-use crate::uart::{SendId, SerialLine, Transmission, UartTiming, BAUD};
+use crate::transcript::{Line, LineSplitter};
+use crate::uart::{SendId, SerialLine, Transmission, UartInput, UartTiming, BAUD};
 use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
 
 /// Plant sub-steps per 10 ms sample (0.5 ms each: the SFM3300 update period).

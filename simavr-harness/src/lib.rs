@@ -12,15 +12,17 @@
 //! - [`bench`](mod@bench): the bench ([`bench::Bench`]): the simulated MCU wired to the simulated plant,
 //!   closed loop, with the timing meter. (The plant alone, stepped once per sample without an
 //!   MCU, is `pump_sim::Rig`.)
-//! - [`report`]: the UART transcript: [`report::Line`] (text and cycle stamp) and
-//!   [`report::ParsedLine`] (keyword, words, `key=value` fields).
+//! - [`transcript`]: the UART transcript: [`transcript::Line`] (text and cycle stamp), split into
+//!   keyword, words and `key=value` fields by the firmware's own parser
+//!   (`ridge_pump_firmware::lines`, beside the lines' writer).
 //! - [`firmware`]: locating/building the ELF and its section sizes.
 //! - [`session`]: a whole power-up identification run and its figures (what `simavr-run`
 //!   prints and the tests check).
 //! - [`tracking`]: run mode rebuilt tick by tick from the bench (setpoint, duty, flow),
 //!   checked against the firmware's `TRACK` lines and scored ([`tracking::RunTrace`]).
 //! - [`uart`]: a serial line into USART0 (commands to the firmware's console at 115 200
-//!   baud, scheduled at a cycle or after a line the firmware printed); [`Bench::send_at`](bench::Bench::send_at),
+//!   baud, scheduled at a cycle or after a line the firmware printed), down to the UART's
+//!   receiver ([`uart::UartInput`]); [`Bench::send_at`](bench::Bench::send_at),
 //!   [`Bench::send_after`](bench::Bench::send_after).
 //! - [`capture`]: the firmware's UART output as the CSV `ridge-id capture` writes (its log).
 //! - [`stack`]: worst-case stack from the image's call graph ([`stack::StackAnalysis`], what
@@ -33,9 +35,9 @@ pub mod firmware;
 pub mod machine;
 pub mod pwm;
 pub mod relax;
-pub mod report;
 pub mod sensor;
 pub mod session;
 pub mod stack;
 pub mod tracking;
+pub mod transcript;
 pub mod uart;

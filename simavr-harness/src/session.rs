@@ -14,19 +14,20 @@
 use std::path::Path;
 use std::time::Instant;
 
-use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Real, Search};
+use ridge_core::{ArxModel, Evaluation, IntGram, Real, Search};
 
 use crate::bench::{Bench, BenchConfig, RunEnd, TickTiming, SUBSTEPS};
 use crate::firmware::{self, Sizes};
-use crate::report::{Line, ParsedLine};
+use crate::transcript::Line;
 use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
 use ridge_id::eval::Trace;
-use ridge_id::plot::{write_png, Panel};
+use ridge_id::plot::{write_fit_png, Axes, Panel};
 use ridge_pump_firmware::excitation::Record;
+use ridge_pump_firmware::lines::{ExciteLine, IdLine, ParsedLine, PrintedModel, ValidateLine};
 use ridge_pump_firmware::pump::duty_to_counts;
 use ridge_pump_firmware::selfid::absolute_model;
 use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, SCALE};
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, SCALE};
 
 /// Timer TOP + 1 of the board's pump PWM (OC4A, 20 kHz): `max_duty_cycle()`.
 pub const PWM_MAX: u32 = 800;
@@ -35,59 +36,10 @@ pub const TICK_CYCLES: u64 = 160_000;
 /// The controller design's budget: 100 ms at 16 MHz, cycles.
 pub const DESIGN_BUDGET_CYCLES: u64 = 1_600_000;
 
-/// Timer count (`OCR4A + 1`, 0 = off) the board writes for a duty in 1/10 000: the pump
-/// driver's [`duty_to_counts`] with `max_duty_cycle() = PWM_MAX`.
-pub fn duty_counts(duty: u16) -> u32 {
+/// The ATmega2560 board's PWM timer count (`OCR4A + 1`, 0 = off) for a duty in 1/10 000: the
+/// pump driver's [`duty_to_counts`] with `max_duty_cycle() = PWM_MAX`.
+pub fn pwm_counts(duty: u16) -> u32 {
     u32::from(duty_to_counts(duty, PWM_MAX as u16))
-}
-
-/// The model of an `ID` / `LOADED` line.
-#[derive(Clone, Debug, PartialEq)]
-pub struct IdLine {
-    /// Orders and delay.
-    pub p: u8,
-    /// Input coefficients.
-    pub q: u8,
-    /// Delay.
-    pub d: u8,
-    /// Constant term: [`Offset::Intercept`] when the line says `off=1`.
-    pub offset: Offset,
-    /// θ.
-    pub theta: Vec<f64>,
-    /// φ.
-    pub phi: Vec<f64>,
-    /// Intercept.
-    pub c: f64,
-    /// Criterion value.
-    pub score: Option<f64>,
-    /// Candidates evaluated / in the grid.
-    pub eval: Option<(i64, i64)>,
-}
-
-impl IdLine {
-    /// Parses an `ID` or `LOADED` line.
-    pub fn parse(r: &ParsedLine) -> Option<Self> {
-        Some(Self {
-            p: r.int("p")? as u8,
-            q: r.int("q")? as u8,
-            d: r.int("d")? as u8,
-            offset: if r.int("off").unwrap_or(0) != 0 {
-                Offset::Intercept
-            } else {
-                Offset::None
-            },
-            theta: r.list("theta")?,
-            phi: r.list("phi")?,
-            c: r.num("c").unwrap_or(0.0),
-            score: r.num("score"),
-            eval: r.ratio("eval"),
-        })
-    }
-
-    /// As a ridge-core model (physical units: slm, duty fraction).
-    pub fn model(&self) -> Option<ArxModel<f64>> {
-        ArxModel::new(&self.theta, &self.phi, self.d, self.offset, self.c).ok()
-    }
 }
 
 /// A record as the firmware saw it: duty (1/10 000) in effect at each read, the raw word read.
@@ -263,7 +215,7 @@ pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
         .map(|(i, l)| (i, l.parsed()))
         .collect();
     let id_idx = parsed.iter().rev().find(|(_, r)| r.keyword == "ID");
-    let id = id_idx.and_then(|(_, r)| IdLine::parse(r));
+    let id = id_idx.and_then(|(i, _)| IdLine::parse(&bench.lines[*i].text).ok());
     let accept = parsed
         .iter()
         .find(|(_, r)| r.keyword == "ACCEPT")
@@ -293,13 +245,12 @@ pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
         // No model: the first record, to compare with what the host finds on it.
         None => parsed.iter().find(|(_, r)| r.keyword == "EXCITE"),
     };
-    let estimation = excite.and_then(|(i, r)| rebuild(&bench, *i, r));
+    let estimation = excite.and_then(|(i, _)| rebuild(&bench, *i));
     let validate = parsed
         .iter()
-        .filter(|(i, r)| r.keyword == "VALIDATE" && id_line.is_some_and(|j| *i > j))
-        .map(|(i, r)| (*i, r.clone()))
-        .next();
-    let validation = validate.and_then(|(i, r)| rebuild(&bench, i, &r));
+        .find(|(i, r)| r.keyword == "VALIDATE" && id_line.is_some_and(|j| *i > j))
+        .map(|(i, _)| *i);
+    let validation = validate.and_then(|i| rebuild(&bench, i));
     // The search that followed the rebuilt record: up to its ID or REJECT line.
     let search_end = excite.and_then(|(i, _)| {
         parsed
@@ -330,7 +281,7 @@ pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
         }
     }
     // Every controller design: it runs blocking in the main loop and ends with its line; its
-    // budget is 100 ms (the firmware's watch reads the sensor at each tick boundary meanwhile).
+    // budget is 100 ms (the firmware's keepalive reads the sensor at each tick boundary meanwhile).
     let design_windows: Vec<(u64, u64)> = bench
         .lines
         .iter()
@@ -449,13 +400,21 @@ fn timing(
     }
 }
 
-/// Rebuilds the record announced by line `idx` (`EXCITE <name> n=..` / `VALIDATE <name> n=..`)
-/// from the frames served and the PWM log, aligned on the generator's duty sequence.
-pub fn rebuild(bench: &Bench, idx: usize, r: &ParsedLine) -> Option<Samples> {
-    let record = r.words.iter().find_map(|w| w.parse::<Record>().ok())?;
-    let n = r
-        .int("n")
-        .map_or(record.len_samples() as usize, |v| v as usize);
+/// Rebuilds the record announced by line `idx` (`EXCITE <name> n=.. u0=.. y0=..` /
+/// `VALIDATE <name> n=..`) from the frames served and the PWM log, aligned on the generator's
+/// duty sequence.
+pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
+    let text = &bench.lines.get(idx)?.text;
+    // (preset name, samples, operating point: duty 1/10 000, flow counts; none on VALIDATE)
+    let (name, n, u0, y0) = match ExciteLine::parse(text) {
+        Ok(e) => (e.record, e.samples, e.u0, e.y0),
+        Err(_) => {
+            let v = ValidateLine::parse(text).ok()?;
+            (v.record, v.samples, 0, 0)
+        }
+    };
+    let record = name.parse::<Record>().ok()?;
+    let n = n as usize;
     let gen: Vec<u16> = record.generator().take(n).collect();
     let frames = bench.sensor.borrow().served();
     let at = bench.line_starts[idx];
@@ -472,7 +431,7 @@ pub fn rebuild(bench: &Bench, idx: usize, r: &ParsedLine) -> Option<Samples> {
         let ok = gen
             .iter()
             .enumerate()
-            .all(|(i, &g)| counts_at(frames[k + i].0) == duty_counts(g));
+            .all(|(i, &g)| counts_at(frames[k + i].0) == pwm_counts(g));
         if ok {
             let y0_frames = (k >= 50).then(|| {
                 let sum: i32 = frames[k - 50..k]
@@ -484,10 +443,8 @@ pub fn rebuild(bench: &Bench, idx: usize, r: &ParsedLine) -> Option<Samples> {
             });
             let mut s = Samples {
                 record: Some(record),
-                u0: r.num("u0").map_or(0, |v| (v * 100.0).round() as u16),
-                y0: r
-                    .num("y0")
-                    .map_or(0, |v| (v * f64::from(FLOW_SCALE)).round() as i16),
+                u0,
+                y0,
                 y0_frames,
                 ..Samples::default()
             };
@@ -532,25 +489,27 @@ pub fn host_search_in<T: Real>(samples: &Samples) -> Result<IdLine, String> {
     let m =
         absolute_model(&sel.fit.model(), samples.u0, samples.y0).map_err(|e| format!("{e:?}"))?;
     let s = m.structure();
-    let theta: Vec<f64> = m.theta().iter().map(|v| v.to_f64()).collect();
-    let phi: Vec<f64> = m.phi().iter().map(|v| v.to_f64()).collect();
-    let c = m.intercept().to_f64();
     Ok(IdLine {
-        p: s.p,
-        q: s.q,
-        d: s.d,
-        offset: m.offset(),
-        theta,
-        phi,
-        c,
-        score: Some(sel.score.to_f64()),
-        eval: Some((i64::from(sel.evaluated), i64::from(sel.candidates))),
+        model: PrintedModel {
+            p: s.p,
+            q: s.q,
+            d: s.d,
+            offset: m.offset(),
+            theta: m.theta().iter().map(|v| v.to_f64()).collect(),
+            phi: m.phi().iter().map(|v| v.to_f64()).collect(),
+            c: m.intercept().to_f64(),
+        },
+        score: sel.score.to_f64(),
+        evaluated: sel.evaluated,
+        candidates: sel.candidates,
+        skipped: sel.skipped,
+        iterations: sel.fit.iterations,
     })
 }
 
 /// Largest coefficient difference between two models of the same structure, relative to
 /// `max(1, |b|)` per coefficient (θ, φ, c); `None` if the structures differ.
-pub fn coefficient_error(a: &IdLine, b: &IdLine) -> Option<f64> {
+pub fn coefficient_error(a: &PrintedModel, b: &PrintedModel) -> Option<f64> {
     if (a.p, a.q, a.d) != (b.p, b.q, b.d) || a.theta.len() != b.theta.len() {
         return None;
     }
@@ -605,7 +564,7 @@ pub fn fresh_record(
     let mut pump = Pump::new(p);
     let mut lung = lung.cloned().map(Lung::new);
     let mut sfm = Sfm3300::new(sensor.clone(), seed);
-    let frac = |d: u16| duty_counts(d) as f64 / f64::from(PWM_MAX);
+    let frac = |d: u16| pwm_counts(d) as f64 / f64::from(PWM_MAX);
     // One 0.5 ms plant step at duty `d`: the flow at its end.
     let mut step = |d: u16| {
         let open = pump.step(frac(d));
@@ -673,5 +632,5 @@ pub fn plot(path: &Path, panels: &[(String, Trace)]) -> Result<(), String> {
             trace: tr,
         })
         .collect();
-    write_png(path, &p).map_err(|e| e.to_string())
+    write_fit_png(path, &Axes::pump(), &p).map_err(|e| e.to_string())
 }

@@ -18,7 +18,7 @@
 //!   `U2X0`, so simavr runs USART0 at 2 992 cycles a byte, 5 348 bytes/s, 2.2 times slower
 //!   than the chip in both directions; received bytes reach the firmware 2 992 cycles apart
 //!   whatever the line does;
-//! - the chip's ([`UartTiming::Chip`], [`Machine::uart_chip_timing`](crate::machine::Machine::uart_chip_timing)):
+//! - the chip's ([`UartTiming::Chip`], `Machine::uart_chip_timing`):
 //!   [`chip_frame_cycles`] from the registers after every write to them, 1 360 cycles (10 bits
 //!   at 117 647 baud) for the firmware's settings. The first byte of a burst then reaches the
 //!   firmware 1 360 cycles after its start bit (the chip: ~1 300, in the stop bit) and the
@@ -35,10 +35,13 @@
 //! the first UART line from the firmware that matches a predicate (e.g. "`LOG on` once the
 //! board printed its first line", as `ridge-id capture --send` does).
 
+use std::cell::Cell;
 use std::collections::VecDeque;
+use std::rc::Rc;
 
-use crate::machine::{Delivery, UartInput};
-use crate::report::Line;
+use simavr_ffi as ffi;
+
+use crate::transcript::Line;
 
 /// The line's rate, baud (the firmware's and `ridge-id capture`'s default).
 pub const BAUD: u32 = 115_200;
@@ -252,6 +255,104 @@ impl SerialLine {
     /// Whether nothing is scheduled or waiting for a line.
     pub fn idle(&self) -> bool {
         self.queue.is_empty() && self.triggers.is_empty()
+    }
+}
+
+/// What became of a byte handed to a UART's receiver ([`UartInput::send`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Delivery {
+    /// In simavr's input FIFO: the receiver raises RXC for it one frame time after the FIFO
+    /// was last empty (or after the byte before it).
+    Queued,
+    /// The firmware had the receiver off (`RXENn` = 0): the byte is lost, as on the chip.
+    ReceiverOff,
+    /// simavr's 64-entry input FIFO was full (it had signalled `UART_IRQ_OUT_XOFF`): the byte is
+    /// lost and `DORn` set. (The chip has a 2-byte FIFO; a firmware that reads `UDRn` in its
+    /// receive interrupt never lets simavr's fill.)
+    FifoFull,
+}
+
+/// The receive side of one UART, seen from the wire: hands bytes to simavr's UART input IRQ
+/// (`UART_IRQ_INPUT`) as the line delivers them (see the [module docs](self) for the line's
+/// timing). Clones share the FIFO-full flag. Does nothing once its machine is dropped
+/// ([`Machine::uart_input`](crate::machine::Machine::uart_input) makes it).
+#[derive(Clone)]
+pub struct UartInput {
+    avr: *mut ffi::avr_t,
+    alive: Rc<Cell<bool>>,
+    input: *mut ffi::avr_irq_t,
+    /// simavr's input FIFO is full (last `UART_IRQ_OUT_XOFF` value).
+    full: Rc<Cell<bool>>,
+    /// Data-space address of `UCSRnB` (receiver enable `RXENn`, bit 4).
+    ucsrb: u16,
+}
+
+impl std::fmt::Debug for UartInput {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("UartInput")
+            .field("ucsrb", &self.ucsrb)
+            .field("fifo_full", &self.full.get())
+            .finish()
+    }
+}
+
+/// `RXENn` in `UCSRnB` (ATmega2560 datasheet, USART register description).
+const RXEN: u8 = 1 << 4;
+
+impl UartInput {
+    /// The receive side of the core `avr`'s UART: its input IRQ `input`, the FIFO-full flag
+    /// `full` that its `UART_IRQ_OUT_XOFF` hook sets, its `UCSRnB` address `ucsrb`; `alive`
+    /// turns false when the core is freed.
+    ///
+    /// # Safety
+    /// `avr` and `input` are a live core and one of its UART's input IRQs, valid while
+    /// `alive` is true.
+    pub(crate) unsafe fn new(
+        avr: *mut ffi::avr_t,
+        alive: Rc<Cell<bool>>,
+        input: *mut ffi::avr_irq_t,
+        full: Rc<Cell<bool>>,
+        ucsrb: u16,
+    ) -> Self {
+        UartInput {
+            avr,
+            alive,
+            input,
+            full,
+            ucsrb,
+        }
+    }
+
+    /// Whether the firmware has the receiver on (`RXENn` in `UCSRnB`).
+    pub fn receiver_enabled(&self) -> bool {
+        if !self.alive.get() {
+            return false;
+        }
+        // SAFETY: live core; `ucsrb` is an I/O register below RAMEND.
+        unsafe { *(*self.avr).data.add(self.ucsrb.into()) & RXEN != 0 }
+    }
+
+    /// Whether simavr's input FIFO is full (it signalled XOFF and not XON since).
+    pub fn fifo_full(&self) -> bool {
+        self.full.get()
+    }
+
+    /// Hands `byte` to the receiver now (its start bit is on the line now; simavr raises RXC
+    /// one frame time later, see the [module docs](self)).
+    pub fn send(&self, byte: u8) -> Delivery {
+        if !self.receiver_enabled() {
+            return Delivery::ReceiverOff;
+        }
+        if self.full.get() {
+            // simavr drops it and sets DORn: raise it anyway so that the firmware sees the
+            // overrun flag as it would on the chip.
+            // SAFETY: live core (checked above); the input IRQ of the same core.
+            unsafe { ffi::avr_raise_irq(self.input, u32::from(byte)) };
+            return Delivery::FifoFull;
+        }
+        // SAFETY: as above.
+        unsafe { ffi::avr_raise_irq(self.input, u32::from(byte)) };
+        Delivery::Queued
     }
 }
 

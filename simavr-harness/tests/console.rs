@@ -33,13 +33,14 @@ use pump_sim::sfm3300::raw_to_flow;
 use pump_sim::{Blower, Outlet, PlantArgs, Sfm3300Params};
 use ridge_id::capture::{classify, Kind};
 use ridge_id::cli::{Cli, Command};
+use ridge_pump_firmware::lines::IdLine;
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use ridge_pump_firmware::slots::{self, SLOT_LEN, STORE_LEN};
 use simavr_harness::bench::{Bench, BenchConfig, RunEnd};
 use simavr_harness::machine::IoWrite;
 use simavr_harness::pwm::Channel;
-use simavr_harness::session::{duty_counts, IdLine, TICK_CYCLES};
+use simavr_harness::session::{pwm_counts, TICK_CYCLES};
 use simavr_harness::uart::{SendId, UartTiming};
 use simavr_harness::{capture, firmware};
 
@@ -211,7 +212,7 @@ fn check_rows(b: &Bench, rows: &[Row]) -> Result<usize, String> {
             let Some((cycle, raw)) = frame_of(b, j0 + i) else {
                 continue 'candidate;
             };
-            let u_counts = duty_counts((r.u * 10_000.0).round() as u16);
+            let u_counts = pwm_counts((r.u * 10_000.0).round() as u16);
             if (r.y - raw_to_flow(raw)).abs() > 0.5e-5 + 1e-9 || u_counts != counts_at(b, cycle) {
                 continue 'candidate;
             }
@@ -365,7 +366,7 @@ fn commands_on_the_running_pump() {
     // The duty written in this tick, before the answer (the bench logs the pin at its 0.5 ms
     // plant steps: one step after the answer started, and 9 ms before the next write).
     assert_eq!(
-        duty_counts(duty),
+        pwm_counts(duty),
         counts_at(&b, at + TICK_CYCLES / 20),
         "{}",
         b.lines[i].text
@@ -621,7 +622,7 @@ fn commands_on_the_running_pump() {
     let m = b.lines[i].parsed();
     assert_eq!(m.keyword, "MODEL");
     let keys =
-        |p: &simavr_harness::report::ParsedLine| p.fields.keys().cloned().collect::<Vec<_>>();
+        |p: &ridge_pump_firmware::lines::ParsedLine| p.fields.keys().cloned().collect::<Vec<_>>();
     assert_eq!(keys(&m), keys(&loaded), "MODEL vs LOADED fields");
     for k in ["p", "q", "d", "off", "theta", "phi", "c", "fit"] {
         assert_eq!(m.get(k), loaded.get(k), "MODEL {k}= vs LOADED");
@@ -674,7 +675,7 @@ fn commands_on_the_running_pump() {
     let end = b.run_until(b.time_s() + 2.5, |l| l.text.starts_with("EXCITE"));
     assert!(matches!(end, RunEnd::Line(_)), "{}", transcript(&b));
     let settle = counts_at(&b, b.machine.cycle() - TICK_CYCLES);
-    assert_eq!(settle, duty_counts(DEFAULT_CONFIG.base_duty), "settle duty");
+    assert_eq!(settle, pwm_counts(DEFAULT_CONFIG.base_duty), "settle duty");
     figures.push(format!(
         "REID: EXCITE {:.3} s after the line",
         (b.line_starts[b.lines.len() - 1] - reid_end) as f64 / 16e6
@@ -742,7 +743,7 @@ fn identification_on_the_log_matches_ridge_id() {
         .next()
         .map(|(i, _)| i)
         .unwrap_or_else(|| panic!("no ID line:\n{}", transcript(b)));
-    let id = IdLine::parse(&b.lines[id_at].parsed()).expect("ID line");
+    let id = IdLine::parse(&b.lines[id_at].text).expect("ID line").model;
     assert!(accept_fit.is_some(), "no ACCEPT:\n{}", transcript(b));
 
     // MODEL after ACCEPT: the ID line's model, in the ID line's fields and digits.

@@ -13,7 +13,7 @@
 //!    through ridge-id's own command-line path (clap's `Cli::try_parse_from`,
 //!    `IdentifyArgs::options`, `ridge_id::run`, the JSON `main` prints,
 //!    `ridge_id::export::export`), as `ridge_id::cli::main` does. The options are the
-//!    device's (`ridge_id::device::DEVICE_OPTIONS`, the list docs/real-logs.md names and
+//!    device's (`ridge_id::device_check::DEVICE_OPTIONS`, the list docs/real-logs.md names and
 //!    ridge-id's tests check against the firmware's settings) with two changes a plain log
 //!    needs: no `--phase excite --operating-point log` (they pick a segment of a pump's
 //!    capture, which a `t,u,y` log has not) and `--offset intercept` instead of `none` (the
@@ -265,7 +265,7 @@ struct Identified {
 
 /// The device's identification options for a plain `t,u,y` log (see the module docs).
 fn device_options() -> Vec<String> {
-    let words: Vec<&str> = ridge_id::device::DEVICE_OPTIONS
+    let words: Vec<&str> = ridge_id::device_check::DEVICE_OPTIONS
         .split_whitespace()
         .collect();
     let mut out = Vec::new();

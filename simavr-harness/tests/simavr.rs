@@ -170,7 +170,7 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
             match session::host_search(est) {
                 Ok(h) => bad.push(format!(
                     "ridge-core on the host finds ({},{},{}) on the firmware's first record: {h:?}",
-                    h.p, h.q, h.d
+                    h.model.p, h.model.q, h.model.d
                 )),
                 Err(e) => bad.push(format!("host search on the first record: {e}")),
             }
@@ -196,14 +196,14 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
                 ));
             }
             match session::host_search(est) {
-                Ok(host) => match session::coefficient_error(id, &host) {
+                Ok(host) => match session::coefficient_error(&id.model, &host.model) {
                     Some(e) if e <= COEF_TOL => {}
                     Some(e) => bad.push(format!(
                         "coefficients differ from the host by {e:.2e} (> {COEF_TOL:e}): firmware {id:?} host {host:?}"
                     )),
                     None => bad.push(format!(
                         "structure differs from the host: firmware ({},{},{}) host ({},{},{}) [host {host:?}]; the firmware's state machine replayed on the host: {}",
-                        id.p, id.q, id.d, host.p, host.q, host.d, replay(o)
+                        id.model.p, id.model.q, id.model.d, host.model.p, host.model.q, host.model.d, replay(o)
                     )),
                 },
                 Err(e) => bad.push(format!("host search failed: {e}")),
@@ -218,9 +218,9 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
         Some(_) => {}
         None => bad.push("validation record could not be rebuilt from the served frames".into()),
     }
-    match id.model() {
-        None => bad.push("ID line does not give a valid model".into()),
-        Some(model) => {
+    match id.model.arx() {
+        Err(_) => bad.push("ID line does not give a valid model".into()),
+        Ok(model) => {
             let lat = o
                 .estimation
                 .as_ref()

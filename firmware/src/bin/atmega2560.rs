@@ -29,8 +29,8 @@ mod image {
     use core::ptr::addr_of_mut;
     use ridge_pump_firmware::app::{App, Board, Console};
     use ridge_pump_firmware::event::FaultReason;
+    use ridge_pump_firmware::numfmt::Int;
     use ridge_pump_firmware::pump::Pump;
-    use ridge_pump_firmware::report::Int;
     use ridge_pump_firmware::resets::{self, Resets};
     use ridge_pump_firmware::selfid::{Defaults, SelfIdentification};
     use ridge_pump_firmware::sfm3300::Sfm3300;

@@ -3,7 +3,7 @@
 
 use std::collections::VecDeque;
 
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE};
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_OFFSET, FLOW_SCALE};
 
 /// A linear first-order ARX plant with transport delay, in physical units:
 /// `y_t = a y_{t-1} + b u_{t-d} + c + e_t` (slm, duty fraction), computed in SFM3300 counts
@@ -65,5 +65,12 @@ impl Plant {
             Some(c) => c,
             None => counts as i16,
         }
+    }
+}
+
+/// The fake board's plant: the reading as the SFM3300's word (`counts + 32768`).
+impl firmware_testkit::Plant for Plant {
+    fn step_word(&mut self, duty: u16) -> u16 {
+        (i32::from(self.step(duty)) + i32::from(FLOW_OFFSET)) as u16
     }
 }

@@ -13,7 +13,7 @@
 //! the same: the noise is drawn per sample and scaled by the flow), gets the program
 //! [`SelfIdentification::preview`] ticks ahead as the firmware does, and starts bumplessly from
 //! the duty and reading at the switch-over. The baselines run at the firmware's duty limits
-//! and rate limit ([`DutyLimits::firmware`]), with the duty rounded to counts as the firmware
+//! and rate limit ([`firmware_limits`]), with the duty rounded to counts as the firmware
 //! rounds it. Every controller is scored against the program itself ([`score`]).
 //!
 //! Each case is run twice from the same switch-over: with the sensor's noise, and again with a
@@ -37,9 +37,9 @@ use ridge_pump_firmware::sfm3300::raw_to_counts;
 use ridge_pump_firmware::units::DUTY_FULL_SCALE;
 
 use super::metrics::{rms_error, step_metrics, total_variation, StepMetrics};
-use super::pid::{DutyLimits, Pid, PidError, PidGains};
-use super::plant::duty_counts;
+use super::pid::{firmware_limits, Pid, PidError, PidGains};
 use super::simc::{fit_model, simc_pi, Fopdt, Simc};
+use super::stepped::fraction_to_duty;
 use super::zn::{relay_test, ultimate, zn_pid, Ultimate, ZnError, ZnSearch};
 use crate::sfm3300::raw_to_flow;
 use crate::{PlantArgs, Rig, Sfm3300, Sfm3300Params, TS_S};
@@ -420,7 +420,7 @@ fn run_pid(
     program: Program,
     gains: PidGains,
 ) -> Result<Trace, ExperimentError> {
-    let mut pid = Pid::new(gains, DutyLimits::firmware(), TS_S).map_err(ExperimentError::Pid)?;
+    let mut pid = Pid::new(gains, firmware_limits(), TS_S).map_err(ExperimentError::Pid)?;
     pid.start(
         f64::from(sw.duty) / f64::from(DUTY_FULL_SCALE),
         f64::from(sw.flow),
@@ -428,7 +428,7 @@ fn run_pid(
     let preview = u32::from(sw.baseline_preview);
     run_loop(rig, sw, program, |k, raw| {
         let r = f64::from(setpoint::value(program, sw.flow, k.saturating_add(preview)));
-        Ok(duty_counts(pid.step(r, raw_to_flow(raw))))
+        Ok(fraction_to_duty(pid.step(r, raw_to_flow(raw))))
     })
 }
 

@@ -3,7 +3,7 @@
 //!
 //! One file per concern:
 //!
-//! - [`plant`]: the [`Plant`] the tuning experiments step (the rig's true flow, or a linear
+//! - [`stepped`]: the [`Plant`] the tuning experiments step (the rig's true flow, or a linear
 //!   ARX plant for tests);
 //! - [`pid`]: the discrete PID with the firmware's duty limits, rate limit, conditional
 //!   integration and bumpless start;
@@ -21,13 +21,13 @@ pub mod knobs;
 pub mod metrics;
 pub mod optimal;
 pub mod pid;
-pub mod plant;
 pub mod simc;
+pub mod stepped;
 pub mod table;
 pub mod zn;
 
 pub use experiment::{run_case, tune_zn, CaseRun, Controller, ExperimentError, Trace, ZnTuning};
-pub use pid::{DutyLimits, Pid, PidGains};
-pub use plant::{ArxPlant, Plant, UnroundedRig};
+pub use pid::{config_limits, firmware_limits, no_limits, Pid, PidGains};
 pub use simc::{fit_fopdt, fit_model, simc_pi, Fopdt, Simc};
+pub use stepped::{ArxPlant, Plant, UnroundedRig};
 pub use zn::{ultimate, zn_pid, Ultimate, ZnSearch};

@@ -37,10 +37,11 @@ use microlp::{ComparisonOp, OptimizationDirection, Problem, SolveOutcome, Variab
 use ridge_pump_firmware::setpoint::DEMO_STEPS;
 
 use super::metrics::step_iae;
-use super::pid::DutyLimits;
-use super::plant::{Plant, UnroundedRig};
+use super::pid::firmware_limits;
+use super::stepped::{Plant, UnroundedRig};
 use super::zn::operating_point;
 use crate::{PlantArgs, Sfm3300Params, TS_S};
+use ridge_core::control::Limits;
 
 /// Weight of the overshoot excess in the objective, slm·s per slm: large enough that no
 /// IAE gain pays for it.
@@ -75,7 +76,7 @@ pub struct StepProblem<P> {
     /// Largest overshoot, fraction of the step size; `None`: no cap.
     pub overshoot: Option<f64>,
     /// Duty limits and rate limit.
-    pub limits: DutyLimits,
+    pub limits: Limits<f64>,
     /// Sample period, s.
     pub ts_s: f64,
 }
@@ -262,7 +263,7 @@ impl<P: Plant + Clone> StepProblem<P> {
 pub fn rest_within<P: Plant + Clone>(
     plant: &P,
     flow: f64,
-    limits: &DutyLimits,
+    limits: &Limits<f64>,
     settle: usize,
 ) -> Option<(P, f64)> {
     let (rested, u, _) = operating_point(plant, flow, settle)?;
@@ -304,7 +305,7 @@ pub const ITERATIONS: usize = 60;
 /// The open-loop optimum of the first `count` steps of [`DEMO_STEPS`] on the noise-free
 /// `plant`, the first from `start` slm, each from rest at the previous level, with `lead`
 /// intervals of preview (scored as [`score`](super::experiment::score) scores a controller
-/// with that preview), the firmware's limits ([`DutyLimits::firmware`]) and the overshoot cap
+/// with that preview), the firmware's limits ([`firmware_limits`]) and the overshoot cap
 /// `overshoot`. An error when the plant options are invalid or a level is out of the limits'
 /// reach.
 pub fn demo_steps(
@@ -314,7 +315,7 @@ pub fn demo_steps(
     overshoot: Option<f64>,
     count: usize,
 ) -> Result<Vec<Optimum>, String> {
-    let limits = DutyLimits::firmware();
+    let limits = firmware_limits();
     let rig = UnroundedRig(plant.rig(Sfm3300Params::ideal(), 0)?);
     let at = |flow: f64| {
         rest_within(&rig, flow, &limits, SETTLE_TICKS)
@@ -353,12 +354,12 @@ pub fn demo_steps(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::baseline::plant::ArxPlant;
+    use crate::baseline::stepped::ArxPlant;
 
     const TS: f64 = 0.01;
 
     /// Every duty within the bounds and the rate limit from the one before (from `u0`).
-    fn respects(limits: &DutyLimits, u0: f64, u: &[f64]) -> bool {
+    fn respects(limits: &Limits<f64>, u0: f64, u: &[f64]) -> bool {
         let tol = 1e-9;
         let mut prev = u0;
         u.iter().all(|&v| {
@@ -388,7 +389,7 @@ mod tests {
             level: 80,
             free: 30,
             overshoot: None,
-            limits: DutyLimits {
+            limits: Limits {
                 min: 0.0,
                 max: 1.0,
                 max_step: 1.0,
@@ -418,7 +419,7 @@ mod tests {
         // IAE ≥ Ts Σ_{k ≥ lead} (to − Y_k)⁺. Upper bound: ramping to the new steady duty at
         // the rate limit and holding it, a feasible sequence.
         let (k, tau, delay) = (150.0, 0.15, 2);
-        let limits = DutyLimits {
+        let limits = Limits {
             min: 0.15,
             max: 0.95,
             max_step: 0.05,
@@ -482,7 +483,7 @@ mod tests {
 
     #[test]
     fn rest_within_refuses_flows_out_of_the_limits_reach() {
-        let limits = DutyLimits {
+        let limits = Limits {
             min: 0.15,
             max: 0.95,
             max_step: 0.05,
@@ -508,7 +509,7 @@ mod tests {
         let [best] = steps.as_slice() else {
             panic!("one step asked, {} returned", steps.len())
         };
-        let limits = DutyLimits::firmware();
+        let limits = firmware_limits();
         let rig = UnroundedRig(plant.rig(Sfm3300Params::ideal(), 0).expect("preset"));
         let (rested, u0) = rest_within(&rig, 19.0, &limits, SETTLE_TICKS).expect("reach");
         let (_, u_to) = rest_within(&rig, 40.0, &limits, SETTLE_TICKS).expect("reach");

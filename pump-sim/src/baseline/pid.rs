@@ -25,45 +25,37 @@
 //! Units: setpoint and flow in slm, output in duty fraction 0..1, `K_p` in duty fraction per
 //! slm, times in seconds.
 
+use ridge_core::control::Limits;
 use ridge_pump_firmware::selfid::{ControlConfig, DEFAULT_CONFIG};
 use ridge_pump_firmware::units::DUTY_FULL_SCALE;
 
-/// Output limits of a flow controller, duty fraction 0..1.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DutyLimits {
-    /// Smallest output.
-    pub min: f64,
-    /// Largest output.
-    pub max: f64,
-    /// Largest change of the output from one sample to the next.
-    pub max_step: f64,
+/// The limits of a firmware control configuration (`duty_min`, `duty_max`, `duty_step` in
+/// 1/10 000 of full scale) as the controllers' [`Limits`] in `f64`, duty fraction 0..1.
+///
+/// Computed from the integers in `f64` (1 500 / 10 000 = 0.15 exactly as `f64` rounds it), not
+/// widened from the firmware's `f32` [`ControlConfig::limits`] (0.15 as `f32` is
+/// 0.150000006): the host's PID and optimum run at the limits the configuration states.
+pub fn config_limits(c: &ControlConfig) -> Limits<f64> {
+    let full = f64::from(DUTY_FULL_SCALE);
+    Limits {
+        min: f64::from(c.duty_min) / full,
+        max: f64::from(c.duty_max.min(DUTY_FULL_SCALE)) / full,
+        max_step: f64::from(c.duty_step) / full,
+    }
 }
 
-impl DutyLimits {
-    /// The limits of a firmware control configuration (`duty_min`, `duty_max`, `duty_step`
-    /// in 1/10 000 of full scale).
-    pub fn from_config(c: &ControlConfig) -> Self {
-        let full = f64::from(DUTY_FULL_SCALE);
-        DutyLimits {
-            min: f64::from(c.duty_min) / full,
-            max: f64::from(c.duty_max.min(DUTY_FULL_SCALE)) / full,
-            max_step: f64::from(c.duty_step) / full,
-        }
-    }
+/// The limits the firmware's RST controller runs with ([`DEFAULT_CONFIG`]`.control`:
+/// 15 %..95 %, 5 % per tick), in `f64` ([`config_limits`]).
+pub fn firmware_limits() -> Limits<f64> {
+    config_limits(&DEFAULT_CONFIG.control)
+}
 
-    /// The limits the firmware's RST controller runs with
-    /// ([`DEFAULT_CONFIG`]`.control`: 15 %..95 %, 5 % per tick).
-    pub fn firmware() -> Self {
-        Self::from_config(&DEFAULT_CONFIG.control)
-    }
-
-    /// No limits: any output, any rate.
-    pub fn none() -> Self {
-        DutyLimits {
-            min: f64::NEG_INFINITY,
-            max: f64::INFINITY,
-            max_step: f64::INFINITY,
-        }
+/// No limits: any output, any rate.
+pub fn no_limits() -> Limits<f64> {
+    Limits {
+        min: f64::NEG_INFINITY,
+        max: f64::INFINITY,
+        max_step: f64::INFINITY,
     }
 }
 
@@ -140,7 +132,7 @@ impl std::error::Error for PidError {}
 #[derive(Clone, Debug, PartialEq)]
 pub struct Pid {
     gains: PidGains,
-    limits: DutyLimits,
+    limits: Limits<f64>,
     /// Integral gain per sample `K_p h / T_i` (0 without integral action).
     bi: f64,
     /// Derivative filter pole `T_d / (T_d + N h)`.
@@ -160,7 +152,7 @@ pub struct Pid {
 impl Pid {
     /// A controller with `gains`, output `limits` and sample period `ts_s` (s), started at
     /// zero duty and zero flow (call [`start`](Self::start) before use).
-    pub fn new(gains: PidGains, limits: DutyLimits, ts_s: f64) -> Result<Self, PidError> {
+    pub fn new(gains: PidGains, limits: Limits<f64>, ts_s: f64) -> Result<Self, PidError> {
         if !(ts_s.is_finite() && ts_s > 0.0) {
             return Err(PidError::SamplePeriod);
         }
@@ -208,7 +200,7 @@ impl Pid {
     }
 
     /// The output limits.
-    pub fn limits(&self) -> &DutyLimits {
+    pub fn limits(&self) -> &Limits<f64> {
         &self.limits
     }
 
@@ -269,15 +261,15 @@ mod tests {
     use super::*;
 
     #[test]
-    fn firmware_limits() {
-        let l = DutyLimits::firmware();
+    fn firmware_limits_are_the_default_configs() {
+        let l = firmware_limits();
         assert_eq!((l.min, l.max, l.max_step), (0.15, 0.95, 0.05));
     }
 
     #[test]
     fn hand_computed_first_outputs() {
         // Kp 0.1, Ti 0.5 s, Td 0.1 s, N 10, h 0.01: bi = 0.002, ad = 0.5, bd = 0.5.
-        let mut pid = Pid::new(PidGains::pid(0.1, 0.5, 0.1), DutyLimits::none(), 0.01).unwrap();
+        let mut pid = Pid::new(PidGains::pid(0.1, 0.5, 0.1), no_limits(), 0.01).unwrap();
         pid.start(0.3, 20.0);
         assert_eq!(pid.step(20.0, 20.0), 0.3);
         // e = 2: P 0.2, D 0, I 0.3 → 0.5; then I = 0.304.
@@ -290,7 +282,7 @@ mod tests {
 
     #[test]
     fn limits_and_rate_limit() {
-        let limits = DutyLimits {
+        let limits = Limits {
             min: 0.15,
             max: 0.95,
             max_step: 0.05,
@@ -308,7 +300,7 @@ mod tests {
 
     #[test]
     fn integral_is_frozen_while_limited_in_the_error_direction() {
-        let mut pid = Pid::new(PidGains::pi(0.01, 0.1), DutyLimits::firmware(), 0.01).unwrap();
+        let mut pid = Pid::new(PidGains::pi(0.01, 0.1), firmware_limits(), 0.01).unwrap();
         pid.start(0.9, 50.0);
         for _ in 0..100 {
             pid.step(200.0, 50.0);
@@ -322,7 +314,7 @@ mod tests {
 
     #[test]
     fn rejects_bad_settings() {
-        let l = DutyLimits::firmware();
+        let l = firmware_limits();
         assert_eq!(
             Pid::new(PidGains::pi(f64::NAN, 1.0), l, 0.01),
             Err(PidError::Gains)
@@ -335,7 +327,7 @@ mod tests {
             Pid::new(PidGains::pid(1.0, 1.0, -1.0), l, 0.01),
             Err(PidError::Gains)
         );
-        let bad = DutyLimits {
+        let bad = Limits {
             min: 1.0,
             max: 0.0,
             max_step: 0.1,

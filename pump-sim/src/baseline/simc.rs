@@ -21,7 +21,7 @@
 use ridge_core::ArxModel;
 
 use super::pid::PidGains;
-use super::plant::{ArxPlant, Plant};
+use super::stepped::{ArxPlant, Plant};
 
 /// A first-order-plus-dead-time model `K e^{−θ s} / (τ s + 1)`.
 #[derive(Clone, Copy, Debug, PartialEq)]

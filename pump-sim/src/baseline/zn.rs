@@ -31,7 +31,7 @@
 //! `K_p = 0.6 K_u`, `T_i = T_u / 2`, `T_d = T_u / 8` ([`zn_pid`]).
 
 use super::pid::PidGains;
-use super::plant::Plant;
+use super::stepped::Plant;
 
 /// Settings of the ultimate-gain search. Flows in slm, durations in samples.
 #[derive(Clone, Copy, Debug, PartialEq)]

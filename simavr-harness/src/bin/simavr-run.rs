@@ -13,7 +13,8 @@ use pump_sim::baseline::experiment::run_ticks;
 use pump_sim::PlantArgs;
 use ridge_id::capture::{classify, Kind};
 use ridge_pump_firmware::excitation::Record;
-use simavr_harness::session::{self, IdLine, Outcome, SessionConfig, TICK_CYCLES};
+use ridge_pump_firmware::lines::PrintedModel;
+use simavr_harness::session::{self, Outcome, SessionConfig, TICK_CYCLES};
 use simavr_harness::tracking::RunTrace;
 use simavr_harness::uart::UartTiming;
 use simavr_harness::{capture, firmware};
@@ -80,7 +81,7 @@ fn ms(cycles: f64) -> f64 {
     cycles / 16_000.0
 }
 
-fn show_model(m: &IdLine) -> String {
+fn show_model(m: &PrintedModel) -> String {
     let list = |v: &[f64]| {
         v.iter()
             .map(|x| format!("{x:.6}"))
@@ -182,10 +183,11 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
     println!("\n== identified model (ID line, physical units: slm, duty 0..1)");
     match &out.id {
         Some(id) => {
-            println!("  {}", show_model(id));
-            if let Some((e, n)) = id.eval {
-                println!("  candidates evaluated {e} of {n} (exact pruning)");
-            }
+            println!("  {}", show_model(&id.model));
+            println!(
+                "  candidates evaluated {} of {} (exact pruning)",
+                id.evaluated, id.candidates
+            );
         }
         None => {
             println!("  none");
@@ -199,13 +201,13 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
         );
         match session::host_search(est) {
             Ok(host) => {
-                let err = session::coefficient_error(id, &host);
+                let err = session::coefficient_error(&id.model, &host.model);
                 println!(
                     "  host rerun (IntGram + Search<f64> on the {} samples served): {}",
                     est.len(),
                     match err {
                         Some(e) => format!("same structure, max coefficient difference {e:.2e}"),
-                        None => format!("DIFFERENT: {}", show_model(&host)),
+                        None => format!("DIFFERENT: {}", show_model(&host.model)),
                     }
                 );
             }
@@ -214,9 +216,9 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
         if let Ok(h32) = session::host_search_in::<f32>(est) {
             println!(
                 "  host rerun in f32 (as the firmware computes): {}",
-                match session::coefficient_error(id, &h32) {
+                match session::coefficient_error(&id.model, &h32.model) {
                     Some(e) => format!("same structure, max coefficient difference {e:.2e}"),
-                    None => format!("DIFFERENT: {}", show_model(&h32)),
+                    None => format!("DIFFERENT: {}", show_model(&h32.model)),
                 }
             );
         }
@@ -228,7 +230,7 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
             match r {
                 Ok(h) => println!(
                     "  host ({name}) on the first record the firmware saw: {}",
-                    show_model(&h)
+                    show_model(&h.model)
                 ),
                 Err(e) => println!("  host ({name}) on the first record: {e}"),
             }
@@ -257,7 +259,7 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
         );
     }
     let mut panels = Vec::new();
-    if let Some(model) = out.id.as_ref().and_then(IdLine::model) {
+    if let Some(model) = out.id.as_ref().and_then(|id| id.model.arx().ok()) {
         if let Some(val) = &out.validation {
             let (free, one, trace) = session::score(&model, val);
             println!(
@@ -510,7 +512,12 @@ fn print_tracking(args: &Args, out: &Outcome) -> bool {
         "ATmega2560 in simavr, {}: setpoint vs true flow (slm), duty below",
         args.plant.describe()
     );
-    match ridge_id::plot::write_step_png(&args.track_png, &title, &step) {
+    match ridge_id::plot::write_control_png(
+        &args.track_png,
+        &ridge_id::plot::Axes::pump(),
+        &title,
+        &step,
+    ) {
         Ok(()) => println!("  plot: {}", args.track_png.display()),
         Err(e) => println!("  plot failed: {e}"),
     }
