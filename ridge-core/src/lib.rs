@@ -37,12 +37,15 @@
 mod bounds;
 mod cholesky;
 pub mod control;
+mod eigen;
 pub mod error;
 pub mod estimate;
 pub mod excitation;
 pub mod gram;
+pub mod input_map;
 #[cfg(feature = "alasso")]
 pub mod lasso;
+mod modal;
 pub mod model;
 pub mod normal;
 pub mod real;
@@ -55,6 +58,7 @@ pub mod wide;
 pub use error::{Error, Result, UnknownName};
 pub use estimate::{Estimator, Fit, Ols, Ridge, RidgeM};
 pub use gram::{Accumulator, FloatGram, Gram, IntGram, MeasuredGram, Scale};
+pub use input_map::{InputMap, MapError, MapScan, MAP_KNOTS};
 #[cfg(feature = "alasso")]
 pub use lasso::{AdaptiveLasso, Lambda};
 pub use model::{ArxModel, Evaluation, Metrics, Mode, Predictor, Score};
