@@ -4,7 +4,8 @@
 //!
 //! Every 0.5 ms of emulated time (the SFM3300's update period) the bench reads the duty the
 //! timer drives on the pin, steps `pump_sim::Pump` (its 100 Hz parameters sub-stepped 20×) and
-//! the lung by 0.5 ms, and hands the flow to the sensor. It splits USART1's output into lines,
+//! the lung by 0.5 ms with the exhalation valve PB0 drives (high = closed; low or not an
+//! output = open, the driver's pull-down), and hands the flow to the sensor. It splits USART1's output into lines,
 //! plays bytes into USART1's receiver at 115 200 baud, and applies scheduled actions (sensor
 //! faults, SDA held low, a stalled blower, a cut PWM line, a reset, a power cut).
 
@@ -12,7 +13,7 @@ use std::cell::RefCell;
 use std::path::PathBuf;
 use std::rc::Rc;
 
-use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
+use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params, Valve};
 use ridge_pump_firmware::flash_store::SECTORS;
 
 use crate::bus::{BusSlave, Lines, SdaHold};
@@ -149,6 +150,8 @@ pub struct Bench {
     pub lines: Vec<Line>,
     /// PWM changes seen at plant steps.
     pub duty_log: Vec<DutyChange>,
+    /// Exhalation valve changes seen at plant steps (time, new state); open before the first.
+    pub valve_log: Vec<(Time, Valve)>,
     /// 10 ms plant samples.
     pub plant_log: Vec<PlantSample>,
     next_step: Time,
@@ -201,6 +204,7 @@ impl Bench {
             cfg,
             lines: Vec::new(),
             duty_log: Vec::new(),
+            valve_log: Vec::new(),
             plant_log: Vec::new(),
             next_step: STEP_PS,
             substep: 0,
@@ -279,6 +283,18 @@ impl Bench {
         }
     }
 
+    /// The exhalation valve PB0 drives now (docs/boards.md): closed while PB0 is a
+    /// general-purpose output with its `ODR` bit 1; open otherwise (driven low, or an input that
+    /// the valve driver's pull-down holds low).
+    pub fn valve_now(&self) -> Valve {
+        let gpiob = &self.machine.chip().gpiob;
+        if gpiob.mode(0) == 1 && gpiob.read_odr() & 1 != 0 {
+            Valve::Closed
+        } else {
+            Valve::Open
+        }
+    }
+
     fn plant_step(&mut self) -> Result<(), String> {
         while let Some(&(t, a)) = self.schedule.first() {
             if t > self.machine.now() {
@@ -295,11 +311,15 @@ impl Bench {
         {
             self.duty_log.push(d);
         }
+        let valve = self.valve_now();
+        if self.valve_log.last().map_or(Valve::Open, |&(_, v)| v) != valve {
+            self.valve_log.push((self.machine.now(), valve));
+        }
         let open = self.pump.step(if self.pwm_cut { 0.0 } else { d.fraction });
         let flow = match &mut self.lung {
             Some(lung) => {
                 let p = self.pump.params();
-                lung.step(open, p.shutoff_of_speed(self.pump.speed()), p.ts_s)
+                lung.step(valve, open, p.shutoff_of_speed(self.pump.speed()), p.ts_s)
             }
             None => open,
         };

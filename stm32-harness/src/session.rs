@@ -12,7 +12,7 @@
 
 use std::time::Instant;
 
-use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
+use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params, Valve};
 use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Real, Search};
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::pump::duty_to_counts;
@@ -482,7 +482,8 @@ pub fn fresh_record(
         match &mut lung {
             Some(l) => {
                 let p = pump.params();
-                l.step(open, p.shutoff_of_speed(pump.speed()), p.ts_s)
+                // The passive exhalation valve the host twin was written for.
+                l.step(Valve::Open, open, p.shutoff_of_speed(pump.speed()), p.ts_s)
             }
             None => open,
         }

@@ -19,6 +19,7 @@ fn main() {
 
 #[cfg(all(target_arch = "arm", target_os = "none"))]
 mod image {
+    use super::board::blackpill_f411::valve::{self, ValvePin};
     use super::board::blackpill_f411::{self as bp, FlashStore, ResetCount, Ticker, WATCHDOG_MS};
     use cortex_m_rt::entry;
     use ridge_pump_firmware::app::{App, Board, Console};
@@ -28,6 +29,7 @@ mod image {
     use ridge_pump_firmware::resets::{self, Resets};
     use ridge_pump_firmware::selfid::{Defaults, SelfIdentification};
     use ridge_pump_firmware::sfm3300::Sfm3300;
+    use ridge_pump_firmware::ventilation::Valve;
     use stm32f4xx_hal::i2c::{I2c, Mode};
     use stm32f4xx_hal::pac;
     use stm32f4xx_hal::prelude::*;
@@ -50,6 +52,8 @@ mod image {
         /// Ticks left until the count is cleared (0: done).
         clean: u16,
         console: Console,
+        /// The exhalation valve (PB0).
+        valve: ValvePin,
     }
 
     impl Board for BlackPill {
@@ -89,6 +93,9 @@ mod image {
         fn console(&mut self) -> Option<&mut Console> {
             Some(&mut self.console)
         }
+        fn set_valve(&mut self, valve: Valve) {
+            self.valve.set(valve);
+        }
     }
 
     #[entry]
@@ -103,7 +110,9 @@ mod image {
         let gpioa = dp.GPIOA.split(&mut rcc);
         let gpiob = dp.GPIOB.split(&mut rcc);
 
-        // Pump PWM first, so the pin is driven low (duty 0) as early as possible.
+        // The exhalation valve open (PB0 low) before the pump is driven.
+        let valve = ValvePin::new(gpiob.pb0);
+        // Pump PWM next, so the pin is driven low (duty 0) as early as possible.
         let (_pwm, (ch1, ..)) = dp.TIM3.pwm_hz(20.kHz(), &mut rcc);
         let mut ch1 = ch1.with(gpioa.pa6);
         ch1.set_duty(0);
@@ -168,17 +177,20 @@ mod image {
             count,
             clean: resets::CLEAN_TICKS,
             console: Console::new(),
+            valve,
         };
         app.run(&mut board)
     }
 
-    /// Panic: pump off first (TIM3 CCR1 = 0, written directly), interrupts off, a polled `PANIC`
-    /// line, then spin until the IWDG (0.5 s) resets the MCU; the next boot reports
-    /// `reset=` with the IWDG bit (0x20) set. See the ATmega2560 image for the reasoning.
+    /// Panic: interrupts off, pump off (TIM3 CCR1 = 0, written directly), the exhalation valve
+    /// open (PB0 low, written directly), a polled `PANIC` line, then spin until the IWDG (0.5 s)
+    /// resets the MCU; the next boot reports `reset=` with the IWDG bit (0x20) set. See the
+    /// ATmega2560 image for the reasoning.
     #[panic_handler]
     fn panic(_info: &core::panic::PanicInfo) -> ! {
         cortex_m::interrupt::disable();
         bp::force_pump_off();
+        valve::force_open();
         for &byte in b"\nPANIC\n" {
             bp::send_polled(byte);
         }

@@ -4,6 +4,7 @@
 //! |---|---|---|
 //! | SFM3300 | I2C1, 100 kHz, bus recovery ([`bus::Bus`]) | PB6 SCL, PB7 SDA (5 V tolerant; external pull-ups) |
 //! | pump PWM | TIM3 CH1, 20 kHz | PA6 |
+//! | exhalation valve | GPIO push-pull output, high = closed ([`valve`]) | PB0 |
 //! | reports, console | USART1 115200 8N1 (one interrupt: TXE + queue, RXNE + queue) | PA9 TX, PA10 RX |
 //! | tick | TIM5, free-running 10 kHz counter, polled | — |
 //! | watchdog | IWDG, 0.5 s | — |
@@ -33,6 +34,7 @@ use ridge_pump_firmware::ring::Ring;
 use ridge_pump_firmware::slots;
 
 pub mod bus;
+pub mod valve;
 
 /// Frequency of the TIM5 tick counter.
 pub const COUNTER_HZ: u32 = 10_000;

@@ -1,0 +1,132 @@
+//! The exhalation valve of the STM32F411 release image (PB0, high = closed, docs/boards.md),
+//! closed loop with ISO 80601-2-12 row 1's test lung, as
+//! `simavr-harness/tests/ventilation.rs` checks the ATmega2560's D22: volume-controlled
+//! breaths (`VENT` over the console) close it for each inspiration, and a fault opens it
+//! within two ticks of the `FAULT` line, with the pump off, for good.
+//!
+//! Truths: the level PB0 drives (GPIOB's MODER and ODR at every plant step, the bench's
+//! `valve_log`), the breath timing the `VENT` line sets (rate 20 /min, Ti 1 s), the fault the
+//! bench injects, the duty on PA6 and the simulated lung (closed, it keeps every millilitre the
+//! blower delivers).
+
+mod common;
+
+use common::{assert_stopped, elf, run_to, transcript, TICK};
+use pump_sim::baseline::experiment::identify_with;
+use pump_sim::iso::iso_row;
+use pump_sim::{LungParams, PlantArgs, Valve};
+use ridge_pump_firmware::flash_store::{self, slot_bytes, PROGRAMMED_LEN, SECTOR_LEN};
+use ridge_pump_firmware::persist::RECORD_LEN;
+use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
+use stm32_harness::bench::{ps, secs, Action, Bench, BenchConfig};
+use stm32_harness::sensor::Fault;
+
+/// Row 1's lung (C 50 mL/cmH₂O, R 5 cmH₂O/(L/s), PEEP 5 cmH₂O).
+fn iso_lung() -> LungParams {
+    iso_row(1).expect("row 1").lung(&LungParams::adult())
+}
+
+/// A store holding the model the firmware's state machine (compiled for the host) identifies
+/// on `pump_sim`'s rig with row 1's lung, the PEEP valve at 0, in its first slot.
+fn flash_with_row1_model() -> Vec<u8> {
+    let l = iso_lung();
+    let plant = PlantArgs {
+        compliance: Some(l.compliance),
+        resistance: Some(l.resistance),
+        peep: Some(0.0),
+        ..PlantArgs::default()
+    };
+    let (_, sm, _) = identify_with(&plant, 3, &DEFAULT_CONFIG).expect("identification");
+    let record: [u8; RECORD_LEN] = sm.persist_bytes().expect("model");
+    let mut mem = Bench::new(BenchConfig::new(elf())).expect("bench").flash();
+    let (_, offset) = flash_store::SECTORS[0];
+    let mut sector = vec![0xFF; SECTOR_LEN];
+    sector[..PROGRAMMED_LEN].copy_from_slice(&slot_bytes(&record, 0).expect("slot"));
+    mem[offset as usize..offset as usize + SECTOR_LEN].copy_from_slice(&sector);
+    mem
+}
+
+/// The times PB0 closed the valve (ps) and how long each closure lasted (ps; the last one up
+/// to now if still closed).
+fn closures(b: &Bench) -> Vec<(u64, u64)> {
+    let log = &b.valve_log;
+    log.iter()
+        .enumerate()
+        .filter(|(_, (_, v))| *v == Valve::Closed)
+        .map(|(i, &(t, _))| {
+            let end = log.get(i + 1).map_or(b.machine.now(), |&(e, _)| e);
+            (t, end - t)
+        })
+        .collect()
+}
+
+#[test]
+fn valve_closes_in_inspiration_and_opens_on_a_sensor_fault() {
+    let mut cfg = BenchConfig::new(elf());
+    cfg.lung = Some(iso_lung());
+    cfg.flash = Some(flash_with_row1_model());
+    let mut b = Bench::new(cfg).expect("bench");
+    assert!(run_to(&mut b, 10.0, "CTRL").is_some(), "{}", transcript(&b));
+    assert_eq!(b.valve_now(), Valve::Open, "open until ventilation starts");
+    assert!(b.valve_log.is_empty(), "closed before VENT");
+
+    let r = iso_row(1).expect("row 1");
+    let cmd = format!(
+        "VENT vt={} rate=20 ti=1 wave=square peep={} trim=on\n",
+        r.tidal, r.peep
+    );
+    b.send_at(b.time_s(), cmd.as_bytes());
+    assert!(
+        run_to(&mut b, 0.2, "OK vent").is_some(),
+        "{}",
+        transcript(&b)
+    );
+    // Three breaths of 3 s; stop 0.3 s into the fourth inspiration.
+    let t0 = b.time_s();
+    while closures(&b).len() < 4 && b.time_s() < t0 + 12.0 {
+        b.run_for(0.01).expect("run");
+    }
+    b.run_for(0.3).expect("run");
+    let c = closures(&b);
+    assert_eq!(c.len(), 4, "{:?}\n{}", c, transcript(&b));
+    for (i, &(at, len)) in c.iter().take(3).enumerate() {
+        // Inspiration 1 s, one tick either way; breaths 3 s apart, one tick either way.
+        assert!(
+            len.abs_diff(ps(1.0)) <= TICK,
+            "breath {}: closed {} s",
+            i + 1,
+            secs(len)
+        );
+        if let Some(&(next, _)) = c.get(i + 1) {
+            assert!(
+                (next - at).abs_diff(ps(3.0)) <= TICK,
+                "breath {}: period {} s",
+                i + 1,
+                secs(next - at)
+            );
+        }
+    }
+    assert_eq!(b.valve_now(), Valve::Closed, "0.3 s into an inspiration");
+    // Closed: the lung holds what the blower delivered (above the relaxed lung's PEEP volume).
+    let lung = b.lung.as_ref().expect("lung");
+    assert!(
+        lung.pressure() > r.peep + 2.0,
+        "lung at {} cmH2O 0.3 s into a closed inspiration",
+        lung.pressure()
+    );
+
+    b.apply(Action::Sensor(Fault::Absent)).expect("fault");
+    let i = run_to(&mut b, 0.5, "FAULT sensor=nack")
+        .unwrap_or_else(|| panic!("no FAULT:\n{}", transcript(&b)));
+    b.run_for(3.0).expect("run");
+    let line = b.lines[i].start;
+    let &(opened, v) = b.valve_log.last().expect("valve log");
+    assert_eq!(v, Valve::Open, "closed again after the fault");
+    assert!(
+        opened <= line + 2 * TICK,
+        "valve opened {} s after the FAULT line",
+        secs(opened) - secs(line)
+    );
+    assert_eq!(b.valve_now(), Valve::Open);
+    assert_stopped(&b, i, "sensor fault while ventilating");
+}
