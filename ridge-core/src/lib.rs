@@ -41,6 +41,7 @@ pub mod error;
 pub mod estimate;
 pub mod excitation;
 pub mod gram;
+pub mod input_map;
 #[cfg(feature = "alasso")]
 pub mod lasso;
 pub mod model;
@@ -55,6 +56,7 @@ pub mod wide;
 pub use error::{Error, Result, UnknownName};
 pub use estimate::{Estimator, Fit, Ols, Ridge, RidgeM};
 pub use gram::{Accumulator, FloatGram, Gram, IntGram, MeasuredGram, Scale};
+pub use input_map::{InputMap, MapError, MapScan, MAP_KNOTS};
 #[cfg(feature = "alasso")]
 pub use lasso::{AdaptiveLasso, Lambda};
 pub use model::{ArxModel, Evaluation, Metrics, Mode, Predictor, Score};

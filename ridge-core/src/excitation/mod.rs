@@ -14,6 +14,7 @@
 //! - [`Ramp`]: linear ramps up and down between two levels with a slope in level units per
 //!   sample.
 //! - [`Prbs`]: a maximum-length LFSR pseudo-random binary sequence between two levels.
+//! - [`RandomSteps`]: a seeded pseudo-random multistep over a range of levels and holds.
 //! - [`Excitation`]: any of them, in one value.
 //!
 //! Each generator is also an [`Iterator`] over `u16` levels; `next_duty` is the same call
@@ -24,10 +25,12 @@ use core::iter::FusedIterator;
 mod multistep;
 mod prbs;
 mod ramp;
+mod random_steps;
 
 pub use multistep::{Multistep, Step};
 pub use prbs::{lfsr_mask, Lfsr, Prbs, LFSR_ORDER_MAX, LFSR_ORDER_MIN};
 pub use ramp::{Ramp, RampShape};
+pub use random_steps::{RandomShape, RandomSteps};
 
 /// Clamps an iterator-style remaining count to a `size_hint`: exact when it fits in `usize`
 /// (AVR has a 16-bit `usize`), otherwise an honest open-ended hint.
