@@ -46,6 +46,7 @@ use ridge_core::control::{check_model, ModelFault};
 use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use ridge_pump_firmware::slots::{self, EEPROM_BASE, STORE_LEN};
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE};
 
 use crate::outcome::Report;
 
@@ -109,6 +110,14 @@ pub enum ExportError {
     /// The firmware's model check at boot would reject it (unstable, static gain outside the
     /// firmware's limits, non-finite).
     Model(String),
+    /// The model's steady flow at a knot of the firmware's map is beyond what the map holds
+    /// (±273 slm, `i16` counts of 1/120 slm).
+    Map {
+        /// The knot's duty, percent.
+        duty: f64,
+        /// The steady flow there, slm.
+        flow: f64,
+    },
     /// The fit is below the firmware's minimum: it would reject the record at boot.
     Fit {
         /// The fit written, percent.
@@ -149,6 +158,11 @@ impl fmt::Display for ExportError {
             ExportError::Model(why) => {
                 write!(f, "the firmware would reject this model at boot: {why}")
             }
+            ExportError::Map { duty, flow } => write!(
+                f,
+                "the model's steady flow at {duty:.2} % duty is {flow:.1} slm, beyond the \
+                 ±273 slm the firmware's map holds (is y the flow in slm?)"
+            ),
             ExportError::Fit { fit, min, source } => write!(
                 f,
                 "the {source} free-run fit {fit:.1} % is below the firmware's minimum {min:.1} %: \
@@ -231,9 +245,10 @@ pub fn encode_record(
             pqd: (s.p, s.q, s.d),
         },
     })?;
-    let bytes = persist::encode(&m32, fit32);
+    let (m32, map) = through_steady_map(&m32)?;
+    let bytes = persist::encode(&m32, &map, fit32);
     // The firmware's boot checks, on what it will read (`SelfIdentification::new`).
-    let (loaded, loaded_fit) = persist::decode(&bytes).map_err(ExportError::Decode)?;
+    let (loaded, _, loaded_fit) = persist::decode(&bytes).map_err(ExportError::Decode)?;
     check_model(&loaded, &DEFAULT_CONFIG.control.model).map_err(|e| {
         let limits = &DEFAULT_CONFIG.control.model;
         ExportError::Model(match e {
@@ -258,6 +273,68 @@ pub fn encode_record(
         });
     }
     Ok(bytes)
+}
+
+/// The firmware's form of a model `u → y` (duty fraction to slm): a static map and the
+/// dynamics after it (`firmware/src/selfid/`). A linear model is that with the map its own
+/// steady state, `v = K u + c / A(1)` (slm, `K = B(1)/A(1)` its static gain), sampled at the
+/// firmware's knots (`DEFAULT_CONFIG.records`: 16 knots from 15 % every 5.33 %, rounded to
+/// the SFM3300's 1/120 slm), and the dynamics `A y = (B / K) v`: the same model (up to that
+/// rounding), with a static gain of 1 and no intercept left.
+///
+/// Errors: a static gain that is not positive and finite (the firmware's check would refuse
+/// the model: [`ExportError::Model`]), or a steady flow beyond ±273 slm at a knot
+/// ([`ExportError::Map`]).
+pub fn through_steady_map(
+    model: &ridge_core::ArxModel<f32>,
+) -> Result<(ridge_core::ArxModel<f32>, ridge_core::InputMap), ExportError> {
+    let a1 = 1.0 - model.theta().iter().map(|&t| f64::from(t)).sum::<f64>();
+    let b1: f64 = model.phi().iter().map(|&f| f64::from(f)).sum();
+    let gain = b1 / a1;
+    if !(gain.is_finite() && gain > 0.0) {
+        return Err(ExportError::Model(format!(
+            "its static gain B(1)/A(1) = {gain} is not positive (more duty must give more \
+             flow; is u the duty as a fraction 0..1 and y the flow in slm, as in the pump's \
+             log?)"
+        )));
+    }
+    let steady = f64::from(model.intercept()) / a1;
+    let r = &DEFAULT_CONFIG.records;
+    let mut knots = [0i16; ridge_core::MAP_KNOTS];
+    for (k, v) in knots.iter_mut().enumerate() {
+        let duty = f64::from(r.map_first) + k as f64 * f64::from(r.map_step);
+        let flow = gain * duty / f64::from(DUTY_FULL_SCALE) + steady;
+        let counts = (flow * f64::from(FLOW_SCALE)).round();
+        if !(f64::from(i16::MIN)..=f64::from(i16::MAX)).contains(&counts) {
+            return Err(ExportError::Map {
+                duty: duty / 100.0,
+                flow,
+            });
+        }
+        *v = counts as i16;
+    }
+    let map = ridge_core::InputMap::new(r.map_first, r.map_step, knots).map_err(|_| {
+        ExportError::Model(format!(
+            "its static gain {gain} slm per unit duty is too small for the map's 1/120 slm"
+        ))
+    })?;
+    let phi: Vec<f32> = model
+        .phi()
+        .iter()
+        .map(|&f| (f64::from(f) / gain) as f32)
+        .collect();
+    let dynamics = ridge_core::ArxModel::new(
+        model.theta(),
+        &phi,
+        model.structure().d,
+        model.offset(),
+        0.0,
+    )
+    .map_err(|_| ExportError::NonFinite {
+        what: "a coefficient divided by the static gain".into(),
+        value: gain,
+    })?;
+    Ok((dynamics, map))
 }
 
 /// One Intel HEX record line (without its line end): `:LLAAAATT<data>CC`.
