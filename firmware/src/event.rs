@@ -10,7 +10,7 @@
 //!
 //! | Event | Line |
 //! |---|---|
-//! | [`Event::StoredRejected`] | `STORED-REJECTED crc`, `STORED-REJECTED unstable`, `STORED-REJECTED fit=-1000.0<70.0` |
+//! | [`Event::StoredRejected`] | `STORED-REJECTED crc`, `STORED-REJECTED unstable`, `STORED-REJECTED map-slope=0.500`, `STORED-REJECTED fit=-1000.0<70.0` |
 //! | [`Event::Loaded`] | `LOADED p=1 q=1 d=3 off=1 theta=0.935000 phi=0.065000 c=-0.125000 fit=87.3` |
 //! | [`Event::Scan`] | `SCAN n=520 lag=20 u0=30.00 y0=19.058 attempt=1/3` |
 //! | [`Event::Map`] | `MAP first=15.00 step=5.33 flow=0.125,6.608,…` (16 flows) |
@@ -96,6 +96,13 @@ pub enum StoredReason {
     /// The record is valid but its model is unfit for control (the same checks as an
     /// identified one). Line: `STORED-REJECTED unstable`, `STORED-REJECTED gain=-3.125`.
     Model(ModelFault<f32>),
+    /// The record's map rises implausibly little or much over the records' duty range (see
+    /// `ControlConfig::map_slope`): `slope` in slm per unit duty. Line:
+    /// `STORED-REJECTED map-slope=0.500`.
+    MapSlope {
+        /// The map's mean slope, slm per unit duty.
+        slope: f32,
+    },
     /// The record's validation fit is below the acceptance fit. Line:
     /// `STORED-REJECTED fit=-1000.0<70.0`.
     Fit {
@@ -713,6 +720,9 @@ impl uDisplay for StoredReason {
         match self {
             StoredReason::Record(e) => f.write_str(e.name()),
             StoredReason::Model(m) => write_model_fault(f, m),
+            StoredReason::MapSlope { slope } => {
+                ufmt::uwrite!(f, "map-slope={}", Fixed::new(*slope, 3))
+            }
             StoredReason::Fit { fit, min } => {
                 ufmt::uwrite!(f, "fit={}<{}", Fixed::new(*fit, 1), Fixed::new(*min, 1))
             }

@@ -240,6 +240,7 @@ fn expected(e: &Event) -> Expected {
             let (words, fields) = match r {
                 StoredReason::Record(p) => (vec![p.name()], vec![]),
                 StoredReason::Model(m) => model_fault(m),
+                StoredReason::MapSlope { slope } => (vec![], vec![("map-slope", f(slope))]),
                 StoredReason::Fit { fit, min } => {
                     (vec![], vec![("fit", V::Lt(f64::from(fit), f64::from(min)))])
                 }
@@ -449,6 +450,7 @@ fn events() -> Vec<Event> {
             fit: -1000.0,
             min: 70.0,
         }),
+        Event::StoredRejected(StoredReason::MapSlope { slope: 0.5 }),
         Event::Loaded {
             model: model(),
             fit: 87.5,

@@ -1,28 +1,32 @@
 //! `identify --eeprom PATH.hex`, `--record PATH.bin`, `--stm32-slot PATH.bin`: the identified
 //! model as the firmware's persisted record, ready to be flashed into the pump.
 //!
-//! The record's bytes are the firmware's own [`persist::encode`] (69 bytes, layout in
-//! `firmware/src/persist.rs`); nothing here re-implements that layout. The model of
+//! The record's bytes are the firmware's own [`persist::encode`] (105 bytes, layout in
+//! `firmware/src/persist.rs`); nothing here re-implements that layout. The pump's model is a
+//! static map from duty to flow and the dynamics from the map's flow (`firmware/src/selfid/`):
+//! a model identified through a pump's map (`--phase` on a capture with a `# MAP` line) is
+//! written with that map; any other, a model from the duty, with its own steady flow as the
+//! map ([`through_steady_map`]: the same model, up to the map's 1/120 slm). The model of
 //! `ridge-id` is `f64` with `p, q, d ≤ 12`; the record holds `p, q ∈ 1..=6`, `d ∈ 0..=6` and
 //! `f32` numbers. A model that does not fit is refused ([`ExportError`]), and so is one the
-//! firmware would reject when it loads the record at boot (the same checks, run here on the
-//! decoded record: [`persist::decode`], `ridge_core::control::check_model` with the
-//! firmware's default limits, fit at least `Config::min_fit`), since it would be discarded and
-//! the pump would identify anew.
+//! firmware would reject when it loads the record at boot (the same checks, the firmware's
+//! `selfid::check_stored` on the encoded record: it decodes, the dynamics pass
+//! `check_model` with the firmware's default limits, the map's slope is plausible, the fit is
+//! at least `Config::min_fit`), since it would be discarded and the pump would identify anew.
 //!
 //! What goes where:
 //! - `--eeprom PATH.hex`: Intel HEX (I8HEX: 16 data bytes a line, an end-of-file record) of
-//!   the ATmega2560's two-slot store ([`slots`], 140 bytes at EEPROM byte address
+//!   the ATmega2560's two-slot store ([`slots`], 212 bytes at EEPROM byte address
 //!   [`slots::EEPROM_BASE`] = 0, where the image reads it: `board/arduino_mega2560/eeprom.rs`,
 //!   `BASE` is that constant) holding the record alone ([`slots::store_with`]: as a first save
 //!   leaves it, the other slot erased), for
 //!   `avrdude -p m2560 -c wiring -P /dev/ttyACM0 -b 115200 -D -U eeprom:w:PATH.hex:i`.
-//! - `--record PATH.bin`: the raw 69 record bytes.
+//! - `--record PATH.bin`: the raw 105 record bytes.
 //! - `--stm32-slot PATH.bin`: what the STM32F411 image loads: its flash store
 //!   (`board/blackpill_f411.rs`, `FlashStore`) is an append-only log of slots in sector 7
 //!   at [`STM32_SLOT_ADDRESS`] (0x0806_0000); a slot is a 4-byte header (`"RP"`, the record
 //!   length as a little-endian `u16`), the record, and `0xFF` up to a multiple of 16 bytes
-//!   (80 bytes). The raw record written at the sector start would not be loaded (no header);
+//!   (112 bytes). The raw record written at the sector start would not be loaded (no header);
 //!   this image is, as the first slot of an otherwise erased sector:
 //!   `probe-rs download --chip STM32F411CEUx --binary-format bin --base-address 0x08060000
 //!   PATH.bin`. Those slot constants are private to the board module (compiled for Cortex-M
@@ -30,7 +34,7 @@
 //!
 //! The fit field (percent, `f32`) holds the free-run fit of the `--validate` record as
 //! `ridge-id` reports it (`validation.fit_free_run`), the figure the firmware stores after
-//! its own validation record (B-Multistep); without `--validate`, the estimation record's
+//! its own validation record (`flow-steps`); without `--validate`, the estimation record's
 //! free-run fit (`estimation.fit_free_run`), which is optimistic: say `--validate`.
 //!
 //! Files are written only when the whole run succeeds (exit 0), each to a temporary file in
@@ -42,9 +46,10 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use clap::Args;
-use ridge_core::control::{check_model, ModelFault};
+use ridge_core::control::ModelFault;
+use ridge_pump_firmware::event::StoredReason;
 use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
-use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
+use ridge_pump_firmware::selfid::{check_stored, DEFAULT_CONFIG};
 use ridge_pump_firmware::slots::{self, EEPROM_BASE, STORE_LEN};
 use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE};
 
@@ -72,10 +77,10 @@ pub struct ExportArgs {
     /// 1..=6, d in 0..=6, f32 numbers) or the firmware's boot checks would reject it.
     #[arg(long, value_name = "PATH.hex")]
     pub eeprom: Option<PathBuf>,
-    /// Write the raw 69-byte record (same model, same checks as --eeprom).
+    /// Write the raw 105-byte record (same model, same checks as --eeprom).
     #[arg(long, value_name = "PATH.bin")]
     pub record: Option<PathBuf>,
-    /// Write the STM32F411's flash slot holding the record (80 bytes: "RP", length, record,
+    /// Write the STM32F411's flash slot holding the record (112 bytes: "RP", length, record,
     /// 0xFF padding) for address 0x08060000 (sector 7), e.g. probe-rs download --chip
     /// STM32F411CEUx --binary-format bin --base-address 0x08060000 PATH.bin.
     #[arg(long, value_name = "PATH.bin")]
@@ -110,6 +115,16 @@ pub enum ExportError {
     /// The firmware's model check at boot would reject it (unstable, static gain outside the
     /// firmware's limits, non-finite).
     Model(String),
+    /// The map's mean slope over the firmware's records' duty range is outside its limits:
+    /// it would refuse the record at boot.
+    MapSlope {
+        /// The slope, slm per unit duty.
+        slope: f32,
+        /// The firmware's limits.
+        min: f32,
+        /// The firmware's limits.
+        max: f32,
+    },
     /// The model's steady flow at a knot of the firmware's map is beyond what the map holds
     /// (±273 slm, `i16` counts of 1/120 slm).
     Map {
@@ -158,6 +173,12 @@ impl fmt::Display for ExportError {
             ExportError::Model(why) => {
                 write!(f, "the firmware would reject this model at boot: {why}")
             }
+            ExportError::MapSlope { slope, min, max } => write!(
+                f,
+                "the flow rises by {slope:.3} slm per unit duty over the pump's records' duty \
+                 range, outside the firmware's {min}..={max}: it would reject the record at boot \
+                 (is u the duty as a fraction 0..1 and y the flow in slm, as in the pump's log?)"
+            ),
             ExportError::Map { duty, flow } => write!(
                 f,
                 "the model's steady flow at {duty:.2} % duty is {flow:.1} slm, beyond the \
@@ -200,9 +221,13 @@ fn to_f32(what: &str, value: f64) -> Result<f32, ExportError> {
 }
 
 /// The firmware's record of `model` with fit `fit` (percent; `source` names its record in
-/// messages), after the checks the firmware applies when it loads a record at boot.
+/// messages), after the checks the firmware applies when it loads a record at boot. With
+/// `map`, the model is the dynamics from that map's flow (a pump's capture) and goes with it;
+/// without, it is a model from the duty and goes through its own steady flow
+/// ([`through_steady_map`]).
 pub fn encode_record(
     model: &ridge_core_host::ArxModel<f64>,
+    map: Option<ridge_core::InputMap>,
     fit: f64,
     source: &'static str,
 ) -> Result<[u8; RECORD_LEN], ExportError> {
@@ -245,33 +270,34 @@ pub fn encode_record(
             pqd: (s.p, s.q, s.d),
         },
     })?;
-    let (m32, map) = through_steady_map(&m32)?;
+    let (m32, map) = match map {
+        Some(map) => (m32, map),
+        None => through_steady_map(&m32)?,
+    };
     let bytes = persist::encode(&m32, &map, fit32);
     // The firmware's boot checks, on what it will read (`SelfIdentification::new`).
-    let (loaded, _, loaded_fit) = persist::decode(&bytes).map_err(ExportError::Decode)?;
-    check_model(&loaded, &DEFAULT_CONFIG.control.model).map_err(|e| {
-        let limits = &DEFAULT_CONFIG.control.model;
-        ExportError::Model(match e {
-            ModelFault::NonFinite => "a coefficient is not finite".into(),
-            ModelFault::Unstable => format!(
-                "a pole of the model lies outside the radius {} (unstable or nearly)",
-                limits.stable_radius
-            ),
-            ModelFault::Gain { gain } => format!(
-                "static gain B(1)/A(1) = {gain} outside the firmware's {}..={} slm per unit \
-                 duty (is u the duty as a fraction 0..1 and y the flow in slm, as in the \
-                 pump's log?)",
-                limits.gain_min, limits.gain_max
-            ),
-        })
+    // The firmware's boot checks, on what it will read (`SelfIdentification::new`).
+    let limits = &DEFAULT_CONFIG.control.model;
+    check_stored(&bytes, &DEFAULT_CONFIG).map_err(|e| match e {
+        StoredReason::Record(e) => ExportError::Decode(e),
+        StoredReason::Model(ModelFault::NonFinite) => {
+            ExportError::Model("a coefficient is not finite".into())
+        }
+        StoredReason::Model(ModelFault::Unstable) => ExportError::Model(format!(
+            "a pole of the model lies outside the radius {} (unstable or nearly)",
+            limits.stable_radius
+        )),
+        StoredReason::Model(ModelFault::Gain { gain }) => ExportError::Model(format!(
+            "the static gain of its dynamics from the map's flow, B(1)/A(1) = {gain}, is \
+             outside the firmware's {}..={} (is y the flow in slm, as in the pump's log?)",
+            limits.gain_min, limits.gain_max
+        )),
+        StoredReason::MapSlope { slope } => {
+            let [min, max] = DEFAULT_CONFIG.control.map_slope;
+            ExportError::MapSlope { slope, min, max }
+        }
+        StoredReason::Fit { fit, min } => ExportError::Fit { fit, min, source },
     })?;
-    if loaded_fit.is_nan() || loaded_fit < DEFAULT_CONFIG.min_fit {
-        return Err(ExportError::Fit {
-            fit: loaded_fit,
-            min: DEFAULT_CONFIG.min_fit,
-            source,
-        });
-    }
     Ok(bytes)
 }
 
@@ -443,7 +469,14 @@ pub fn write_all_or_nothing(files: &[(PathBuf, Vec<u8>)]) -> Result<(), ExportEr
 /// for stderr. Nothing is written on an error.
 pub fn export(args: &ExportArgs, report: &Report) -> Result<Vec<String>, ExportError> {
     let (fit, source) = record_fit(report);
-    let record = encode_record(&report.model, fit, source)?;
+    // A model identified through a pump's map (`--phase` on a capture with a `# MAP` line)
+    // goes with that map; any other through its own steady flow.
+    let map = report
+        .segment
+        .as_ref()
+        .and_then(|s| s.map.as_ref())
+        .map(|m| m.map);
+    let record = encode_record(&report.model, map, fit, source)?;
     let s = report.model.structure();
     let what = format!(
         "(p, q, d) = ({}, {}, {}), fit {:.1} % ({source} free-run)",
@@ -497,9 +530,9 @@ mod tests {
 
     #[test]
     fn slot_layout() {
-        assert_eq!(STM32_SLOT_LEN, 80);
+        assert_eq!(STM32_SLOT_LEN, 112);
         let slot = stm32_slot(&[7; RECORD_LEN]);
-        assert_eq!(&slot[..4], b"RP\x45\x00");
+        assert_eq!(&slot[..4], b"RP\x69\x00");
         assert!(slot[4..4 + RECORD_LEN].iter().all(|&b| b == 7));
         assert!(slot[4 + RECORD_LEN..].iter().all(|&b| b == 0xFF));
     }

@@ -66,7 +66,8 @@ pub struct Samples {
     /// Operating point flow, counts (`raw − 32768`).
     pub y0: i16,
     /// The operating point recomputed from the served frames as the firmware defines it:
-    /// rounded mean (halves away from zero) of the 50 readings before the record.
+    /// rounded mean (halves away from zero) of the last 50 readings of the settle phase (the
+    /// one read in the tick that printed `SCAN` the last).
     pub y0_frames: Option<i16>,
 }
 
@@ -452,7 +453,9 @@ pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
             .find(|l| l.text.split_whitespace().next() == Some(keyword))
     };
     let map = MapLine::parse(&before("MAP")?.text).ok()?.map;
-    let lag = ScanLine::parse(&before("SCAN")?.text).ok()?.lag;
+    let scan = before("SCAN")?;
+    let lag = ScanLine::parse(&scan.text).ok()?.lag;
+    let scan_at = bench.lines.iter().position(|l| std::ptr::eq(l, scan))?;
     let samples = u16::try_from(n).ok()?;
     let mut steps = FlowSteps::new(&map, &r.shape(lag, samples, seed))?;
     let gen: Vec<u16> = std::iter::from_fn(|| steps.next_step().map(|(d, _)| d)).collect();
@@ -473,8 +476,9 @@ pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
             .enumerate()
             .all(|(i, &g)| counts_at(frames[k + i].0) == pwm_counts(g));
         if ok {
-            let y0_frames = (k >= 50).then(|| {
-                let sum: i32 = frames[k - 50..k]
+            let settled = frames.partition_point(|(c, _)| *c < bench.line_starts[scan_at]);
+            let y0_frames = (settled >= 50).then(|| {
+                let sum: i32 = frames[settled - 50..settled]
                     .iter()
                     .map(|(_, raw)| i32::from(raw_to_counts(*raw)))
                     .sum();

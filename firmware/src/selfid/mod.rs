@@ -123,6 +123,37 @@ use recording::Recording;
 use run::RunMode;
 use scan::{Scan, Startup};
 
+/// The checks a stored record must pass before its model is used (at boot; `ridge-id`'s
+/// export runs them too): it decodes ([`persist::decode`]), its dynamics pass the model checks
+/// an identified model must pass ([`ControlConfig::model`]), its map rises by a plausible slope
+/// over the records' duty range ([`ControlConfig::map_slope`]), and its fit is at least
+/// [`Config::min_fit`]. Returns the model, its map and its fit.
+///
+/// Errors: the first check failed, as the `STORED-REJECTED` line reports it.
+pub fn check_stored(
+    bytes: &[u8],
+    config: &Config,
+) -> Result<(ArxModel<f32>, InputMap, f32), StoredReason> {
+    let (m, map, fit) = persist::decode(bytes).map_err(StoredReason::Record)?;
+    ridge_core::control::check_model(&m, &config.control.model).map_err(StoredReason::Model)?;
+    let r = &config.records;
+    // slm per unit duty: counts / 120 over duty / 10 000.
+    let rise = f32::from(map.at(r.high)) - f32::from(map.at(r.low));
+    let slope = rise * SLM_PER_COUNT / (f32::from(r.high.saturating_sub(r.low).max(1)) * 1e-4);
+    let [lo, hi] = config.control.map_slope;
+    // Written so that NaN fails.
+    if !(slope >= lo && slope <= hi) {
+        return Err(StoredReason::MapSlope { slope });
+    }
+    if !Real::is_finite(fit) || fit < config.min_fit {
+        return Err(StoredReason::Fit {
+            fit,
+            min: config.min_fit,
+        });
+    }
+    Ok((m, map, fit))
+}
+
 /// The externally visible state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum State {
@@ -315,25 +346,14 @@ impl<S: Settings> SelfIdentification<S> {
     /// A state machine with settings `settings` (a `&'static Config`, or [`Defaults`]). `stored` is the persisted record read from
     /// EEPROM/flash (see [`crate::persist`]) or `None`. A valid record skips identification:
     /// after settling, the controller is designed for that model ([`Event::Loaded`]) and the
-    /// pump runs. A record that is invalid, or valid but with a model that fails the checks an
-    /// identified model must pass (stable, static gain of the right sign and size, fit at
-    /// least [`Config::min_fit`]), is reported once ([`Event::StoredRejected`], on the first
-    /// tick) and a new model is identified.
+    /// pump runs. A record that fails [`check_stored`] (invalid, or a model that fails the
+    /// checks an identified model must pass, an implausible map, a fit below
+    /// [`Config::min_fit`]) is reported once ([`Event::StoredRejected`], on the first tick)
+    /// and a new model is identified.
     #[inline(never)]
     pub fn new(settings: S, stored: Option<&[u8]>) -> Self {
         let config = settings.config();
-        let checked = stored.map(|bytes| {
-            let (m, map, fit) = persist::decode(bytes).map_err(StoredReason::Record)?;
-            ridge_core::control::check_model(&m, &config.control.model)
-                .map_err(StoredReason::Model)?;
-            if !Real::is_finite(fit) || fit < config.min_fit {
-                return Err(StoredReason::Fit {
-                    fit,
-                    min: config.min_fit,
-                });
-            }
-            Ok((m, map, fit))
-        });
+        let checked = stored.map(|bytes| check_stored(bytes, config));
         let (model, map, fit, stored_error) = match checked {
             Some(Ok((m, map, fit))) => (Some(m), Some(map), fit, None),
             Some(Err(e)) => (None, None, 0.0, Some(e)),

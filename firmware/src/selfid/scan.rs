@@ -84,7 +84,9 @@ pub(super) struct Scan {
     pub(super) map: Mapping,
 }
 
-/// The map while it is being measured, then the result.
+/// The map while it is being measured, then the result (in the scan's place in the state
+/// machine's phase storage: no box to put the accumulators in).
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(super) enum Mapping {
     /// Readings are being credited.
