@@ -2,7 +2,19 @@
 //! comparing a board's arithmetic with the host's (`src/bin/avr-arith.rs`,
 //! `scripts/avr-arith-check`, whose diff must stay empty). It caught the AVR backend's
 //! miscompilations (README, "Known limits").
-use ridge_core::{IntGram, Offset, Real, Scale, Search, Structure};
+use ridge_core::{
+    Fit, Grid, IntGram, Method, Offset, OrderRange, Real, RidgeM, Scale, Search, Structure,
+};
+
+/// A fit's iteration count and coefficients (θ, φ, intercept) as bit patterns.
+fn fit_lines<W: ufmt::uWrite>(w: &mut W, fit: &Fit<f32>) {
+    let m = fit.model();
+    let _ = ufmt::uwriteln!(w, "iterations {}", fit.iterations);
+    for v in m.theta().iter().chain(m.phi()) {
+        let _ = ufmt::uwriteln!(w, "coef {}", v.to_bits());
+    }
+    let _ = ufmt::uwriteln!(w, "intercept {}", m.intercept().to_bits());
+}
 
 fn record() -> (IntGram, i64, i64, i64) {
     let mut g = IntGram::new();
@@ -143,9 +155,36 @@ pub fn write<W: ufmt::uWrite>(w: &mut W) {
         Ok(sel) => {
             let st = sel.structure();
             let _ = ufmt::uwriteln!(w, "pick {} {} {} skip {}", st.p, st.q, st.d, sel.skipped);
+            fit_lines(w, &sel.fit);
         }
         Err(_) => {
             let _ = ufmt::uwriteln!(w, "search error");
+        }
+    }
+    // Ridge-M in the eigenbasis on single candidates with an intercept: the largest structure
+    // (12 columns, 4 of them past the scratch factor; 200 iterates), and one that stops on
+    // its step (69 iterates: the stopping rule's step-by-step part).
+    for (p, q, d, gamma, tol) in [(6u8, 6u8, 0u8, 1000.0f32, 1e-6f32), (2, 2, 1, 1.0, 1e-4)] {
+        let one = |v| OrderRange::new(v, v);
+        let search = Search::<f32> {
+            grid: Grid {
+                p: one(p),
+                q: one(q),
+                d: one(d),
+            },
+            offset: Offset::Intercept,
+            method: Method::RidgeM(RidgeM {
+                gamma,
+                tol,
+                ..RidgeM::PAPER
+            }),
+            ..Search::DEFAULT
+        };
+        match search.run(normal, None) {
+            Ok(sel) => fit_lines(w, &sel.fit),
+            Err(_) => {
+                let _ = ufmt::uwriteln!(w, "ridge-m error");
+            }
         }
     }
     for x in [2.0f32, 0.3, 1.0e-40, 3.4e38, 12_345.678, 1.000_000_1, 0.25] {

@@ -14,6 +14,7 @@
 //! | [`pump`] | blower PWM output with limits and a ramp limit (embedded-hal PWM) |
 //! | [`persist`] | the stored model record (magic, version, CRC-32) |
 //! | [`slots`] | two slots for that record: a write cut at any byte keeps the previous model |
+//! | [`flash_store`] | the record in flash (STM32F411): a slot log over two sectors, cut-proof too |
 //! | [`resets`] | reset loops: watchdog and brown-out resets counted across boots |
 //! | [`event`], [`numfmt`] | report lines and their fixed-point number formatting (ufmt) |
 //! | `lines` | host builds only: the report lines' parsers, for the host tools and tests |
@@ -27,6 +28,9 @@ pub mod command;
 pub mod console;
 pub mod event;
 pub mod excitation;
+// Offsets in a 512 KB flash: not for the 16-bit AVR (its store is `slots`, in EEPROM).
+#[cfg(not(target_arch = "avr"))]
+pub mod flash_store;
 // Host-side parsing of the report lines (std); no board target has an OS, so neither image
 // contains it.
 #[cfg(not(target_os = "none"))]

@@ -20,6 +20,10 @@
 //! boot) are a reset loop: the state machine starts in the fault state (duty 0, `FAULT resets
 //! watchdog=<n> brownout=<n>`), latched until a power-on or reset-pin reset. After
 //! [`CLEAN_TICKS`] without a reset the count is cleared.
+//!
+//! The count takes the reset cause in the ATmega2560's MCUSR bits; the STM32F411's reset flags
+//! (RCC_CSR) are translated into them first ([`cause_from_rcc_csr`]). There the count lives
+//! in a backup register (`board/blackpill_f411.rs`), not in this module's byte offset.
 
 /// MCUSR bits (ATmega2560 datasheet, section 12.5.1 "MCUSR – MCU Status Register").
 const PORF: u8 = 1 << 0;
@@ -83,6 +87,49 @@ impl Resets {
     pub const fn is_loop(self) -> bool {
         self.watchdog + self.brownout >= LIMIT
     }
+}
+
+// RCC_CSR reset flags as the byte RCC_CSR >> 24 (RM0383 §6.3.18 "RCC clock control & status
+// register": bit 25 BORRSTF, 26 PINRSTF, 27 PORRSTF, 28 SFTRSTF, 29 IWDGRSTF, 30 WWDGRSTF,
+// 31 LPWRRSTF).
+const CSR_BOR: u8 = 1 << 1;
+const CSR_PIN: u8 = 1 << 2;
+const CSR_POR: u8 = 1 << 3;
+const CSR_SFT: u8 = 1 << 4;
+const CSR_IWDG: u8 = 1 << 5;
+const CSR_WWDG: u8 = 1 << 6;
+const CSR_LPWR: u8 = 1 << 7;
+
+/// The STM32F411's reset flags (RCC_CSR bits 31..24 as a byte, as its `BOOT` line prints
+/// them) as the MCUSR bits [`Resets::after_boot`] takes:
+///
+/// | RCC_CSR flags | MCUSR |
+/// |---|---|
+/// | PORRSTF (power-on or power-down reset; BORRSTF comes with it) | PORF: cleared |
+/// | IWDGRSTF or WWDGRSTF (every panic ends in an IWDG reset) | WDRF: +1 watchdog |
+/// | BORRSTF without PORRSTF (a brown-out with BOR enabled in the option bytes) | BORF: +1 brown-out |
+/// | PINRSTF alone, or SFTRSTF (the reset button; a debugger or flasher resets by software: the image never does) | EXTRF: cleared |
+/// | LPWRRSTF alone (the image never enters Stop or Standby), none | none: unchanged |
+///
+/// An internal reset (watchdog, software) drives NRST low through the reset pulse generator
+/// (RM0383 §6.1.2, Figure 11), so PINRSTF comes with it: only PINRSTF with no other flag is
+/// the reset pin.
+pub const fn cause_from_rcc_csr(flags: u8) -> u8 {
+    if flags & CSR_POR != 0 {
+        return PORF;
+    }
+    let mut cause = 0;
+    if flags & (CSR_IWDG | CSR_WWDG) != 0 {
+        cause |= WDRF;
+    }
+    if flags & CSR_BOR != 0 {
+        cause |= BORF;
+    }
+    let others = CSR_BOR | CSR_IWDG | CSR_WWDG | CSR_LPWR;
+    if flags & CSR_SFT != 0 || (flags & CSR_PIN != 0 && flags & others == 0) {
+        cause |= EXTRF;
+    }
+    cause
 }
 
 /// `n + 1` if `hit`, saturating at 15 (a nibble).

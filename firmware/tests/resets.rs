@@ -1,7 +1,8 @@
 //! The reset-loop count (firmware/src/resets.rs) against the MCUSR bits of the ATmega2560
-//! datasheet (section 12.5.1: PORF bit 0, EXTRF 1, BORF 2, WDRF 3, JTRF 4).
+//! datasheet (section 12.5.1: PORF bit 0, EXTRF 1, BORF 2, WDRF 3, JTRF 4), and the
+//! STM32F411's reset flags (RM0383 §6.3.18, RCC_CSR bits 31..24) translated into them.
 
-use ridge_pump_firmware::resets::{Resets, LIMIT};
+use ridge_pump_firmware::resets::{cause_from_rcc_csr, Resets, LIMIT};
 
 const PORF: u8 = 0x01;
 const EXTRF: u8 = 0x02;
@@ -72,4 +73,60 @@ fn the_third_abnormal_reset_is_a_loop_and_counts_saturate() {
     }
     assert_eq!(r.watchdog, 15);
     assert!(Resets::from_byte(r.to_byte()).is_loop());
+}
+
+/// RCC_CSR >> 24 (RM0383 §6.3.18): BORRSTF bit 1, PINRSTF 2, PORRSTF 3, SFTRSTF 4, IWDGRSTF 5,
+/// WWDGRSTF 6, LPWRRSTF 7; the register's reset value after a power-on is 0x0E (POR, PIN, BOR).
+#[test]
+fn stm32_reset_flags_count_like_their_atmega2560_counterparts() {
+    const BOR: u8 = 1 << 1;
+    const PIN: u8 = 1 << 2;
+    const POR: u8 = 1 << 3;
+    const SFT: u8 = 1 << 4;
+    const IWDG: u8 = 1 << 5;
+    const WWDG: u8 = 1 << 6;
+    const LPWR: u8 = 1 << 7;
+    let one = Resets {
+        watchdog: 1,
+        brownout: 1,
+    };
+    let after = |flags: u8| one.after_boot(cause_from_rcc_csr(flags));
+    // Power-on (the documented reset value), the reset button, a debugger's software reset:
+    // cleared.
+    for flags in [POR | PIN | BOR, POR, PIN, SFT | PIN, POR | IWDG | PIN] {
+        assert_eq!(after(flags), Resets::default(), "{flags:#04x}");
+    }
+    // Watchdogs (an internal reset pulls NRST: PINRSTF comes with it).
+    for flags in [IWDG | PIN, WWDG | PIN, IWDG] {
+        assert_eq!(
+            after(flags),
+            Resets {
+                watchdog: 2,
+                brownout: 1
+            },
+            "{flags:#04x}"
+        );
+    }
+    // A brown-out without a power-on (BOR enabled in the option bytes).
+    for flags in [BOR, BOR | PIN] {
+        assert_eq!(
+            after(flags),
+            Resets {
+                watchdog: 1,
+                brownout: 2
+            },
+            "{flags:#04x}"
+        );
+    }
+    assert_eq!(
+        after(IWDG | BOR | PIN),
+        Resets {
+            watchdog: 2,
+            brownout: 2
+        }
+    );
+    // Low-power reset, or flags already cleared: unchanged.
+    for flags in [0, LPWR, LPWR | PIN] {
+        assert_eq!(after(flags), one, "{flags:#04x}");
+    }
 }

@@ -23,6 +23,8 @@
 mod bounds;
 #[path = "../../ridge-core/src/cholesky.rs"]
 mod cholesky;
+#[path = "../../ridge-core/src/eigen.rs"]
+mod eigen;
 #[path = "../../ridge-core/src/error.rs"]
 pub mod error;
 #[path = "../../ridge-core/src/estimate.rs"]
@@ -32,6 +34,8 @@ pub mod gram;
 #[cfg(feature = "alasso")]
 #[path = "../../ridge-core/src/lasso.rs"]
 pub mod lasso;
+#[path = "../../ridge-core/src/modal.rs"]
+mod modal;
 #[path = "../../ridge-core/src/model.rs"]
 pub mod model;
 #[path = "../../ridge-core/src/normal.rs"]

@@ -83,7 +83,7 @@ impl<T: Real> Default for Ridge<T> {
 
 impl<T: Real> Ridge<T> {
     /// [`Estimator::fit_with`] with caller-provided storage for the factor of `XᵀX + γD`
-    /// (overwritten), see [`RidgeM::iterate_in`].
+    /// (overwritten), see [`RidgeM::fit_in`].
     pub fn fit_in(&self, system: &System<T>, ls: &Factor<T>, f: &mut Factor<T>) -> Result<Fit<T>> {
         if !(self.gamma.is_finite() && self.gamma > T::ZERO) {
             return Err(Error::InvalidParameter);
@@ -106,9 +106,15 @@ impl<T: Real> Estimator<T> for Ridge<T> {
 /// ```
 ///
 /// from `v_0 = 0`, `w_0 = 0`, stopping when `‖w_{k+1} − w_k‖₂ < ε` or after `max_iter`
-/// iterates. `A` is factored once; each iterate costs two triangular solves. The fixed
-/// point is the least-squares solution: the iteration count is what regularises, so
-/// [`Fit::iterations`] is part of every result.
+/// iterates. The fixed point is the least-squares solution: the iteration count is what
+/// regularises, so [`Fit::iterations`] is part of every result.
+///
+/// Two computations of the same iterates: [`RidgeM::iterate`] runs the iteration as written
+/// (`A` factored once, two triangular solves per iterate, every iterate visited), while
+/// [`Estimator::fit`], [`RidgeM::fit_in`] and the search work in the eigenbasis of the normal
+/// equations (one eigen-decomposition, then `O(n)` per iterate, `crate::modal`); they agree to
+/// rounding (tested against an `f64` iteration of eq. 9–12). Both start from the Cholesky
+/// Ridge solution, so the first iterate is [`Ridge`] exactly.
 ///
 /// # Example
 /// ```
@@ -191,29 +197,17 @@ impl<T: Real> RidgeM<T> {
         }
     }
 
-    /// Runs the iteration and calls `visit(k, w_k)` after every iterate `k = 1, 2, …`
-    /// (for convergence tables); returns the last iterate and the number of iterates.
+    /// Runs the iteration as written and calls `visit(k, w_k)` after every iterate
+    /// `k = 1, 2, …` (for convergence tables); returns the last iterate (internal order) and
+    /// the number of iterates. Needs only `XᵀX + γD` to be positive definite (not `XᵀX`).
     pub fn iterate(
         &self,
         system: &System<T>,
-        visit: impl FnMut(u32, &[T]),
-    ) -> Result<([T; PARAMS_MAX], u32)> {
-        let mut f = Factor::empty();
-        self.iterate_in(system, &mut f, visit)
-    }
-
-    /// [`RidgeM::iterate`] with caller-provided storage for the factor of `XᵀX + γD`
-    /// (its previous contents are overwritten): the search keeps one such scratch factor
-    /// instead of a 420-byte temporary per call, which matters in 8 KB of SRAM.
-    pub fn iterate_in(
-        &self,
-        system: &System<T>,
-        f: &mut Factor<T>,
         mut visit: impl FnMut(u32, &[T]),
     ) -> Result<([T; PARAMS_MAX], u32)> {
         self.check()?;
         let n = system.params();
-        system.factor_into(self.gamma, f)?;
+        let f = system.factor(self.gamma)?;
         let w_ridge = f.solution();
         let intercept = system.layout.intercept();
         let mut v = [T::ZERO; PARAMS_MAX];
@@ -243,11 +237,34 @@ impl<T: Real> RidgeM<T> {
         }
         Ok((w, used))
     }
+
+    /// The fit of [`Estimator::fit_with`] in caller-provided storage (what the search
+    /// lends, which matters in 8 KB of SRAM): the iterates of [`RidgeM::iterate`] computed
+    /// in the eigenbasis of the normal equations, `O(n)` per iterate after one
+    /// eigen-decomposition of the least-squares factor `ls` (`system.factor(0)`). `ls` and
+    /// `f` are its work space: `ls` is factored again before the fit's RSS is computed from it
+    /// (it holds the least-squares factor on success, maybe nothing usable after an error),
+    /// `f` is overwritten. Calls `progress()` between factorisations, for every pair of
+    /// columns the decomposition compares, once per mode and once per iterate, so that no
+    /// stretch between two calls is longer than one `(n + 1)`-row factorisation.
+    ///
+    /// Errors: as [`RidgeM::check`] and [`System::factor`]; [`Error::InvalidStructure`] when
+    /// `ls` is not a factor of `system`'s size; [`Error::NonFinite`] when the decomposition
+    /// or the result is not finite.
+    pub fn fit_in(
+        &self,
+        system: &System<T>,
+        ls: &mut Factor<T>,
+        f: &mut Factor<T>,
+        mut progress: impl FnMut(),
+    ) -> Result<Fit<T>> {
+        let (w, used) = crate::modal::ridge_m(self, system, ls, f, &mut progress)?;
+        Ok(Fit::new(system.layout, w, ls, used))
+    }
 }
 
 impl<T: Real> Estimator<T> for RidgeM<T> {
     fn fit_with(&self, system: &System<T>, ls: &Factor<T>) -> Result<Fit<T>> {
-        let (w, used) = self.iterate(system, |_, _| {})?;
-        Ok(Fit::new(system.layout, w, ls, used))
+        self.fit_in(system, &mut ls.clone(), &mut Factor::empty(), || {})
     }
 }

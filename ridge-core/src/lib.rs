@@ -37,6 +37,7 @@
 mod bounds;
 mod cholesky;
 pub mod control;
+mod eigen;
 pub mod error;
 pub mod estimate;
 pub mod excitation;
@@ -44,6 +45,7 @@ pub mod gram;
 pub mod input_map;
 #[cfg(feature = "alasso")]
 pub mod lasso;
+mod modal;
 pub mod model;
 pub mod normal;
 pub mod real;

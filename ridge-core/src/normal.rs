@@ -461,6 +461,15 @@ impl<T: Real> Factor<T> {
         self.n
     }
 
+    /// Entry `(i, j)` of `[L 0; lᵀ ρ]` (row `n`: the augmented row); zero above the diagonal
+    /// and outside.
+    pub(crate) fn at(&self, i: usize, j: usize) -> T {
+        if j > i || i > self.n {
+            return T::ZERO;
+        }
+        self.l.get(packed(i, j)).copied().unwrap_or(T::ZERO)
+    }
+
     /// `ρ²`: the residual sum of squares of the least-squares solution of the factored
     /// system (for `γ = 0`: `min_w ‖y − Xw‖²`, a lower bound of every estimator's RSS),
     /// floored at the rounding level of the computation (`4 n ε` of what `y_{t-1}` leaves
@@ -493,6 +502,18 @@ impl<T: Real> Factor<T> {
         }
         backward(&self.l, self.n, &mut w);
         w
+    }
+
+    /// `(XᵀX + γD)⁻¹ (Xᵀy + g x)` in place of `x` (length ≥ `n`), from the factor's last row:
+    /// the solution of the factored system with `g x` added to its right-hand side.
+    pub(crate) fn solve_shifted(&self, g: T, x: &mut [T]) {
+        if x.len() >= self.n {
+            forward(&self.l, self.n, x);
+            for (i, xi) in x.iter_mut().enumerate().take(self.n) {
+                *xi = self.l[packed(self.n, i)] + g * *xi;
+            }
+            backward(&self.l, self.n, x);
+        }
     }
 
     /// `‖Lᵀ w − l‖²`: how much `w` adds to the residual sum of squares over the

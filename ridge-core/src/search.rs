@@ -321,25 +321,23 @@ impl<T: Real> Search<T> {
     }
 
     /// Fits a prepared candidate and scores it. All factor storage comes from the caller
-    /// (`ls`: the least-squares factor from [`prepare`](Self::prepare); `scratch`:
-    /// overwritten), so that the search's deepest stack frame holds no factor of its own.
+    /// (`ls`: the least-squares factor from [`prepare`](Self::prepare), which Ridge-M uses as
+    /// work space and factors again; `scratch`: overwritten), so that the search's deepest
+    /// stack frame holds no factor of its own.
     /// Never inlined: inside the caller's frame its locals would add to the deepest stack
     /// (ATmega2560: +236 B once the board's settings are compile-time constants).
     #[inline(never)]
     fn score(
         &self,
         system: &System<'_, T>,
-        ls: &Factor<T>,
+        ls: &mut Factor<T>,
         scratch: &mut Factor<T>,
         val: Option<&Normal<T>>,
         progress: &mut impl FnMut(),
     ) -> Result<(Fit<T>, T)> {
         let fit = match &self.method {
-            // Ridge-M is the long one: report progress after every iterate.
-            Method::RidgeM(m) => {
-                let (w, used) = m.iterate_in(system, scratch, |_, _| progress())?;
-                Fit::new(system.layout, w, ls, used)
-            }
+            // Ridge-M is the long one: it reports progress as it goes.
+            Method::RidgeM(m) => m.fit_in(system, ls, scratch, &mut *progress)?,
             Method::Ridge(m) => {
                 let fit = m.fit_in(system, ls, scratch);
                 progress();

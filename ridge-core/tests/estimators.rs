@@ -324,3 +324,144 @@ fn intercept_absorbs_an_offset() {
     let mean = y.iter().sum::<f64>() / y.len() as f64;
     assert!((flat.model().intercept() - mean).abs() < 1e-3 * mean.abs());
 }
+
+/// Algorithm 1 (eq. 9–12) as written, in `f64` with a dense LU solve on the explicit regression
+/// matrix (no intercept regularised): the last iterate, the number of iterates and every step.
+fn algorithm_1(
+    sys: &System<f64>,
+    u: &[f64],
+    y: &[f64],
+    rm: &RidgeM<f64>,
+) -> (Vec<f64>, u32, Vec<f64>) {
+    let n = sys.params();
+    let m = common::augmented(sys, u, y);
+    let d = DVector::from_fn(n, |i, _| {
+        if sys.regressor(i) == Some(ridge_core::Regressor::Constant) {
+            0.0
+        } else {
+            1.0
+        }
+    });
+    let a = m.view((0, 0), (n, n)).into_owned() + DMatrix::from_diagonal(&d) * rm.gamma;
+    let b: DVector<f64> = m.view((0, n), (n, 1)).column(0).into_owned();
+    let lu = a.lu();
+    let (mut v, mut w_prev) = (DVector::zeros(n), DVector::zeros(n));
+    let mut steps = Vec::new();
+    for k in 1..=rm.max_iter {
+        let w = lu.solve(&(&b + d.component_mul(&v) * rm.gamma)).unwrap();
+        steps.push((&w - &w_prev).norm());
+        v = &v * rm.beta + &w * (1.0 - rm.beta);
+        if steps[k as usize - 1] < rm.tol || k == rm.max_iter {
+            return (w.iter().copied().collect(), k, steps);
+        }
+        w_prev = w;
+    }
+    unreachable!()
+}
+
+/// The largest `|a − b| / max(1, |b|)`.
+fn coef_error(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs() / y.abs().max(1.0))
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn ridge_m_fit_is_algorithm_1_with_and_without_intercept() {
+    // A known plant with an offset; structures from the smallest to the largest (12 columns).
+    let mut rng = Rng::new(21);
+    let u = multilevel(&mut rng, 2500, 0.2, 0.9, 12);
+    let y = simulate(&[1.3, -0.42], &[6.0, 3.0], 2, 2.5, &u, 0.3, 22);
+    let n64 = normal(&u, &y);
+    let mut g32 = FloatGram::new();
+    for (&a, &b) in u.iter().zip(&y) {
+        g32.push(a, b).unwrap();
+    }
+    let n32 = g32.normal::<f32>(Scale::UNIT).unwrap();
+    let mut worst32 = 0.0f64;
+    for offset in [Offset::None, Offset::Intercept] {
+        for (p, q, d) in [(1, 1, 2), (2, 3, 1), (4, 6, 3), (6, 6, 0)] {
+            let s = Structure::new(p, q, d).unwrap();
+            let sys = n64.system(s, offset).unwrap();
+            let default = RidgeM::default();
+            let (_, _, steps) = algorithm_1(
+                &sys,
+                &u,
+                &y,
+                &RidgeM {
+                    tol: 0.0,
+                    ..default
+                },
+            );
+            // The default tolerance, and two between consecutive steps of the reference.
+            let mut tols = vec![default.tol];
+            for k in [20, 60] {
+                tols.push((steps[k - 1] * steps[k]).sqrt());
+            }
+            for tol in tols {
+                let rm = RidgeM { tol, ..default };
+                let (want, k, _) = algorithm_1(&sys, &u, &y, &rm);
+                let fit = rm.fit(&sys).unwrap();
+                let label = format!("{s:?} {offset:?} ε {tol:e}");
+                assert_eq!(fit.iterations, k, "{label}");
+                let got = common::internal(&sys, &fit.model());
+                assert!(
+                    coef_error(&got, &want) < 1e-9,
+                    "{label}: {got:?} vs {want:?}"
+                );
+                // f32: the same count, coefficients close (float statistics of unit-scale
+                // signals, the hardest case for f32).
+                let rm32 = RidgeM {
+                    tol: tol as f32,
+                    ..RidgeM::default()
+                };
+                let sys32 = n32.system(s, offset).unwrap();
+                let fit32 = rm32.fit(&sys32).unwrap();
+                assert_eq!(fit32.iterations, k, "f32 {label}");
+                let m32 = fit32.model();
+                let got32: Vec<f64> = (0..sys.params())
+                    .map(|i| match sys.regressor(i).unwrap() {
+                        ridge_core::Regressor::Output(k) => f64::from(m32.theta()[k as usize - 1]),
+                        ridge_core::Regressor::Input(k) => f64::from(m32.phi()[(k - d) as usize]),
+                        ridge_core::Regressor::Constant => f64::from(m32.intercept()),
+                    })
+                    .collect();
+                worst32 = worst32.max(coef_error(&got32, &want));
+            }
+        }
+    }
+    // Measured 3.4e-5: within the devices' 1e-4 (simavr tests' host rerun tolerance).
+    assert!(worst32 < 1e-4, "f32 against Algorithm 1: {worst32:.1e}");
+}
+
+#[test]
+fn ridge_m_fit_in_gives_back_the_least_squares_factor_and_reports_progress() {
+    let (u, y) = plant_record(23, 1500, 0.3);
+    let nrm = normal(&u, &y);
+    for offset in [Offset::None, Offset::Intercept] {
+        let sys = nrm
+            .system(Structure::new(6, 6, 1).unwrap(), offset)
+            .unwrap();
+        let fresh = sys.factor(0.0).unwrap();
+        let mut ls = fresh.clone();
+        let mut scratch = ridge_core::Factor::empty();
+        let mut calls = 0u32;
+        let rm = RidgeM::default();
+        let fit = rm
+            .fit_in(&sys, &mut ls, &mut scratch, || calls += 1)
+            .unwrap();
+        // Factored again (what the factors say; storage past them is work space).
+        let ridge = sys.factor(rm.gamma).unwrap();
+        for (got, want) in [(&ls, &fresh), (&scratch, &ridge)] {
+            assert_eq!(got.params(), want.params());
+            assert_eq!(got.solution(), want.solution());
+            assert_eq!(got.rss_min(), want.rss_min());
+            let w = [0.5; 13];
+            assert_eq!(got.excess(&w), want.excess(&w));
+        }
+        assert_eq!(fit, rm.fit(&sys).unwrap());
+        // Factorisations, rotations and one call per iterate.
+        assert!(calls > fit.iterations + 3, "{calls}");
+    }
+}

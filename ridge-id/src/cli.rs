@@ -251,7 +251,7 @@ pub struct IdentifyArgs {
     /// all the same.
     #[arg(long)]
     pub strict: bool,
-    /// The model for the pump: --eeprom, --record, --stm32-slot (src/export.rs).
+    /// The model for the pump: --eeprom, --record, --stm32-store (src/export.rs).
     #[command(flatten)]
     pub export: crate::export::ExportArgs,
     /// Write a PNG of measured vs one-step vs free-run output (with --control, also

@@ -1,4 +1,4 @@
-//! `identify --eeprom PATH.hex`, `--record PATH.bin`, `--stm32-slot PATH.bin`: the identified
+//! `identify --eeprom PATH.hex`, `--record PATH.bin`, `--stm32-store PATH.bin`: the identified
 //! model as the firmware's persisted record, ready to be flashed into the pump.
 //!
 //! The record's bytes are the firmware's own [`persist::encode`] (105 bytes, layout in
@@ -22,15 +22,13 @@
 //!   leaves it, the other slot erased), for
 //!   `avrdude -p m2560 -c wiring -P /dev/ttyACM0 -b 115200 -D -U eeprom:w:PATH.hex:i`.
 //! - `--record PATH.bin`: the raw 105 record bytes.
-//! - `--stm32-slot PATH.bin`: what the STM32F411 image loads: its flash store
-//!   (`board/blackpill_f411.rs`, `FlashStore`) is an append-only log of slots in sector 7
-//!   at [`STM32_SLOT_ADDRESS`] (0x0806_0000); a slot is a 4-byte header (`"RP"`, the record
-//!   length as a little-endian `u16`), the record, and `0xFF` up to a multiple of 16 bytes
-//!   (112 bytes). The raw record written at the sector start would not be loaded (no header);
-//!   this image is, as the first slot of an otherwise erased sector:
-//!   `probe-rs download --chip STM32F411CEUx --binary-format bin --base-address 0x08060000
-//!   PATH.bin`. Those slot constants are private to the board module (compiled for Cortex-M
-//!   only), so they are repeated below; `tests/export.rs` checks them against its source.
+//! - `--stm32-store PATH.bin`: what the STM32F411 image loads: its record store
+//!   ([`flash_store`], a log of slots over flash sectors 6 and 7) holding the record alone
+//!   ([`stm32_store`]: in the first slot with sequence number 0, as a first save leaves it,
+//!   every other byte erased, so that no older record on the board outranks it), both
+//!   sectors, 256 KB, for [`STM32_STORE_ADDRESS`] (0x0804_0000):
+//!   `probe-rs download --chip STM32F411CEUx --binary-format bin --base-address 0x08040000
+//!   PATH.bin` (a flasher erases the sectors it writes).
 //!
 //! The fit field (percent, `f32`) holds the free-run fit of the `--validate` record as
 //! `ridge-id` reports it (`validation.fit_free_run`), the figure the firmware stores after
@@ -48,6 +46,7 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use ridge_core::control::ModelFault;
 use ridge_pump_firmware::event::StoredReason;
+use ridge_pump_firmware::flash_store::{self, FLASH_BASE, SECTORS, SECTOR_LEN};
 use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
 use ridge_pump_firmware::selfid::{check_stored, DEFAULT_CONFIG};
 use ridge_pump_firmware::slots::{self, EEPROM_BASE, STORE_LEN};
@@ -58,15 +57,11 @@ use crate::outcome::Report;
 /// Size of the ATmega2560's EEPROM in bytes: an image must end within it.
 pub const AVR_EEPROM_SIZE: usize = 4096;
 
-/// Address of the STM32F411's record store: flash sector 7 (`0x0800_0000` +
-/// `SECTOR_OFFSET` 0x6_0000 in `board/blackpill_f411.rs`).
-pub const STM32_SLOT_ADDRESS: u32 = 0x0806_0000;
+/// Address of the STM32F411's record store: flash sector 6, the first of its two sectors.
+pub const STM32_STORE_ADDRESS: u32 = FLASH_BASE + SECTORS[0].1;
 
-/// Header of a slot of the STM32F411 flash store (`MAGIC` in `board/blackpill_f411.rs`).
-pub const STM32_SLOT_MAGIC: [u8; 2] = *b"RP";
-
-/// Length of a slot of the STM32F411 flash store in bytes: header + record, rounded up to 16.
-pub const STM32_SLOT_LEN: usize = (4 + RECORD_LEN).div_ceil(16) * 16;
+/// Bytes of the STM32F411's record store: its two sectors, one after the other.
+pub const STM32_STORE_LEN: usize = 2 * SECTOR_LEN;
 
 /// The options of `identify` that write the model for the pump.
 #[derive(Debug, Clone, Default, Args)]
@@ -80,17 +75,17 @@ pub struct ExportArgs {
     /// Write the raw 105-byte record (same model, same checks as --eeprom).
     #[arg(long, value_name = "PATH.bin")]
     pub record: Option<PathBuf>,
-    /// Write the STM32F411's flash slot holding the record (112 bytes: "RP", length, record,
-    /// 0xFF padding) for address 0x08060000 (sector 7), e.g. probe-rs download --chip
-    /// STM32F411CEUx --binary-format bin --base-address 0x08060000 PATH.bin.
+    /// Write the STM32F411's record store holding the record (flash sectors 6 and 7, 256 KB,
+    /// the record in the first slot) for address 0x08040000, e.g. probe-rs download --chip
+    /// STM32F411CEUx --binary-format bin --base-address 0x08040000 PATH.bin.
     #[arg(long, value_name = "PATH.bin")]
-    pub stm32_slot: Option<PathBuf>,
+    pub stm32_store: Option<PathBuf>,
 }
 
 impl ExportArgs {
     /// Whether any output was asked for.
     pub fn any(&self) -> bool {
-        self.eeprom.is_some() || self.record.is_some() || self.stm32_slot.is_some()
+        self.eeprom.is_some() || self.record.is_some() || self.stm32_store.is_some()
     }
 }
 
@@ -395,15 +390,19 @@ pub fn intel_hex(data: &[u8], address: u16) -> Option<String> {
     Some(out)
 }
 
-/// The STM32F411 flash slot holding `record` ([`STM32_SLOT_LEN`] bytes, see the
-/// [module docs](self)).
-pub fn stm32_slot(record: &[u8; RECORD_LEN]) -> Vec<u8> {
-    let mut slot = Vec::with_capacity(STM32_SLOT_LEN);
-    slot.extend_from_slice(&STM32_SLOT_MAGIC);
-    slot.extend_from_slice(&(RECORD_LEN as u16).to_le_bytes());
-    slot.extend_from_slice(record);
-    slot.resize(STM32_SLOT_LEN, 0xFF);
-    slot
+/// The STM32F411's record store holding `record` ([`STM32_STORE_LEN`] bytes from
+/// [`STM32_STORE_ADDRESS`], see the [module docs](self)): the slot a first save into an
+/// erased store writes, the rest erased.
+pub fn stm32_store(record: &[u8; RECORD_LEN]) -> Vec<u8> {
+    let mut store = vec![0xFF; STM32_STORE_LEN];
+    let empty = vec![0xFF; SECTOR_LEN];
+    let plan = flash_store::plan([&empty, &empty]);
+    // A record of RECORD_LEN bytes always makes a slot.
+    if let Some(bytes) = flash_store::slot_bytes(record, plan.seq) {
+        let at = (plan.target.offset() - SECTORS[0].1) as usize;
+        store[at..at + bytes.len()].copy_from_slice(&bytes);
+    }
+    store
 }
 
 /// The EEPROM image of `record`: the two-slot store holding it ([`slots::store_with`]) as
@@ -498,10 +497,10 @@ pub fn export(args: &ExportArgs, report: &Report) -> Result<Vec<String>, ExportE
             path.display()
         ));
     }
-    if let Some(path) = &args.stm32_slot {
-        files.push((path.clone(), stm32_slot(&record)));
+    if let Some(path) = &args.stm32_store {
+        files.push((path.clone(), stm32_store(&record)));
         notes.push(format!(
-            "wrote {}: STM32F411 flash slot, {STM32_SLOT_LEN} bytes for address {STM32_SLOT_ADDRESS:#010x}, {what}",
+            "wrote {}: STM32F411 record store (flash sectors 6 and 7), {STM32_STORE_LEN} bytes for address {STM32_STORE_ADDRESS:#010x}, {what}",
             path.display()
         ));
     }
@@ -529,11 +528,13 @@ mod tests {
     }
 
     #[test]
-    fn slot_layout() {
-        assert_eq!(STM32_SLOT_LEN, 112);
-        let slot = stm32_slot(&[7; RECORD_LEN]);
-        assert_eq!(&slot[..4], b"RP\x69\x00");
-        assert!(slot[4..4 + RECORD_LEN].iter().all(|&b| b == 7));
-        assert!(slot[4 + RECORD_LEN..].iter().all(|&b| b == 0xFF));
+    fn store_layout() {
+        assert_eq!(STM32_STORE_ADDRESS, 0x0804_0000);
+        assert_eq!(STM32_STORE_LEN, 256 * 1024);
+        let store = stm32_store(&[7; RECORD_LEN]);
+        assert_eq!(store.len(), STM32_STORE_LEN);
+        assert!(store[..RECORD_LEN].iter().all(|&b| b == 7));
+        let programmed = flash_store::PROGRAMMED_LEN;
+        assert!(store[programmed..].iter().all(|&b| b == 0xFF));
     }
 }

@@ -33,7 +33,7 @@
 //! - the run: [`pipeline`] ([`run`]: read → identify → select/refine → score → control →
 //!   render), [`outcome`] ([`Report`]), [`plot`] (every PNG);
 //! - presentation: [`printer`] (the report as text or JSON, knowing no flags), [`export`]
-//!   (`--eeprom`, `--record`, `--stm32-slot`), [`cli`] (flags → [`Options`] → printer).
+//!   (`--eeprom`, `--record`, `--stm32-store`), [`cli`] (flags → [`Options`] → printer).
 //!
 //! Tests: `tests/cli.rs` runs the binary (JSON shape, bad input, a known ARX plant from
 //! `pump-sim`, 10⁶ rows in flat memory); `tests/logged_data.rs` checks the library on the

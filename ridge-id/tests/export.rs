@@ -1,4 +1,4 @@
-//! `identify --eeprom / --record / --stm32-slot`: the files hold the firmware's record of the
+//! `identify --eeprom / --record / --stm32-store`: the files hold the firmware's record of the
 //! model the JSON report gives, at the addresses the boards read; refusals write nothing.
 //!
 //! Independent truths: the JSON of the same run (the model from the duty), its documented form
@@ -17,6 +17,7 @@ use std::process::{Command, Output};
 use pump_sim::arx::simulate_arx;
 use ridge_core::{ArxModel, Evaluation, InputMap};
 use ridge_pump_firmware::event::Event;
+use ridge_pump_firmware::flash_store;
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
 use ridge_pump_firmware::selfid::{SelfIdentification, DEFAULT_CONFIG};
 use ridge_pump_firmware::slots::{self, EEPROM_BASE, SLOT_LEN, STORE_LEN};
@@ -176,7 +177,7 @@ fn files_hold_the_json_model_at_the_boards_addresses() {
     let (est, val) = (d.join("est.csv"), d.join("val.csv"));
     log(&est, 3000, 1, 1.0);
     log(&val, 3000, 2, 1.0);
-    let (hex, bin, slot) = (d.join("m.hex"), d.join("m.bin"), d.join("slot.bin"));
+    let (hex, bin, stm) = (d.join("m.hex"), d.join("m.bin"), d.join("store.bin"));
     let out = identify(&[
         "--input",
         s(&est),
@@ -189,8 +190,8 @@ fn files_hold_the_json_model_at_the_boards_addresses() {
         s(&hex),
         "--record",
         s(&bin),
-        "--stm32-slot",
-        s(&slot),
+        "--stm32-store",
+        s(&stm),
     ]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
@@ -295,16 +296,33 @@ fn files_hold_the_json_model_at_the_boards_addresses() {
     // The same through the hand-written reader.
     assert_eq!(&eeprom_after(&hex_text)[base..base + STORE_LEN], &store[..]);
 
-    // The STM32F411 slot: header "RP" + length, the record, 0xFF to 112 bytes.
-    let slot_bytes = fs::read(&slot).unwrap();
-    assert_eq!(slot_bytes.len(), (4 + RECORD_LEN).div_ceil(16) * 16);
-    assert_eq!(&slot_bytes[..2], b"RP");
+    // The STM32F411 store: both sectors (2 × 128 KB from 0x0804_0000); the firmware's plan
+    // loads the record from the first slot; beyond it, only its sequence number (0), its
+    // complement and the commit mark "RP" + length; every other byte erased.
+    let store = fs::read(&stm).unwrap();
+    assert_eq!(store.len(), 2 * flash_store::SECTOR_LEN);
+    let (s6, s7) = store.split_at(flash_store::SECTOR_LEN);
+    let plan = flash_store::plan([s6, s7]);
+    assert_eq!(flash_store::record([s6, s7], &plan), Some(&record[..]));
+    assert_eq!(&store[..RECORD_LEN], &record[..]);
     assert_eq!(
-        u16::from_le_bytes([slot_bytes[2], slot_bytes[3]]),
-        RECORD_LEN as u16
+        &store[RECORD_LEN..RECORD_LEN + 12],
+        &[
+            0,
+            0,
+            0,
+            0,
+            0xFF,
+            0xFF,
+            0xFF,
+            0xFF,
+            b'R',
+            b'P',
+            RECORD_LEN as u8,
+            0
+        ]
     );
-    assert_eq!(&slot_bytes[4..4 + RECORD_LEN], &record[..]);
-    assert!(slot_bytes[4 + RECORD_LEN..].iter().all(|&b| b == 0xFF));
+    assert!(store[RECORD_LEN + 12..].iter().all(|&b| b == 0xFF));
 
     // The firmware's boot path loads it.
     let (loaded, loaded_map, loaded_fit) = boot(&record).unwrap();
@@ -501,11 +519,15 @@ fn addresses_match_the_board_sources() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/src/board");
     let avr = fs::read_to_string(root.join("arduino_mega2560/eeprom.rs")).unwrap();
     assert!(avr.contains("pub const BASE: u16 = ridge_pump_firmware::slots::EEPROM_BASE;"));
+    // The STM32F411 board keeps its record with `flash_store` at its `SECTORS`, which the
+    // linker's memory map (memory.x) leaves out of the image: sector 6 starts at 256 KB.
     let stm = fs::read_to_string(root.join("blackpill_f411.rs")).unwrap();
-    assert!(stm.contains("pub const SECTOR_OFFSET: usize = 0x6_0000;"));
-    assert_eq!(ridge_id::export::STM32_SLOT_ADDRESS, 0x0800_0000 + 0x6_0000);
-    assert!(stm.contains("const MAGIC: [u8; 2] = *b\"RP\";"));
-    assert_eq!(&ridge_id::export::STM32_SLOT_MAGIC, b"RP");
-    assert!(stm.contains("const SLOT: usize = (4 + N).div_ceil(16) * 16;"));
-    assert!(stm.contains("let len = (N as u16).to_le_bytes();"));
+    assert!(stm.contains("flash_store::plan(sectors)"));
+    assert!(stm.contains("SECTORS.map(|(_, offset)|"));
+    assert_eq!(
+        ridge_id::export::STM32_STORE_ADDRESS,
+        0x0800_0000 + 0x4_0000
+    );
+    let map = fs::read_to_string(root.join("../../../memory.x")).unwrap();
+    assert!(map.contains("FLASH : ORIGIN = 0x08000000, LENGTH = 256K"));
 }

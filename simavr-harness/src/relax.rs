@@ -5,10 +5,13 @@
 //! Relaxation may only:
 //! - turn `call` into `rcall` and `jmp` into `rjmp` (target within ±4 KB);
 //! - turn `call X; ret` into `jmp X` (the `ret` dropped only when nothing branches to it);
-//! - turn `call X; ret` into `jmp X; ret` when something branches to the `ret`;
+//! - turn `call X; ret` into `jmp X; ret` (it does when something branches to the `ret`, and
+//!   sometimes when nothing does: a `ret` after a `jmp` that nothing branches to is dead);
 //! - keep the 4-byte vector table entries as `rjmp X; nop`.
 //!
-//! Everything else must be equal: every instruction, and every branch, call and jump target
+//! A `ret` after a skip instruction (`cpse`, `sbrc`, `sbrs`, `sbic`, `sbis`) and the call or
+//! jump is reachable (the skip jumps over the call to it) and must stay. Everything else must
+//! be equal: every instruction, and every branch, call and jump target
 //! as (function, instruction index) after those rewrites, so that a relative branch that
 //! relaxation failed to adjust (it moves code by deleting bytes) is caught. Absolute
 //! operands of other instructions (data addresses, immediates) must match byte for byte,
@@ -19,6 +22,9 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use crate::stack::{fields, label, target_address};
+
+/// Skip instructions: they jump over the next instruction.
+const SKIPS: &[&str] = &["cpse", "sbrc", "sbrs", "sbic", "sbis"];
 
 /// Functions whose operands legitimately change with the size of `.text`.
 const MOVES_WITH_TEXT: &[&str] = &["__do_copy_data"];
@@ -145,9 +151,18 @@ fn canonical(funcs: &Functions) -> BTreeMap<String, Vec<Op>> {
         while let Some(op) = ops.get(k) {
             map.push(out.len());
             let next = ops.get(k + 1);
+            let skipped = k
+                .checked_sub(1)
+                .and_then(|i| ops.get(i))
+                .is_some_and(|p| matches!(p, Op::Plain(m, _) if SKIPS.contains(&m.as_str())));
             let pair = !targets.contains(&(name.clone(), k + 1))
+                && !skipped
                 && match (op, next) {
-                    (Op::To(m, _), Some(Op::Plain(n, _))) if m == "call" && n == "ret" => true,
+                    (Op::To(m, _), Some(Op::Plain(n, _)))
+                        if (m == "call" || m == "jmp") && n == "ret" =>
+                    {
+                        true
+                    }
                     (Op::To(m, _), Some(Op::Plain(n, o))) if m == "jmp" && n == "nop" => {
                         o.is_empty()
                     }
@@ -336,6 +351,35 @@ mod tests {
             ("g", 0x200, &[("ret", "")]),
         ]);
         assert!(compare(&plain(), &kept).is_empty());
+    }
+
+    #[test]
+    fn a_dead_ret_kept_after_the_jump_passes_but_one_a_skip_reaches_must_stay() {
+        let g = ("g", 0x200, &[("ret", "")][..]);
+        let p = dis(&[("f", 0x100, &[("call", "@0x200"), ("ret", "")]), g]);
+        // avr-ld turned the call into a jump and kept the `ret`, which nothing reaches.
+        let kept = dis(&[("f", 0x100, &[("jmp", "@0x200"), ("ret", "")]), g]);
+        assert!(compare(&p, &kept).is_empty());
+        // After a skip, the `ret` is where the skip lands: dropping it is a change.
+        let p = dis(&[
+            (
+                "f",
+                0x100,
+                &[("sbrs", "r24, 0"), ("call", "@0x200"), ("ret", "")],
+            ),
+            g,
+        ]);
+        let dropped = dis(&[("f", 0x100, &[("sbrs", "r24, 0"), ("jmp", "@0x200")]), g]);
+        assert_eq!(compare(&p, &dropped).len(), 1);
+        let kept = dis(&[
+            (
+                "f",
+                0x100,
+                &[("sbrs", "r24, 0"), ("jmp", "@0x200"), ("ret", "")],
+            ),
+            g,
+        ]);
+        assert!(compare(&p, &kept).is_empty());
     }
 
     #[test]

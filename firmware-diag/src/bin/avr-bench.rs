@@ -16,6 +16,9 @@
 //! | `chol-ours` | ridge-core's packed Cholesky (its own `cholesky.rs`), 12 × 12 and 13 × 13 |
 //! | `chol-nalgebra12`, `chol-nalgebra13` | `nalgebra::Cholesky` on an `SMatrix<f32, N, N>` |
 //! | `sqrt-ours`, `sqrt-nalgebra` | the `f32` square root each of them takes per pivot |
+//! | `eig-ours` | ridge-core's one-sided Jacobi (its `eigen.rs`) on a factor `M`, 8 and 12 columns |
+//! | `eig-nalgebra8`, `eig-nalgebra12` | `nalgebra::SymmetricEigen` of `M Mᵀ` formed in `f32` |
+//! | `eig-svd8`, `eig-svd12` | `nalgebra::SVD` of `M` (left singular vectors: the eigenvectors) |
 //! | `ring-ours` | `ridge_pump_firmware::ring::Ring<256>` |
 //! | `ring-heapless08`, `ring-heapless09` | `heapless::spsc::Queue<u8, 256>` (0.8 / 0.9) |
 //! | `crc8-ours` | `ridge_pump_firmware::sfm3300::crc8` |
@@ -56,6 +59,13 @@ mod real {
 #[allow(dead_code)]
 #[path = "../../../ridge-core/src/cholesky.rs"]
 mod cholesky;
+// ... and its eigen-decomposition, which also takes the crate's maxima.
+#[cfg(target_arch = "avr")]
+use ridge_core::{PARAMS_MAX, P_MAX, Q_MAX};
+#[cfg(target_arch = "avr")]
+#[allow(dead_code)]
+#[path = "../../../ridge-core/src/eigen.rs"]
+mod eigen;
 
 #[cfg(target_arch = "avr")]
 mod image {
@@ -87,10 +97,16 @@ mod image {
         true
     }
 
-    /// Whether this image runs `name` (`all` runs every variant that fits in the SRAM).
+    /// Whether this image runs `name` (`all` runs every variant that fits in the SRAM, and
+    /// not nalgebra's SVD, which crashes the simulator).
     const fn runs(name: &str) -> bool {
         same(VARIANT, name)
-            || (same(VARIANT, "all") && !same(name, "crc8-table16") && !same(name, "crc32-table16"))
+            || (same(VARIANT, "all")
+                && !same(name, "crc8-table16")
+                && !same(name, "crc32-table16")
+                && !same(name, "eig-nalgebra12")
+                && !same(name, "eig-svd8")
+                && !same(name, "eig-svd12"))
     }
 
     // ------------------------------------------------------------------ UART, marker
@@ -269,6 +285,126 @@ mod image {
         let mut x = b;
         let ok = measure(variant, label, || chol_nalgebra::<N>(&a, &mut x));
         print_solution(ok, &x, N);
+    }
+
+    // ------------------------------------------------------------------ eigen-decomposition
+
+    /// Columns of the eigen-decomposition problems.
+    const EIG_MAX: usize = 12;
+
+    /// `M`, lower triangular: the Cholesky factor of the Toeplitz matrix `ρ^|i−j|` with
+    /// `ρ = 0.99` (`M_i0 = ρ^i`, `M_ij = ρ^(i−j) √(1 − ρ²)`), a Gram of strongly correlated lags
+    /// like the pump's (its eigenvalues span 0.005 to 12 for 12 columns), in `f32` by repeated
+    /// products (the host forms the same values). Row-major, `EIG_MAX` wide.
+    fn eig_problem() -> [[f32; EIG_MAX]; EIG_MAX] {
+        let rho = 0.99f32;
+        let s = <f32 as ridge_core::Real>::sqrt(1.0 - rho * rho);
+        let mut m = [[0.0f32; EIG_MAX]; EIG_MAX];
+        let mut pow = [1.0f32; EIG_MAX];
+        for k in 1..EIG_MAX {
+            pow[k] = pow[k - 1] * rho;
+        }
+        for i in 0..EIG_MAX {
+            m[i][0] = pow[i];
+            for j in 1..=i {
+                m[i][j] = pow[i - j] * s;
+            }
+        }
+        m
+    }
+
+    /// The leading `n × n` block of `M` into the decomposition's column storage, rotated until
+    /// orthogonal; the eigenvalues of `M Mᵀ` are the squared column norms (`ridge_core::modal`
+    /// then reads everything else from the columns).
+    #[inline(never)]
+    fn eig_ours(m: &[[f32; EIG_MAX]; EIG_MAX], n: usize, out: &mut [f32; EIG_MAX]) -> bool {
+        use crate::eigen::{slot, Columns, COLS_MAX, STORAGE, TAIL};
+        let (mut head, mut second) = ([0.0f32; STORAGE], [0.0f32; STORAGE]);
+        for j in 0..n {
+            let (first, at) = slot(j);
+            let dst = if first { &mut head } else { &mut second };
+            for i in 0..n {
+                dst[at + i] = m[i][j];
+            }
+        }
+        let Some((tail, _)) = second.split_first_chunk_mut::<TAIL>() else {
+            return false;
+        };
+        let Ok(mut cols) = Columns::new(&mut head, tail, n) else {
+            return false;
+        };
+        if cols
+            .orthogonalise(&mut [0.0; COLS_MAX], &mut || {})
+            .is_err()
+        {
+            return false;
+        }
+        for (j, v) in out.iter_mut().enumerate().take(n) {
+            *v = cols.norm2(j);
+        }
+        true
+    }
+
+    fn print_eigenvalues(ok: bool, e: &[f32]) {
+        word(u8::from(ok));
+        for v in e {
+            word(v.to_bits());
+        }
+        end();
+    }
+
+    fn bench_eig_ours() {
+        let m = eig_problem();
+        for n in [8usize, 12] {
+            let mut e = [0.0f32; EIG_MAX];
+            let label = if n == 8 { "eig8" } else { "eig12" };
+            let ok = measure("eig-ours", label, || eig_ours(&m, black_box(n), &mut e));
+            print_eigenvalues(ok, &e[..n]);
+        }
+    }
+
+    /// `eig_nalgebra{8,12}`: `nalgebra::SymmetricEigen` of `B = M Mᵀ` formed in `f32`
+    /// (eigenvalues and vectors); `eig_svd{8,12}`: `nalgebra::SVD` of `M` with its left
+    /// singular vectors (`M Mᵀ = U Σ² Uᵀ`). One function per size (nalgebra's sizes are types).
+    #[cfg(feature = "bench-crates")]
+    macro_rules! eig_nalgebra {
+        ($eig:ident, $svd:ident, $n:literal) => {
+            #[inline(never)]
+            fn $eig(m: &[[f32; EIG_MAX]; EIG_MAX], out: &mut [f32; EIG_MAX]) {
+                let mm = nalgebra::SMatrix::<f32, $n, $n>::from_fn(|i, j| m[i][j]);
+                let eig = nalgebra::SymmetricEigen::new(mm * mm.transpose());
+                for (o, v) in out.iter_mut().zip(eig.eigenvalues.iter()) {
+                    *o = *v;
+                }
+                black_box(&eig.eigenvectors);
+            }
+
+            #[inline(never)]
+            fn $svd(m: &[[f32; EIG_MAX]; EIG_MAX], out: &mut [f32; EIG_MAX]) {
+                let mm = nalgebra::SMatrix::<f32, $n, $n>::from_fn(|i, j| m[i][j]);
+                let svd = nalgebra::SVD::new(mm, true, false);
+                for (o, v) in out.iter_mut().zip(svd.singular_values.iter()) {
+                    *o = *v * *v;
+                }
+                black_box(&svd.u);
+            }
+        };
+    }
+    #[cfg(feature = "bench-crates")]
+    eig_nalgebra!(eig_nalgebra8, eig_svd8, 8);
+    #[cfg(feature = "bench-crates")]
+    eig_nalgebra!(eig_nalgebra12, eig_svd12, 12);
+
+    #[cfg(feature = "bench-crates")]
+    fn bench_eig_crate<const N: usize>(
+        variant: &str,
+        f: fn(&[[f32; EIG_MAX]; EIG_MAX], &mut [f32; EIG_MAX]),
+    ) {
+        let m = eig_problem();
+        let mut e = [0.0f32; EIG_MAX];
+        let label = if N == 8 { "eig8" } else { "eig12" };
+        measure(variant, label, || f(&m, &mut e));
+        print_eigenvalues(true, &e[..N]);
     }
 
     // ------------------------------------------------------------------ ring buffers
@@ -612,6 +748,24 @@ mod image {
             }
             if const { runs("chol-nalgebra13") } {
                 bench_chol_nalgebra::<13>("chol-nalgebra13", "chol13");
+            }
+        }
+        if const { runs("eig-ours") } {
+            bench_eig_ours();
+        }
+        #[cfg(feature = "bench-crates")]
+        {
+            if const { runs("eig-nalgebra8") } {
+                bench_eig_crate::<8>("eig-nalgebra8", eig_nalgebra8);
+            }
+            if const { runs("eig-nalgebra12") } {
+                bench_eig_crate::<12>("eig-nalgebra12", eig_nalgebra12);
+            }
+            if const { runs("eig-svd8") } {
+                bench_eig_crate::<8>("eig-svd8", eig_svd8);
+            }
+            if const { runs("eig-svd12") } {
+                bench_eig_crate::<12>("eig-svd12", eig_svd12);
             }
         }
         if const { runs("ring-ours") } {

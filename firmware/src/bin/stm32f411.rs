@@ -19,12 +19,13 @@ fn main() {
 
 #[cfg(all(target_arch = "arm", target_os = "none"))]
 mod image {
-    use super::board::blackpill_f411::{self as bp, FlashStore, Ticker, WATCHDOG_MS};
+    use super::board::blackpill_f411::{self as bp, FlashStore, ResetCount, Ticker, WATCHDOG_MS};
     use cortex_m_rt::entry;
     use ridge_pump_firmware::app::{App, Board, Console};
+    use ridge_pump_firmware::event::FaultReason;
     use ridge_pump_firmware::numfmt::Int;
-    use ridge_pump_firmware::persist::RECORD_LEN;
     use ridge_pump_firmware::pump::Pump;
+    use ridge_pump_firmware::resets::{self, Resets};
     use ridge_pump_firmware::selfid::{Defaults, SelfIdentification};
     use ridge_pump_firmware::sfm3300::Sfm3300;
     use stm32f4xx_hal::i2c::{I2c, Mode};
@@ -41,7 +42,13 @@ mod image {
     struct BlackPill {
         ticker: Ticker,
         watchdog: IndependentWatchdog,
-        store: FlashStore<RECORD_LEN>,
+        store: FlashStore,
+        /// The reset count of this boot and where it is kept (`resets`), cleared after
+        /// [`resets::CLEAN_TICKS`] unless it is a reset loop.
+        resets: Resets,
+        count: ResetCount,
+        /// Ticks left until the count is cleared (0: done).
+        clean: u16,
         console: Console,
     }
 
@@ -57,6 +64,14 @@ mod image {
             self.store.save(record, &mut self.watchdog);
         }
         fn poll_store(&mut self) -> Option<bool> {
+            // A clean run: the resets before it were no loop (a loop keeps its count, and the
+            // pump off, until a power-on or reset-pin reset).
+            if self.clean > 0 {
+                self.clean -= 1;
+                if self.clean == 0 && !self.resets.is_loop() {
+                    self.count.store(Resets::default());
+                }
+            }
             self.store.take_result()
         }
         fn stack(&self) -> Option<(u16, u16)> {
@@ -106,11 +121,24 @@ mod image {
             Mode::standard(I2C_HZ.Hz()),
             &mut rcc,
         );
-        let sensor = Sfm3300::new(i2c);
+        let sensor = Sfm3300::new(bp::bus::Bus::new(i2c));
 
-        let store = FlashStore::<RECORD_LEN>::new(dp.FLASH);
+        let store = FlashStore::new(dp.FLASH);
         let stored = store.load();
-        let sid = SelfIdentification::new(Defaults, stored.as_ref().map(|r| &r[..]));
+        let mut sid = SelfIdentification::new(Defaults, stored.as_ref().map(|r| &r[..]));
+        // Reset loops (`resets`): count this boot's watchdog / brown-out reset; the third in a
+        // row starts in the fault state.
+        let mut count = ResetCount::new(dp.PWR, dp.RTC, &mut rcc);
+        let resets = count
+            .load()
+            .after_boot(resets::cause_from_rcc_csr(reset_cause));
+        count.store(resets);
+        let boot_fault = resets.is_loop().then(|| {
+            sid.fault_detected(FaultReason::ResetLoop {
+                watchdog: resets.watchdog,
+                brownout: resets.brownout,
+            })
+        });
 
         let ticker = Ticker::new(dp.TIM5.counter(&mut rcc));
         let mut watchdog = IndependentWatchdog::new(dp.IWDG);
@@ -128,11 +156,17 @@ mod image {
             }
         )
         .ok();
+        if let Some(event) = boot_fault {
+            uwriteln!(out, "{}", event).ok();
+        }
         let mut app = App::new(sensor, pump, out, sid, I2C_HZ);
         let mut board = BlackPill {
             ticker,
             watchdog,
             store,
+            resets,
+            count,
+            clean: resets::CLEAN_TICKS,
             console: Console::new(),
         };
         app.run(&mut board)

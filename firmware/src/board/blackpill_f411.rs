@@ -2,12 +2,13 @@
 //!
 //! | function | peripheral | pin |
 //! |---|---|---|
-//! | SFM3300 | I2C1, 100 kHz | PB6 SCL, PB7 SDA (5 V tolerant; external pull-ups) |
+//! | SFM3300 | I2C1, 100 kHz, bus recovery ([`bus::Bus`]) | PB6 SCL, PB7 SDA (5 V tolerant; external pull-ups) |
 //! | pump PWM | TIM3 CH1, 20 kHz | PA6 |
 //! | reports, console | USART1 115200 8N1 (one interrupt: TXE + queue, RXNE + queue) | PA9 TX, PA10 RX |
 //! | tick | TIM5, free-running 10 kHz counter, polled | — |
 //! | watchdog | IWDG, 0.5 s | — |
-//! | record | flash sector 7 (0x0806_0000, 128 KB), append-only slots | — |
+//! | record | flash sectors 6 and 7 (0x0804_0000, 0x0806_0000, 128 KB each), a slot log | — |
+//! | reset-loop count | backup register RTC_BKP0R (PWR_CR.DBP for writes) | — |
 //!
 //! The tick is a free-running 32-bit TIM5 count rather than an interrupt: it keeps counting
 //! while the CPU is stalled by a flash erase, so lost ticks are counted exactly.
@@ -17,15 +18,21 @@ use core::sync::atomic::{AtomicBool, Ordering};
 
 use stm32f4xx_hal::flash::FlashExt;
 use stm32f4xx_hal::gpio::{PA10, PA9};
-use stm32f4xx_hal::pac::{self, interrupt, FLASH, TIM5, USART1};
+use stm32f4xx_hal::pac::{self, interrupt, FLASH, PWR, RTC, TIM5, USART1};
 use stm32f4xx_hal::prelude::*;
-use stm32f4xx_hal::rcc::Rcc;
+use stm32f4xx_hal::rcc::{Enable, Rcc};
 use stm32f4xx_hal::serial::config::InvalidConfig;
 use stm32f4xx_hal::serial::Serial;
 use stm32f4xx_hal::timer::Counter;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
+use ridge_pump_firmware::flash_store::{self, SECTORS, SECTOR_LEN};
+use ridge_pump_firmware::persist::RECORD_LEN;
+use ridge_pump_firmware::resets::Resets;
 use ridge_pump_firmware::ring::Ring;
+use ridge_pump_firmware::slots;
+
+pub mod bus;
 
 /// Frequency of the TIM5 tick counter.
 pub const COUNTER_HZ: u32 = 10_000;
@@ -246,115 +253,125 @@ pub fn force_pump_off() {
     tim3.ccr1().write(|w| unsafe { w.bits(0) });
 }
 
-/// Flash sector used for the record.
-pub const SECTOR: u8 = 7;
-/// Offset of sector 7 from the start of flash (sectors 0–3: 16 KB, 4: 64 KB, 5–7: 128 KB).
-pub const SECTOR_OFFSET: usize = 0x6_0000;
-/// Size of sector 7.
-pub const SECTOR_SIZE: usize = 0x2_0000;
-/// Slot header: magic, then the record length (little-endian `u16`).
-const MAGIC: [u8; 2] = *b"RP";
-/// Watchdog timeout while a sector erase (typ. 2 s, max 4 s at 8-bit parallelism) stalls the
-/// CPU.
+/// Watchdog timeout while a sector erase (typ. 2 s, max 4 s at 8-bit parallelism, DS10314)
+/// stalls the CPU: 8 s at the LSI's typical 32 kHz, ≥ 5.4 s at its fastest 47 kHz.
 const ERASE_WATCHDOG_MS: u32 = 8_000;
 /// Normal watchdog timeout.
 pub const WATCHDOG_MS: u32 = 500;
+/// Reads of IWDG_SR while a new prescaler and reload value reach the watchdog's domain (up
+/// to 5 LSI periods: 294 µs at the slowest LSI, 17 kHz; one read takes ≥ 2 cycles, so this
+/// bounds the wait at ≥ 2 ms at 100 MHz).
+const IWDG_UPDATE_POLLS: u32 = 100_000;
 
-/// The record store in flash sector 7: an append-only log of slots of `SLOT` bytes (4-byte
-/// header + `N` record bytes, padded to 16). A save programs the record into the next erased
-/// slot, then its header as the commit mark, so a reset mid-save leaves the previous record the
-/// newest valid one. The sector is erased only when it is full (after `128 KB / SLOT` saves);
-/// the watchdog timeout is raised for the erase, during which the CPU stalls (the PWM keeps
-/// running in hardware; the tick counter counts on).
-pub struct FlashStore<const N: usize> {
+/// Sets the IWDG's timeout to `ms` and reloads the counter with it. The HAL's `start` writes
+/// the prescaler and reload value and reloads at once, while IWDG_SR.PVU/RVU are still set:
+/// that reload uses the old values (RM0383 §15.4.4: the new ones are carried into the
+/// watchdog's domain over up to 5 LSI periods), so a timeout raised for an erase would not be
+/// in effect during it. Here the reload waits (bounded) until both flags have cleared.
+fn set_watchdog(watchdog: &mut IndependentWatchdog, ms: u32) {
+    watchdog.start(fugit::MillisDurationU32::millis(ms));
+    // SAFETY: a read of IWDG_SR only; `watchdog` owns the IWDG and is borrowed mutably here.
+    let iwdg = unsafe { &*pac::IWDG::ptr() };
+    for _ in 0..IWDG_UPDATE_POLLS {
+        if iwdg.sr().read().bits() & 0b11 == 0 {
+            break;
+        }
+    }
+    watchdog.feed();
+}
+
+/// The record store ([`ridge_pump_firmware::flash_store`]): a log of slots over flash sectors
+/// 6 and 7 (0x0804_0000 and 0x0806_0000, 128 KB each), so that a power cut at any program
+/// access of a save, or during the erase that makes room, leaves the previous record
+/// loadable. A save programs 117 bytes (~16 µs each, the CPU stalled meanwhile); when the
+/// sector in use is full (1 365 saves), it first erases the other one, which stalls the CPU
+/// for ~2 s (up to 4 s): the watchdog's timeout is raised for it ([`set_watchdog`]), the PWM
+/// keeps running in hardware and the tick counter counts on.
+pub struct FlashStore {
     flash: FLASH,
-    /// `None` if the chip has no sector 7 (a 256 KB part): persistence is off.
-    next_free: Option<usize>,
+    /// Whether the chip has sectors 6 and 7 (512 KB parts; 256 KB parts end at sector 5):
+    /// without them persistence is off.
+    available: bool,
     result: Option<bool>,
 }
 
-impl<const N: usize> FlashStore<N> {
-    const SLOT: usize = (4 + N).div_ceil(16) * 16;
-    const SLOTS: usize = SECTOR_SIZE / Self::SLOT;
-
-    /// Scans sector 7 for the first erased slot.
+impl FlashStore {
+    /// Takes the flash interface.
     pub fn new(flash: FLASH) -> Self {
-        let mut store = FlashStore {
+        let (_, last) = SECTORS[1];
+        let available = flash.len() >= last as usize + SECTOR_LEN;
+        FlashStore {
             flash,
-            next_free: None,
+            available,
             result: None,
-        };
-        if store.flash.len() >= SECTOR_OFFSET + SECTOR_SIZE {
-            store.next_free = Some(
-                (0..Self::SLOTS)
-                    .find(|&i| store.slot(i).iter().all(|&b| b == 0xFF))
-                    .unwrap_or(Self::SLOTS),
-            );
         }
-        store
     }
 
-    /// Whether the chip has sector 7 (persistence available).
+    /// Whether the chip has the store's sectors (persistence available).
     pub fn available(&self) -> bool {
-        self.next_free.is_some()
+        self.available
     }
 
-    fn slot(&self, index: usize) -> &[u8] {
-        let start = SECTOR_OFFSET + index * Self::SLOT;
-        &self.flash.read()[start..start + Self::SLOT]
-    }
-
-    fn header() -> [u8; 4] {
-        let len = (N as u16).to_le_bytes();
-        [MAGIC[0], MAGIC[1], len[0], len[1]]
-    }
-
-    /// The newest committed record.
-    pub fn load(&self) -> Option<[u8; N]> {
-        let used = self.next_free?;
-        (0..used).rev().find_map(|i| {
-            let slot = self.slot(i);
-            (slot[..4] == Self::header()).then(|| {
-                let mut record = [0u8; N];
-                record.copy_from_slice(&slot[4..4 + N]);
-                record
-            })
+    fn sectors(&self) -> [&[u8]; 2] {
+        let mem = self.flash.read();
+        SECTORS.map(|(_, offset)| {
+            let at = offset as usize;
+            mem.get(at..at + SECTOR_LEN).unwrap_or(&[])
         })
     }
 
-    /// Saves `record` (blocking: ~16 µs per byte, plus a sector erase of up to 4 s when the log is
-    /// full). Nothing is written if the newest record is already equal.
-    pub fn save(&mut self, record: &[u8], watchdog: &mut IndependentWatchdog) {
-        if record.len() != N || !self.available() {
-            return;
+    /// The record to load ([`flash_store::plan`]).
+    pub fn load(&self) -> Option<[u8; RECORD_LEN]> {
+        if !self.available {
+            return None;
         }
-        if self.load().is_some_and(|newest| newest[..] == *record) {
-            return;
-        }
-        self.result = Some(self.append(record, watchdog).is_ok());
+        let sectors = self.sectors();
+        let plan = flash_store::plan(sectors);
+        flash_store::record(sectors, &plan).and_then(|r| r.try_into().ok())
     }
 
-    fn append(&mut self, record: &[u8], watchdog: &mut IndependentWatchdog) -> Result<(), ()> {
-        let mut index = self.next_free.unwrap_or(Self::SLOTS);
-        if index >= Self::SLOTS {
-            watchdog.start(fugit::MillisDurationU32::millis(ERASE_WATCHDOG_MS));
-            let erased = self.flash.unlocked().erase(SECTOR);
-            watchdog.start(fugit::MillisDurationU32::millis(WATCHDOG_MS));
+    /// Saves `record` ([`RECORD_LEN`] bytes, or all `0xFF` to forget), blocking: ~1.3 ms of
+    /// programming, plus a sector erase of ~2 s when the sector in use is full. A record
+    /// equal to the one loaded now (or forgetting with none loaded) is not written again. The
+    /// outcome comes from [`take_result`](Self::take_result).
+    pub fn save(&mut self, record: &[u8], watchdog: &mut IndependentWatchdog) {
+        if record.len() != RECORD_LEN || !self.available {
+            return;
+        }
+        let sectors = self.sectors();
+        let plan = flash_store::plan(sectors);
+        let same = match flash_store::record(sectors, &plan) {
+            Some(current) => current == record,
+            None => slots::is_tombstone(record),
+        };
+        let ok = same || self.append(record, &plan, watchdog).is_ok();
+        self.result = Some(ok);
+    }
+
+    fn append(
+        &mut self,
+        record: &[u8],
+        plan: &flash_store::Plan,
+        watchdog: &mut IndependentWatchdog,
+    ) -> Result<(), ()> {
+        let bytes = flash_store::slot_bytes(record, plan.seq).ok_or(())?;
+        if plan.erase {
+            let (number, _) = SECTORS
+                .get(usize::from(plan.target.sector))
+                .copied()
+                .ok_or(())?;
+            set_watchdog(watchdog, ERASE_WATCHDOG_MS);
+            let erased = self.flash.unlocked().erase(number);
+            set_watchdog(watchdog, WATCHDOG_MS);
             erased.map_err(drop)?;
-            index = 0;
         }
-        // Used from here on, even if programming fails part-way (the slot is no longer erased).
-        self.next_free = Some(index + 1);
-        let start = SECTOR_OFFSET + index * Self::SLOT;
-        {
-            let mut unlocked = self.flash.unlocked();
-            unlocked.program(start + 4, record.iter()).map_err(drop)?;
-            unlocked
-                .program(start, Self::header().iter())
-                .map_err(drop)?;
-        }
-        let slot = self.slot(index);
-        if slot[..4] == Self::header() && slot[4..4 + N] == *record {
+        let at = plan.target.offset() as usize;
+        self.flash
+            .unlocked()
+            .program(at, bytes.iter())
+            .map_err(drop)?;
+        let written = self.flash.read().get(at..at + bytes.len());
+        if written == Some(&bytes[..]) {
             Ok(())
         } else {
             Err(())
@@ -364,5 +381,56 @@ impl<const N: usize> FlashStore<N> {
     /// The result of the last save, once.
     pub fn take_result(&mut self) -> Option<bool> {
         self.result.take()
+    }
+}
+
+/// Marks a reset count written by this image in [`ResetCount`]'s register: the top three
+/// bytes, `"RPC"`. The register reads 0 after a backup-domain reset (RM0383 §17.6.20), which
+/// is then no count.
+const COUNT_MARK: u32 = 0x5250_4300;
+
+/// The reset-loop count ([`ridge_pump_firmware::resets`]) in the backup register RTC_BKP0R.
+///
+/// Why there: the backup registers keep their content across every system reset (watchdog,
+/// software, the reset pin) and across a power reset (brown-out, power-down) as long as the
+/// backup domain stays powered (RM0383 §5.1.2, §6.1.2: "a power reset sets all registers to
+/// their reset values except the Backup domain"): from VDD, and from VBAT while VDD is off.
+/// A write is one 32-bit register access, so a reset during it leaves the old count or the
+/// new one. RAM that survives a reset (an `.uninit` section) is not guaranteed to keep its
+/// content through a brown-out; a flash word would be programmed at every boot and need
+/// erasing. The count is lost only when the backup domain loses its supply, i.e. with VDD and
+/// VBAT both off, a power-on, which clears the count anyway.
+///
+/// Reads need nothing (the RTC's own clock stays off); writes need the PWR interface's clock
+/// (RCC_APB1ENR.PWREN) and the backup domain's write protection off (PWR_CR.DBP, RM0383
+/// §5.4.1), both set by [`ResetCount::new`] and left so.
+pub struct ResetCount {
+    _pwr: PWR,
+    rtc: RTC,
+}
+
+impl ResetCount {
+    /// Takes PWR and the RTC (for its backup registers) and allows writes to the backup
+    /// domain.
+    pub fn new(pwr: PWR, rtc: RTC, rcc: &mut Rcc) -> Self {
+        PWR::enable(rcc);
+        pwr.cr().modify(|_, w| w.dbp().set_bit());
+        ResetCount { _pwr: pwr, rtc }
+    }
+
+    /// The count stored (none if the register holds no count of this image).
+    pub fn load(&self) -> Resets {
+        let v = self.rtc.bkp0r().read().bits();
+        if v & !0xFF == COUNT_MARK {
+            Resets::from_byte(v as u8)
+        } else {
+            Resets::default()
+        }
+    }
+
+    /// Stores `resets`.
+    pub fn store(&mut self, resets: Resets) {
+        let v = COUNT_MARK | u32::from(resets.to_byte());
+        self.rtc.bkp0r().write(|w| unsafe { w.bits(v) });
     }
 }

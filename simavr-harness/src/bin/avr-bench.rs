@@ -12,7 +12,8 @@
 //!   included).
 //! - Results: the words the image prints after each measurement are checked here (datasheet
 //!   CRC vectors and check values, ring contents, `{:.4}` of the printed floats, the backward
-//!   error of the Cholesky solution in `f64`). A failed check is shown, not hidden.
+//!   error of the Cholesky solution in `f64`, the eigenvalues against a two-sided Jacobi in
+//!   `f64`). A failed check is shown, not hidden.
 //!
 //! Usage: `avr-bench ELF...` (the file stem names the variant; include `empty.elf`).
 
@@ -149,7 +150,9 @@ fn run(
 // ---------------------------------------------------------------------- code size
 
 /// Families of the timed routines (`<family>_<variant>` in the image).
-const FAMILIES: [&str; 7] = ["sqrt_", "chol_", "push_", "pop_", "crc8_", "crc32_", "fmt_"];
+const FAMILIES: [&str; 8] = [
+    "sqrt_", "chol_", "eig_", "push_", "pop_", "crc8_", "crc32_", "fmt_",
+];
 
 /// The timed routine a (Rust v0) mangled symbol names, if any: an identifier `<len><family>_…`.
 fn routine(symbol: &str) -> Option<&str> {
@@ -287,6 +290,106 @@ fn chol_check(n: usize, words: &[String]) -> String {
     format!("backward error {eta:.1e} (f32 eps 6.0e-8)")
 }
 
+/// The image's eigen-decomposition problem (see `eig_problem` in firmware/src/bin/avr-bench.rs):
+/// the same `f32` values, formed by the same operations, widened.
+fn eig_problem(n: usize) -> Vec<Vec<f64>> {
+    let rho = 0.99f32;
+    let s = (1.0 - rho * rho).sqrt();
+    let mut pow = vec![1.0f32; n];
+    for k in 1..n {
+        pow[k] = pow[k - 1] * rho;
+    }
+    (0..n)
+        .map(|i| {
+            (0..n)
+                .map(|j| match j {
+                    0 => f64::from(pow[i]),
+                    j if j <= i => f64::from(pow[i - j] * s),
+                    _ => 0.0,
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Eigenvalues of the symmetric `b` (ascending) by cyclic two-sided Jacobi in `f64`: a different
+/// method, and 2⁻⁵² against the images' 2⁻²³.
+fn jacobi_eigenvalues(mut b: Vec<Vec<f64>>) -> Vec<f64> {
+    let n = b.len();
+    for _ in 0..100 {
+        let off: f64 = (0..n)
+            .flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| (i, j)))
+            .map(|(i, j)| b[i][j] * b[i][j])
+            .sum();
+        if off < 1e-60 {
+            break;
+        }
+        for p in 0..n {
+            for q in p + 1..n {
+                if b[p][q] == 0.0 {
+                    continue;
+                }
+                let theta = (b[q][q] - b[p][p]) / (2.0 * b[p][q]);
+                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let t = if theta == 0.0 { 1.0 } else { t };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for row in b.iter_mut() {
+                    let (bkp, bkq) = (row[p], row[q]);
+                    row[p] = c * bkp - s * bkq;
+                    row[q] = s * bkp + c * bkq;
+                }
+                let (rp, rq) = (b[p].clone(), b[q].clone());
+                for (k, (bpk, bqk)) in rp.iter().zip(&rq).enumerate() {
+                    b[p][k] = c * bpk - s * bqk;
+                    b[q][k] = s * bpk + c * bqk;
+                }
+            }
+        }
+    }
+    let mut e: Vec<f64> = (0..n).map(|i| b[i][i]).collect();
+    e.sort_by(f64::total_cmp);
+    e
+}
+
+/// The printed eigenvalues of `M Mᵀ` against the `f64` ones: the largest relative error, and
+/// that of the smallest eigenvalue.
+fn eig_check(n: usize, words: &[String]) -> String {
+    if words.first().map(String::as_str) != Some("1") {
+        return "FAILED: no decomposition".into();
+    }
+    let mut got: Vec<f64> = words[1..]
+        .iter()
+        .filter_map(|w| w.parse::<u32>().ok())
+        .map(|b| f64::from(f32::from_bits(b)))
+        .collect();
+    if got.len() != n {
+        return format!("FAILED: {} values for n = {n}", got.len());
+    }
+    got.sort_by(f64::total_cmp);
+    let m = eig_problem(n);
+    let b = (0..n)
+        .map(|i| {
+            (0..n)
+                .map(|j| (0..n).map(|k| m[i][k] * m[j][k]).sum())
+                .collect()
+        })
+        .collect();
+    let want = jacobi_eigenvalues(b);
+    let rel: Vec<f64> = got
+        .iter()
+        .zip(&want)
+        .map(|(g, w)| (g - w).abs() / w)
+        .collect();
+    format!(
+        "eigenvalues {:.1e}..{:.1e}: relative error max {:.1e}, of the smallest {:.1e}",
+        want[0],
+        want[n - 1],
+        rel.iter().fold(0.0f64, |a, &b| a.max(b)),
+        rel[0]
+    )
+}
+
 fn expect(words: &[String], want: &[&str]) -> String {
     let got: Vec<&str> = words.iter().map(String::as_str).collect();
     if got == want {
@@ -304,6 +407,7 @@ fn check(m: &Measurement) -> String {
         ("empty", _) => String::new(),
         ("sqrt", _) => expect(&m.words, &[2.0f32.sqrt().to_bits().to_string().as_str()]),
         ("chol", l) => chol_check(if l == "chol12" { 12 } else { 13 }, &m.words),
+        ("eig", l) => eig_check(if l == "eig8" { 8 } else { 12 }, &m.words),
         ("ring", "push") => expect(&m.words, &["1"]),
         ("ring", "pop") => expect(&m.words, &["0"]),
         // 255 bytes into an empty queue of capacity 255; 0 + 1 + … + 254 = 32385.
