@@ -504,9 +504,11 @@ pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
 }
 
 /// The firmware's search configuration (`selfid::DEFAULT_CONFIG.search`: ridge-core's
-/// default search with an intercept, on deviations from the operating point), in `T`.
+/// default search on the device's grid, p ≤ 5, with an intercept, on deviations from the
+/// operating point), in `T`.
 pub fn firmware_search<T: Real>() -> Search<T> {
     Search {
+        grid: DEFAULT_CONFIG.search.grid,
         offset: DEFAULT_CONFIG.search.offset,
         ..Search::default()
     }

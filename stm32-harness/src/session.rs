@@ -406,7 +406,7 @@ pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
 
 /// Reruns the firmware's search on the host from `samples`: ridge-core's exact integer
 /// statistics (`IntGram`) and the firmware's search (`selfid::DEFAULT_CONFIG.search`: the
-/// default search with an intercept) in `T` on the deviations `(v − v0, y − y0)` from the
+/// default search on the device's grid, p ≤ 5, with an intercept) in `T` on the deviations `(v − v0, y − y0)` from the
 /// operating point (`v` the map's flow at the duty), then the absolute model as the firmware
 /// forms it (`selfid::absolute_model`).
 pub fn host_search<T: Real>(samples: &Samples) -> Result<IdLine, String> {
@@ -420,6 +420,7 @@ pub fn host_search<T: Real>(samples: &Samples) -> Result<IdLine, String> {
     }
     let normal = g.normal::<T>(MODEL_SCALE).map_err(|e| format!("{e:?}"))?;
     let search = Search::<T> {
+        grid: DEFAULT_CONFIG.search.grid,
         offset: DEFAULT_CONFIG.search.offset,
         ..Search::default()
     };

@@ -213,8 +213,8 @@ fn a_clean_minute_clears_the_reset_count() {
     assert!(b.machine.now() > ps(clean_s));
 }
 
-/// Fault injection starts at 5 s: the firmware is in the excitation record (after the 2 s
-/// settle), as in the ATmega2560's tests.
+/// Fault injection starts at 5 s: the firmware is in the scan (after the 1.5 s settle), as in
+/// the ATmega2560's tests.
 const AT: f64 = 5.0;
 /// Standard-mode I2C clock phases (NXP UM10204, Table 10): SCL low ≥ 4.7 µs ...
 const I2C_LOW_MIN: Time = 4_700_000;

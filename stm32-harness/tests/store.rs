@@ -74,10 +74,7 @@ fn boot(mem: Vec<u8>, limit_s: f64) -> Bench {
     cfg.flash = Some(mem);
     let mut b = Bench::new(cfg).expect("bench");
     b.run_until(limit_s, |l| {
-        matches!(
-            l.keyword(),
-            "LOADED" | "STORED-REJECTED" | "EXCITE" | "FAULT"
-        )
+        matches!(l.keyword(), "LOADED" | "STORED-REJECTED" | "SCAN" | "FAULT")
     })
     .expect("run");
     b
@@ -156,28 +153,29 @@ fn the_record_is_written_loaded_after_a_reset_and_checked() {
     let model = loaded(&b).expect("model on LOADED");
     assert!(same_model(&model, &id), "{model:?} vs {id:?}");
     assert!(
-        b.find("EXCITE").next().is_none(),
+        b.find("SCAN").next().is_none(),
         "no identification with a stored model"
     );
     assert!(b.find("CTRL").next().is_some(), "{}", transcript(&b));
 }
 
-/// Runs a boot that must refuse its record: `STORED-REJECTED <reason>` before `EXCITE`, no
-/// `LOADED`, no controller, no run mode. Returns the refusal's text.
+/// Runs a boot that must refuse its record: `STORED-REJECTED <reason>` before `SCAN` (the
+/// identification's first line), no `LOADED`, no controller, no run mode. Returns the
+/// refusal's text.
 fn refused(mem: Vec<u8>, what: &str) -> String {
     let mut b = boot(mem, 5.0);
     if b.lines
         .last()
         .is_some_and(|l| l.keyword() == "STORED-REJECTED")
     {
-        run_to(&mut b, 5.0, "EXCITE");
+        run_to(&mut b, 5.0, "SCAN");
     }
     let log = transcript(&b);
     let first = |kw: &str| b.lines.iter().position(|l| l.keyword() == kw);
     let rejected =
         first("STORED-REJECTED").unwrap_or_else(|| panic!("{what}: not refused:\n{log}"));
-    let excite = first("EXCITE").unwrap_or_else(|| panic!("{what}: no identification:\n{log}"));
-    assert!(rejected < excite, "{what}:\n{log}");
+    let scan = first("SCAN").unwrap_or_else(|| panic!("{what}: no identification:\n{log}"));
+    assert!(rejected < scan, "{what}:\n{log}");
     for kw in ["LOADED", "CTRL", "TRACK", "FAULT"] {
         assert!(first(kw).is_none(), "{what}: a {kw} line:\n{log}");
     }
@@ -205,7 +203,7 @@ fn a_stored_record_is_loaded_and_a_damaged_or_implausible_one_refused() {
     assert!(
         !b.lines
             .iter()
-            .any(|l| matches!(l.keyword(), "EXCITE" | "STORED-REJECTED")),
+            .any(|l| matches!(l.keyword(), "SCAN" | "STORED-REJECTED")),
         "{log}"
     );
 
