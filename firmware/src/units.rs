@@ -52,9 +52,18 @@ pub const ML_PER_SLM_TICK: f32 = 1000.0 / 60.0 * TS_S;
 /// (volumes the device integrates from its readings, exact in integer counts until printed).
 pub const ML_PER_COUNT_TICK: f32 = ML_PER_SLM_TICK / FLOW_SCALE as f32;
 
-/// Physical units per raw count of the device's statistics: duty units → fraction 0..1,
-/// flow counts → slm. Identified models are therefore in slm per duty fraction.
+/// Physical units per raw count of a record of duty and flow: duty units → fraction 0..1, flow
+/// counts → slm; models identified on it are in slm per duty fraction (the host tools'
+/// records; the device's statistics use [`MODEL_SCALE`]).
 pub const SCALE: Scale = Scale {
     u: 1.0 / DUTY_FULL_SCALE as f64,
+    y: 1.0 / FLOW_SCALE as f64,
+};
+
+/// Physical units per raw count of the device's statistics: the static map's flow in, the
+/// measured flow out, both SFM3300 counts → slm. Its models are in slm per slm (see
+/// `crate::selfid`: the model's dynamics after the map).
+pub const MODEL_SCALE: Scale = Scale {
+    u: 1.0 / FLOW_SCALE as f64,
     y: 1.0 / FLOW_SCALE as f64,
 };

@@ -18,6 +18,7 @@ pub mod iso;
 pub mod lung;
 pub mod paper;
 pub mod plant;
+pub mod powerup;
 pub mod pump;
 pub mod sfm3300;
 

@@ -397,16 +397,28 @@ fn valve_opens_in_the_panic_handler() {
     assert_safe_after(&mut b, i, "panic", 0.3);
 }
 
+/// The default blower's steady flow (`pump_sim`) at the firmware's knots, strictly increasing
+/// through the dead zone as the firmware's map is (as `tests/simavr.rs` builds it).
+fn default_blower_map() -> ridge_core::InputMap {
+    let r = ridge_pump_firmware::selfid::Config::default().records;
+    let pump = pump_sim::PumpParams::default();
+    let mut knots = [0i16; ridge_core::MAP_KNOTS];
+    for (k, v) in knots.iter_mut().enumerate() {
+        let duty = f64::from(r.map_first + k as u16 * r.map_step) / 10_000.0;
+        *v = (pump.steady_state_flow(duty) * 120.0).round() as i16 + k as i16;
+    }
+    ridge_core::InputMap::new(r.map_first, r.map_step, knots).expect("map")
+}
+
 /// A stored model whose controller design is refused (its input polynomial shares the
 /// pole 0.9 of its output polynomial: not controllable, `FAULT control singular`), `VENT`
 /// sent while the pump settles: the valve never closes and the pump stops.
 #[test]
 fn valve_never_closes_with_a_refused_controller() {
-    // A = (1 − 0.9 q⁻¹)(1 − 0.5 q⁻¹), B = 100 (1 − 0.9 q⁻¹): static gain 200 slm per unit
-    // duty, stable, so the stored record passes its checks.
-    let m =
-        ArxModel::new(&[1.4, -0.45], &[100.0, -90.0], 1, Offset::Intercept, 0.0).expect("model");
-    let record = persist::encode(&m, 90.0);
+    // A = (1 − 0.9 q⁻¹)(1 − 0.5 q⁻¹), B = 0.5 (1 − 0.9 q⁻¹): static gain 1 from the map's
+    // flow, stable, on the default blower's map, so the stored record passes its checks.
+    let m = ArxModel::new(&[1.4, -0.45], &[0.5, -0.45], 1, Offset::Intercept, 0.0).expect("model");
+    let record = persist::encode(&m, &default_blower_map(), 90.0);
     let mut cfg = BenchConfig::new(elf());
     cfg.lung = Some(iso_lung(1));
     cfg.eeprom = eeprom_with(&record);
