@@ -33,6 +33,7 @@ use pump_sim::sfm3300::raw_to_flow;
 use pump_sim::{Blower, Outlet, PlantArgs, Sfm3300Params};
 use ridge_id::capture::{classify, Kind};
 use ridge_id::cli::{Cli, Command};
+use ridge_pump_firmware::command::MAX_LINE;
 use ridge_pump_firmware::lines::{IdLine, MapLine};
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
