@@ -32,9 +32,11 @@
 //!   loses, breath to breath);
 //! - in the middle of the expiration the lung has emptied to the PEEP and the bias flow holds:
 //!   the **no-flow check** of the tick's faults expects from this operating point on (the
-//!   identified gain through it, [`Anchor`]); it is paused from the program's first tick until
-//!   then, since the operating point of the identification did not have the PEEP valve's back
-//!   pressure (at 10 cmH₂O the blower needs about 40 % duty before any flow);
+//!   guard's law, its slope kept, moved through it, [`Anchor`]); it is paused from the
+//!   program's first tick until then, and run mode gives it no flow from the static map while
+//!   a volume program runs, since neither the settled operating point nor the map of the
+//!   identification had the PEEP valve's and the lung's back pressure (at 10 cmH₂O the blower
+//!   needs about 40 % duty before any flow);
 //! - at the start of the next breath the breath is complete: its `BREATH` line (number, set
 //!   volume and PEEP, delivered volume, the volume it was programmed for, peak flow, tracking
 //!   RMS over the breath). This tick is the **breath boundary**.
