@@ -49,6 +49,7 @@ mod modal;
 pub mod model;
 pub mod normal;
 pub mod real;
+pub mod reid;
 pub mod rls;
 pub mod search;
 pub mod structure;
