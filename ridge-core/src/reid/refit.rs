@@ -7,6 +7,7 @@ use crate::gram::Scale;
 use crate::model::ArxModel;
 use crate::normal::{pivot_tol, Col, Layout};
 use crate::real::Real;
+use crate::wide::Wide;
 use crate::PARAMS_MAX;
 
 use super::window::{Window, WINDOW_LEN_MAX};
@@ -125,15 +126,16 @@ impl<T: Real> Refit<T> {
             }
         }
         let response = match intercept {
-            // N Σy² − (Σy)² exactly, then / N².
+            // N Σy² − (Σy)² exactly (the crate's byte-wise 128-bit arithmetic: no i128 on
+            // the ATmega2560), then / N².
             Some(c) => {
                 let count = window.entry(c, c);
                 let sum = window.entry(n, c);
                 let sq = window.entry(n, n);
-                let spread = i128::from(count) * i128::from(sq) - i128::from(sum) * i128::from(sum);
-                if count > 0 && spread > 0 {
-                    let var =
-                        T::from_f64(spread as f64) / (T::from_i64(count) * T::from_i64(count));
+                let mut spread = Wide::product(&count, &sq);
+                spread.sub_product(&sum, &sum);
+                if count > 0 && !spread.is_negative() && !spread.is_zero() {
+                    let var = spread.to_real::<T>() / (T::from_i64(count) * T::from_i64(count));
                     var.sqrt() * sy
                 } else {
                     T::ZERO
