@@ -18,6 +18,7 @@ pub mod lung;
 pub mod paper;
 pub mod plant;
 pub mod pump;
+pub mod reid;
 pub mod sfm3300;
 
 use std::fs::File;
