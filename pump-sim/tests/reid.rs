@@ -115,21 +115,23 @@ fn without_breaths_every_re_estimate_is_refused_and_the_model_kept() {
     };
     let run = reid::run(&study).expect("power-up and run");
     assert!(!run.estimates.is_empty());
-    // Without the breaths' steps the loop's data hold the sensor noise fed back: estimates
-    // with a static gain far below the plant's (measured 2 to 15 slm per duty fraction against
-    // about 160), which the model check refuses. (The window's output RMS, 1.8 to 2.9 slm, is
-    // above the power-up's 1 slm "not excited" rule: noise through the loop, not excitation.)
+    // Without the breaths' steps the loop's data hold the sensor noise fed back (estimates with
+    // 40 % of the plant's gain, reid-study). The window's output RMS (1.8 to 2.9 slm) passes the
+    // power-up's 1 slm rule; its duty RMS (2.6 %) does not pass the 5 % input rule. The first
+    // windows hold the move from the switch-over flow to 30 slm.
     for e in &run.estimates {
-        assert!(
-            matches!(
-                e.verdict,
-                Some(Err(Rejection::Model(_) | Rejection::NotExcited { .. })) | None
-            ),
-            "{e:?}"
-        );
+        assert!(matches!(e.verdict, Some(Err(_)) | None), "{e:?}");
         assert_eq!(e.swapped_at, None);
     }
-    assert!(run.estimates.iter().filter(|e| e.verdict.is_some()).count() >= 4);
+    let late: Vec<_> = run.estimates.iter().filter(|e| e.breath >= 3).collect();
+    assert!(late.len() >= 4);
+    for e in late {
+        assert!(
+            matches!(e.verdict, Some(Err(Rejection::NotExcited { response, input_response }))
+                if response > 1.0 && input_response < reid::MIN_INPUT_RESPONSE),
+            "{e:?}"
+        );
+    }
     let g0 = run.switchover.model.static_gain();
     assert!(run.breaths.iter().all(|b| b.model_gain == g0));
 }

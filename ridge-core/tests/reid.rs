@@ -263,6 +263,27 @@ fn fit_agrees_with_the_crates_ridge_m_on_exact_statistics() {
             w.push(ui, yi).unwrap();
         }
         let mut r = Refit::start(&w, method, &scale).unwrap();
+        // The window's spreads against the rows' own: y_t and u_{t−d}, t = m … N − 1.
+        let m0 = s.seed_len();
+        let rms = |v: Vec<f64>| {
+            let mean = v.iter().sum::<f64>() / v.len() as f64;
+            (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / v.len() as f64).sqrt()
+        };
+        let ry = rms((m0..y.len()).map(|t| f64::from(y[t]) * scale.y).collect());
+        let d = usize::from(s.d);
+        let ru = rms((m0..u.len())
+            .map(|t| f64::from(u[t - d]) * scale.u)
+            .collect());
+        assert!(
+            (r.response() - ry).abs() < 1e-9 * ry,
+            "{} vs {ry}",
+            r.response()
+        );
+        assert!(
+            (r.input_response() - ru).abs() < 1e-9 * ru,
+            "{} vs {ru}",
+            r.input_response()
+        );
         let RefitStep::Done(m, k) = r.finish() else {
             panic!("refused")
         };
@@ -345,27 +366,33 @@ fn acceptance_refuses_unexcited_unstable_and_worse_than_running() {
     let acc = Acceptance {
         model: limits(),
         min_response: 1.0,
+        min_input_response: 0.1,
         min_fit: 70.0,
         holdout_min: 100,
     };
     let good = ArxModel::new(&[0.8], &[0.2], 1, Offset::Intercept, 0.0).unwrap();
-    assert!(acc.check_estimate(&good, 5.0).is_ok());
+    assert!(acc.check_estimate(&good, 5.0, 1.0).is_ok());
     assert!(matches!(
-        acc.check_estimate(&good, 0.5),
+        acc.check_estimate(&good, 0.5, 1.0),
         Err(Rejection::NotExcited { .. })
     ));
     assert!(matches!(
-        acc.check_estimate(&good, f64::NAN),
+        acc.check_estimate(&good, f64::NAN, 1.0),
+        Err(Rejection::NotExcited { .. })
+    ));
+    // Output moving, input not (the closed loop's noise fed back).
+    assert!(matches!(
+        acc.check_estimate(&good, 5.0, 0.05),
         Err(Rejection::NotExcited { .. })
     ));
     let unstable = ArxModel::new(&[1.01], &[0.2], 1, Offset::Intercept, 0.0).unwrap();
     assert!(matches!(
-        acc.check_estimate(&unstable, 5.0),
+        acc.check_estimate(&unstable, 5.0, 1.0),
         Err(Rejection::Model(_))
     ));
     let weak = ArxModel::new(&[0.8], &[0.02], 1, Offset::Intercept, 0.0).unwrap();
     assert!(matches!(
-        acc.check_estimate(&weak, 5.0),
+        acc.check_estimate(&weak, 5.0, 1.0),
         Err(Rejection::Model(_))
     ));
     // Held out: data from `good`; a wrong candidate against the right running model is

@@ -136,9 +136,9 @@ fn main() {
     println!();
     println!(
         "| Ridge-M iterates | dither | phase | estimates | gain (mean ± sd) | secant | 63 % rise \
-         (truth) | step error % | held-out fit % |"
+         (truth) | step error % | held-out fit % | window's duty RMS % |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for max_iter in [200u32, 5000] {
         for dither in [None, Some(DITHER)] {
             let study = Study {
@@ -184,10 +184,16 @@ fn main() {
                         _ => None,
                     })
                     .collect();
+                let duty: Vec<f64> = all
+                    .iter()
+                    .flat_map(|r| r.estimates.iter())
+                    .filter(|e| e.breath >= from && e.breath < to)
+                    .map(|e| 100.0 * f64::from(e.input_response))
+                    .collect();
                 let (g, gs) = mean_sd(&gains);
                 println!(
                     "| {max_iter} | {} | {label} | {} | {g:.1} ± {gs:.1} | {:.1} | {:.1} ({}) | \
-                     {:.1} | {:.1} |",
+                     {:.1} | {:.1} | {:.1} |",
                     if dither.is_some() { "±1 slm" } else { "none" },
                     models.len(),
                     secant_gain(&t[0], &t[2]),
@@ -195,9 +201,75 @@ fn main() {
                     rise63(&t[1].step).map_or("-".into(), |r| r.to_string()),
                     mean_sd(&errs).0,
                     mean_sd(&fits).0,
+                    mean_sd(&duty).0,
                 );
             }
         }
+    }
+
+    println!();
+    println!(
+        "## Without breaths: a constant 30 slm setpoint on the adult lung, frozen loop observed, \
+         12 breaths' time, {} seeds, 5000 iterates; estimates from breath 6 on",
+        args.seeds
+    );
+    println!();
+    println!(
+        "| dither | estimates | gain (mean ± sd) | truth at 35 slm | 63 % rise (truth) | window's \
+         duty RMS % | refused |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for (label, dither) in [
+        ("none", None),
+        ("±1 slm, 4 ticks a bit", Some(DITHER)),
+        (
+            "±1 slm, 20 ticks a bit",
+            Some(Dither {
+                amplitude: 1.0,
+                hold: 20,
+            }),
+        ),
+    ] {
+        let study = Study {
+            mode: Mode::Observe,
+            program: ridge_pump_firmware::setpoint::Program::Constant(30.0),
+            breaths: 12,
+            changes: Vec::new(),
+            dither,
+            method: RidgeM {
+                max_iter: 5000,
+                ..RidgeM::PAPER
+            },
+            units: 25,
+            ..base.clone()
+        };
+        let all = runs(&study, args.seeds);
+        let models: Vec<_> = all.iter().flat_map(|r| models_in(r, 6, 12)).collect();
+        let gains: Vec<f64> = models.iter().map(|m| f64::from(m.static_gain())).collect();
+        let rises: Vec<f64> = models
+            .iter()
+            .filter_map(|m| rise63(&model_step(m, reid::STEP_TICKS)).map(|r| r as f64))
+            .collect();
+        let refused = all
+            .iter()
+            .flat_map(|r| r.estimates.iter())
+            .filter(|e| e.breath >= 6 && matches!(e.verdict, Some(Err(_))))
+            .count();
+        let duty: Vec<f64> = all
+            .iter()
+            .flat_map(|r| r.estimates.iter())
+            .filter(|e| e.breath >= 6)
+            .map(|e| 100.0 * f64::from(e.input_response))
+            .collect();
+        let (g, gs) = mean_sd(&gains);
+        println!(
+            "| {label} | {} | {g:.1} ± {gs:.1} | {:.1} | {:.1} ({}) | {:.2} | {refused} |",
+            models.len(),
+            adult[1].gain,
+            mean_sd(&rises).0,
+            rise63(&adult[1].step).map_or("-".into(), |r| r.to_string()),
+            mean_sd(&duty).0,
+        );
     }
 
     println!();

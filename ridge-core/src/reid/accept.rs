@@ -11,11 +11,14 @@ pub enum Rejection<T> {
     /// Not finite, a pole outside the radius, or the static gain out of range (the power-up
     /// model's check, [`check_model`]).
     Model(ModelFault<T>),
-    /// The window's output moved less than [`Acceptance::min_response`] (RMS about its mean,
-    /// output units): too little excitation to identify from.
+    /// The window's output moved less than [`Acceptance::min_response`] or its input less
+    /// than [`Acceptance::min_input_response`] (RMS about their means): too little excitation
+    /// to identify from.
     NotExcited {
-        /// The window's RMS deviation.
+        /// The window's output RMS deviation.
         response: T,
+        /// The window's input RMS deviation.
+        input_response: T,
     },
     /// On the held-out data the estimate's free-run fit (percent) is below
     /// [`Acceptance::min_fit`] or below the running model's.
@@ -36,7 +39,9 @@ pub enum Rejection<T> {
 /// - the model check of the controller design ([`ModelLimits`]: poles within the radius, the
 ///   static gain in range);
 /// - the data excited the plant: the window's output RMS about its mean at least
-///   `min_response` (the power-up record's "not excited" rule);
+///   `min_response` (the power-up record's "not excited" rule) and, as in closed loop the
+///   output's spread is also the sensor noise fed back, the input's at least
+///   `min_input_response`;
 /// - validation on data the fit did not see: on the samples after the snapshot (the next
 ///   breath or two), the estimate's free-run fit at least `min_fit` percent (the power-up
 ///   validation record's rule) and at least the running model's fit on the same samples (a
@@ -47,6 +52,8 @@ pub struct Acceptance<T> {
     pub model: ModelLimits<T>,
     /// Smallest RMS of the window's output about its mean, output units.
     pub min_response: T,
+    /// Smallest RMS of the window's input about its mean, input units.
+    pub min_input_response: T,
     /// Smallest free-run fit on the held-out samples, percent (power-up: 70).
     pub min_fit: T,
     /// Held-out samples to score before a verdict (e.g. one breath).
@@ -54,12 +61,22 @@ pub struct Acceptance<T> {
 }
 
 impl<T: Real> Acceptance<T> {
-    /// The checks on the estimate itself: the model check and the window's `response`
-    /// ([`super::Refit::response`]). Returns the static gain.
-    pub fn check_estimate(&self, model: &ArxModel<T>, response: T) -> Result<T, Rejection<T>> {
+    /// The checks on the estimate itself: the window's `response` and `input_response`
+    /// ([`super::Refit::response`], [`super::Refit::input_response`]), then the model check.
+    /// Returns the static gain.
+    pub fn check_estimate(
+        &self,
+        model: &ArxModel<T>,
+        response: T,
+        input_response: T,
+    ) -> Result<T, Rejection<T>> {
         // A NaN or infinite response is refused too.
-        if !response.is_finite() || response < self.min_response {
-            return Err(Rejection::NotExcited { response });
+        let low = |x: T, min: T| !x.is_finite() || x < min;
+        if low(response, self.min_response) || low(input_response, self.min_input_response) {
+            return Err(Rejection::NotExcited {
+                response,
+                input_response,
+            });
         }
         check_model(model, &self.model).map_err(Rejection::Model)
     }

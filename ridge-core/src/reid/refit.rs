@@ -82,6 +82,8 @@ pub struct Refit<T: Real> {
     stage: Stage,
     /// RMS of the target about its mean over the window (about 0 without an intercept).
     response: T,
+    /// RMS of the input column `u_{t−d}` about its mean (about 0 without an intercept).
+    input_response: T,
     weight: u32,
 }
 
@@ -125,23 +127,16 @@ impl<T: Real> Refit<T> {
                 }
             }
         }
-        let response = match intercept {
-            // N Σy² − (Σy)² exactly (the crate's byte-wise 128-bit arithmetic: no i128 on
-            // the ATmega2560), then / N².
-            Some(c) => {
-                let count = window.entry(c, c);
-                let sum = window.entry(n, c);
-                let sq = window.entry(n, n);
-                let mut spread = Wide::product(&count, &sq);
-                spread.sub_product(&sum, &sum);
-                if count > 0 && !spread.is_negative() && !spread.is_zero() {
-                    let var = spread.to_real::<T>() / (T::from_i64(count) * T::from_i64(count));
-                    var.sqrt() * sy
-                } else {
-                    T::ZERO
-                }
-            }
-            None => (T::from_i64(window.entry(n, n)) / T::from_u32(window.weight())).sqrt() * sy,
+        // The output's and the newest input's RMS about their means.
+        let response = column_rms::<T>(window, n, intercept) * sy;
+        let first_input = layout
+            .cols
+            .iter()
+            .take(n)
+            .position(|c| matches!(c, Col::U(_)));
+        let input_response = match first_input {
+            Some(k) => column_rms::<T>(window, k, intercept) * su,
+            None => T::ZERO,
         };
         Ok(Refit {
             layout,
@@ -155,6 +150,7 @@ impl<T: Real> Refit<T> {
             iter: 0,
             stage: Stage::Factor,
             response,
+            input_response,
             weight: window.weight(),
         })
     }
@@ -163,6 +159,13 @@ impl<T: Real> Refit<T> {
     /// statistics are), output units; about zero without an intercept.
     pub fn response(&self) -> T {
         self.response
+    }
+
+    /// The RMS deviation of the input `u_{t−d}` from its mean over the window's rows (weighted),
+    /// input units; about zero without an intercept. In closed loop the output's spread is
+    /// also the sensor's noise fed back, the input's follows what excites the loop.
+    pub fn input_response(&self) -> T {
+        self.input_response
     }
 
     /// The window's weighted rows at the snapshot.
@@ -245,6 +248,28 @@ impl<T: Real> Refit<T> {
         } else {
             self.w_prev = self.w;
         }
+    }
+}
+
+/// The RMS of column `k` of `window` about its mean, in counts: with the intercept column `c`,
+/// `√(N Σx² − (Σx)²) / N` from the exact statistics (`N Σx² − (Σx)²` in the crate's byte-wise
+/// 128-bit arithmetic: no `i128` on the ATmega2560); without one, `√(Σx² / weight)`.
+fn column_rms<T: Real>(window: &Window<'_>, k: usize, intercept: Option<usize>) -> T {
+    match intercept {
+        Some(c) => {
+            let count = window.entry(c, c);
+            let sum = window.entry(k, c);
+            let sq = window.entry(k, k);
+            let mut spread = Wide::product(&count, &sq);
+            spread.sub_product(&sum, &sum);
+            if count > 0 && !spread.is_negative() && !spread.is_zero() {
+                let var = spread.to_real::<T>() / (T::from_i64(count) * T::from_i64(count));
+                var.sqrt()
+            } else {
+                T::ZERO
+            }
+        }
+        None => (T::from_i64(window.entry(k, k)) / T::from_u32(window.weight().max(1))).sqrt(),
     }
 }
 
