@@ -118,7 +118,8 @@ pub struct HoldoutVerdict<T> {
 /// Scores an estimate and the running model on samples the estimate was not fitted on (feed
 /// it the ticks after the snapshot): both simulated free-run from the same measured seed, and
 /// the estimate one step ahead. Three predictors (each seeded with its model's first `m`
-/// measured samples) and three scores; per tick about `2 (p + q) + 1` products each.
+/// measured samples) and three scores (504 bytes in `f32` on a 64-bit host); per tick about
+/// `p + q + 1` products each.
 #[derive(Debug, Clone)]
 pub struct Holdout<T: Real> {
     candidate: Predictor<T>,

@@ -66,7 +66,8 @@ enum Stage {
 /// the crate's other paths eliminate `y_{t−1}` first, so they agree to rounding, tested).
 /// The window keeps accumulating while the fit runs: it works on its snapshot.
 ///
-/// Memory: 105 + 4 × 13 scalars (628 bytes in `f32`) whatever the structure.
+/// Memory: 105 + 4 × 13 scalars and the settings, whatever the structure (720 bytes in `f32` on
+/// a 64-bit host).
 #[derive(Debug, Clone)]
 pub struct Refit<T: Real> {
     layout: Layout,

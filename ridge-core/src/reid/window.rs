@@ -39,7 +39,8 @@ const DIAGONAL_MAX: i64 = i64::MAX - (1 << 32);
 ///   conditions, no zero padding), as after [`clear`](Self::clear).
 ///
 /// Storage: `window_len(n)` entries borrowed from the caller (e.g. buffers of the power-up
-/// search that are idle in run mode), plus 40 bytes of lag history and counts.
+/// search that are idle in run mode), plus the lag history, counts and structure (104 bytes on
+/// a 64-bit host).
 #[derive(Debug)]
 pub struct Window<'a> {
     layout: Layout,
