@@ -17,13 +17,15 @@
 //! `b·P … (b + 1)·P − 1`; a lung change, a re-estimate's start and its verdict happen at breath
 //! boundaries, a controller swap at the boundary as the controller sees it (its preview ahead).
 
+use ridge_core::control::Limits;
 use ridge_core::control::{Controller, Design};
+use ridge_core::input_map::MapTable;
 use ridge_core::reid::{window_len, Acceptance, Holdout, Refit, RefitStep, Rejection, Window};
 use ridge_core::{ArxModel, RidgeM};
 use ridge_pump_firmware::selfid::{preview_ticks, REFERENCE_POLE};
 use ridge_pump_firmware::setpoint::{self, BreathWave, Program, DEMO_BREATH};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FRACTION_PER_DUTY, SCALE, SLM_PER_COUNT};
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, MODEL_SCALE, SLM_PER_COUNT};
 
 use crate::baseline::experiment::{
     firmware_design, identify, ExperimentError, Switchover, EXPERIMENT_CONFIG,
@@ -96,7 +98,36 @@ pub fn linearisation(plant: &PlantArgs, lung: &LungParams, flow: f64) -> Lineari
     }
 }
 
-/// The unit step response of `model` (duty fraction → slm) over `ticks` ticks, in the same
+/// The truth as the model sees it, through the power-up's static map `table` (duty → the map's
+/// flow): `lin`'s step response and gain divided by the map's local slope at `lin`'s duty
+/// (central difference over ±1 % duty), slm per slm of the map's flow.
+pub fn through_map(lin: &Linearisation, table: &MapTable) -> Linearisation {
+    let d = (lin.duty * f64::from(DUTY_FULL_SCALE)).round() as u16;
+    let (a, b) = (
+        table.at(d.saturating_sub(100)),
+        table.at(d.saturating_add(100)),
+    );
+    // slm per duty fraction.
+    let slope = f64::from(i32::from(b) - i32::from(a)) * f64::from(SLM_PER_COUNT) / 0.02;
+    Linearisation {
+        flow: lin.flow,
+        duty: lin.duty,
+        step: lin.step.iter().map(|v| v / slope).collect(),
+        gain: lin.gain / slope,
+    }
+}
+
+/// The secant gain of the noise-free plant between two steady flows seen through the map
+/// `table`: the flows' difference over the map's flows at their duties, slm per slm.
+pub fn secant_through_map(lo: &Linearisation, hi: &Linearisation, table: &MapTable) -> f64 {
+    let at = |l: &Linearisation| {
+        f64::from(table.at((l.duty * f64::from(DUTY_FULL_SCALE)).round() as u16))
+            * f64::from(SLM_PER_COUNT)
+    };
+    (hi.flow - lo.flow) / (at(hi) - at(lo))
+}
+
+/// The unit step response of `model` (the map's flow → slm) over `ticks` ticks, in the same
 /// convention as [`Linearisation::step`].
 pub fn model_step(model: &ArxModel<f32>, ticks: usize) -> Vec<f64> {
     let theta: Vec<f64> = model.theta().iter().map(|&v| f64::from(v)).collect();
@@ -329,12 +360,11 @@ pub struct StudyRun {
     pub estimates: Vec<Estimate>,
 }
 
-/// The smallest RMS of the window's duty about its mean for a re-estimate, fraction of full
-/// scale (5 %). Measured (`reid-study`): square breaths 10 → 60 slm move the duty by 14 % RMS on
-/// the adult lung and 21 % on C 10 R 50; a constant 30 slm setpoint by 2.6–2.8 % (the sensor
-/// noise fed back, with or without a ±1 slm dither), whose estimates have 40–44 % of the
-/// plant's gain.
-pub const MIN_INPUT_RESPONSE: f32 = 0.05;
+/// The smallest RMS of the window's input (the map's flow) about its mean for a re-estimate,
+/// slm (5). Measured (`reid-study`): square breaths 10 → 60 slm move it by 22 slm RMS on the
+/// adult lung and 35 slm on C 10 R 50; a constant 30 slm setpoint by 2.4–2.7 slm (the sensor
+/// noise fed back, with or without a ±1 slm dither), whose estimates rise 20 % too fast.
+pub const MIN_INPUT_RESPONSE: f32 = 5.0;
 
 /// The acceptance rules of the study: the firmware's model limits and minimum fit (70 %) and
 /// response (1 slm), [`MIN_INPUT_RESPONSE`], one breath of held-out samples.
@@ -360,7 +390,7 @@ fn design(model: &ArxModel<f32>) -> Option<Design<f32>> {
     Some(d)
 }
 
-/// A running controller with its model and preview.
+/// A running controller with its model (the dynamics from the map's flow) and preview.
 struct Running {
     model: ArxModel<f32>,
     ctrl: Controller<f32>,
@@ -368,15 +398,28 @@ struct Running {
 }
 
 impl Running {
-    fn new(model: ArxModel<f32>, d: &Design<f32>, duty: f32, flow: f32) -> Self {
-        let mut ctrl = Controller::new(d.rst, EXPERIMENT_CONFIG.control.limits());
-        ctrl.start(duty, flow);
+    /// Started bumplessly at the map's flow `v` of the applied duty and the reading `flow`
+    /// (slm), with the firmware's duty limits through the map.
+    fn new(model: ArxModel<f32>, d: &Design<f32>, table: &MapTable, v: f32, flow: f32) -> Self {
+        let c = &EXPERIMENT_CONFIG.control;
+        let limits = Limits {
+            min: map_slm(table, c.duty_min),
+            max: map_slm(table, c.duty_max.min(DUTY_FULL_SCALE)),
+            max_step: f32::MAX,
+        };
+        let mut ctrl = Controller::new(d.rst, limits);
+        ctrl.start(v, flow);
         Running {
             model,
             ctrl,
             preview: u32::from(preview_ticks(d.mean_delay(&model))),
         }
     }
+}
+
+/// The map's flow at `duty` (1/10 000), slm, as the firmware's run mode converts it.
+fn map_slm(table: &MapTable, duty: u16) -> f32 {
+    f32::from(table.at(duty)) * SLM_PER_COUNT
 }
 
 /// Where the current re-estimate stands.
@@ -428,12 +471,9 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
     );
     let d0 = design(&sw.model).ok_or(ExperimentError::Score)?;
 
-    let mut running = Running::new(
-        sw.model,
-        &d0,
-        f32::from(sw.duty) * FRACTION_PER_DUTY,
-        sw.flow,
-    );
+    let table = sw.map.table();
+    let mut running = Running::new(sw.model, &d0, &table, map_slm(&table, sw.duty), sw.flow);
+    let mut applied = sw.duty;
     let s = sw.model.structure();
     let offset = sw.model.offset();
     let mut store = [0i64; window_len(ridge_core::PARAMS_MAX)];
@@ -496,7 +536,7 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
                 && b % study.every == 0
             {
                 // A window too short for the structure starts nothing (the next boundary tries).
-                if let Ok(r) = Refit::start(&window, study.method, &SCALE) {
+                if let Ok(r) = Refit::start(&window, study.method, &MODEL_SCALE) {
                     estimates.push(Estimate {
                         breath: b,
                         weight: r.weight(),
@@ -523,7 +563,7 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
                 let y = f32::from(raw_to_counts(raw)) * SLM_PER_COUNT;
                 match design(&model) {
                     Some(d) => {
-                        running = Running::new(model, &d, running.ctrl.last(), y);
+                        running = Running::new(model, &d, &table, running.ctrl.last(), y);
                         estimates[i].swapped_at = Some(k.div_ceil(period));
                     }
                     None => estimates[i].design_refused = true,
@@ -536,16 +576,34 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
         if let Some(g) = dither.as_mut() {
             ahead += g.at(k);
         }
-        let u = running.ctrl.step(ahead, y);
-        let duty = ((u * f32::from(DUTY_FULL_SCALE) + 0.5) as u16).min(DUTY_FULL_SCALE);
+        // Run mode through the map (as `firmware/src/selfid/run.rs`): the controller's output
+        // is the map's flow, turned into duty by the map's inverse within the duty limits and
+        // the rate limit, and the controller is told the map's flow of the duty applied.
+        let c = &EXPERIMENT_CONFIG.control;
+        let v = running.ctrl.output(ahead, y);
+        let duty = if v.is_finite() {
+            let lo = applied.saturating_sub(c.duty_step).max(c.duty_min);
+            let hi = applied
+                .saturating_add(c.duty_step)
+                .min(c.duty_max.min(DUTY_FULL_SCALE));
+            table
+                .inverse((v * f32::from(FLOW_SCALE)) as i16)
+                .max(lo)
+                .min(hi)
+        } else {
+            applied
+        };
+        let vk_counts = table.at(duty);
+        let uk = f32::from(vk_counts) * SLM_PER_COUNT;
+        running.ctrl.commit(uk);
+        applied = duty;
         let flow = rig.true_flow(duty);
         raw = rig.sensor.measure_raw(flow);
-        // After the PWM write: the statistics, one unit of the re-estimate, the hold-out.
+        // After the PWM write: the statistics (the map's flow in, the reading out, counts), one
+        // unit of the re-estimate, the hold-out.
         let counts = raw_to_counts(raw);
-        // Duty counts ≤ 10 000: within i16.
-        let _ = window.push(duty as i16, counts);
+        let _ = window.push(vk_counts, counts);
         let yk = f32::from(counts) * SLM_PER_COUNT;
-        let uk = f32::from(duty) * FRACTION_PER_DUTY;
         job = match job {
             Job::Fitting(mut r, i) => match r.step(study.units) {
                 RefitStep::Working => Job::Fitting(r, i),
@@ -605,13 +663,15 @@ pub fn mean_sd(v: &[f64]) -> (f64, f64) {
     (mean, var.sqrt())
 }
 
-/// The re-estimates of `run` snapshot at breaths `from..to` that produced a model (accepted or
-/// not): the direct method's output whatever the checks said.
+/// The re-estimates of `run` snapshot at breaths `from..to` that produced a model passing the
+/// model check of the design (stable, gain in range; [`acceptance`]'s limits), whatever the
+/// other checks said.
 pub fn models_in(run: &StudyRun, from: u32, to: u32) -> Vec<ArxModel<f32>> {
     run.estimates
         .iter()
         .filter(|e| e.breath >= from && e.breath < to)
         .filter_map(|e| e.model.and_then(Result::ok))
+        .filter(|m| ridge_core::control::check_model(m, &acceptance().model).is_ok())
         .collect()
 }
 
@@ -624,8 +684,7 @@ pub fn breaths_in(run: &StudyRun, from: u32, to: u32) -> Vec<&BreathFigures> {
 }
 
 /// The secant gain of the noise-free plant between the breath's two flows (10 and 60 slm),
-/// slm per duty fraction: what a linear model of the whole breath can match at best in the
-/// steady state.
+/// slm per duty fraction.
 pub fn secant_gain(lo: &Linearisation, hi: &Linearisation) -> f64 {
     (hi.flow - lo.flow) / (hi.duty - lo.duty)
 }

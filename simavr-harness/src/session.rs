@@ -5,16 +5,17 @@
 //! missed ticks, search time, stack and image sizes.
 //!
 //! Sample convention (firmware `selfid`): at each tick the firmware reads `y_t` and pushes
-//! `(u, y_t)` with `u` the duty applied during the interval that ends with that reading, i.e.
-//! the duty it wrote in the previous tick. The bench records every frame it served and every PWM
-//! change, so the pairs are rebuilt from the bench's own logs: the duty in effect when a frame
-//! was read, mapped back to the excitation generator's duty (1/10 000) and checked against the
-//! timer count it must produce.
+//! `(v, y_t)` with `v` the static map's flow at the duty applied during the interval that ends
+//! with that reading, i.e. the duty it wrote in the previous tick. The bench records every
+//! frame it served and every PWM change, so the pairs are rebuilt from the bench's own logs:
+//! the duty in effect when a frame was read, mapped back to the record generator's duty
+//! (1/10 000; the generator rebuilt from the `MAP` and `SCAN` lines and the firmware's
+//! settings) and checked against the timer count it must produce.
 
 use std::path::Path;
 use std::time::Instant;
 
-use ridge_core::{ArxModel, Evaluation, IntGram, Real, Search};
+use ridge_core::{ArxModel, Evaluation, InputMap, IntGram, Real, Search};
 
 use crate::bench::{Bench, BenchConfig, RunEnd, TickTiming, SUBSTEPS};
 use crate::firmware::{self, Sizes};
@@ -22,12 +23,14 @@ use crate::transcript::Line;
 use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
 use ridge_id::eval::Trace;
 use ridge_id::plot::{write_fit_png, Axes, Panel};
-use ridge_pump_firmware::excitation::Record;
-use ridge_pump_firmware::lines::{ExciteLine, IdLine, ParsedLine, PrintedModel, ValidateLine};
+use ridge_pump_firmware::excitation::{FlowSteps, Record};
+use ridge_pump_firmware::lines::{
+    ExciteLine, IdLine, MapLine, ParsedLine, PrintedModel, ScanLine, ValidateLine,
+};
 use ridge_pump_firmware::pump::duty_to_counts;
-use ridge_pump_firmware::selfid::absolute_model;
+use ridge_pump_firmware::selfid::{absolute_model, DEFAULT_CONFIG};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, SCALE};
+use ridge_pump_firmware::units::{MODEL_SCALE, SLM_PER_COUNT};
 
 /// Timer TOP + 1 of the board's pump PWM (OC4A, 20 kHz): `max_duty_cycle()`.
 pub const PWM_MAX: u32 = 800;
@@ -45,24 +48,40 @@ pub fn pwm_counts(duty: u16) -> u32 {
 /// A record as the firmware saw it: duty (1/10 000) in effect at each read, the raw word read.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Samples {
-    /// The excitation preset the duties follow (named on the `EXCITE` / `VALIDATE` line).
+    /// The preset the duties follow ([`fresh_record`]); `None` for the device's own records
+    /// (`flow-steps`).
     pub record: Option<Record>,
+    /// The static map the model's input goes through (the `MAP` line before the record, or
+    /// the model's for a fresh record).
+    pub map: Option<InputMap>,
     /// Duties, 1/10 000.
     pub u: Vec<u16>,
     /// SFM3300 raw words.
     pub raw: Vec<u16>,
     /// Core cycle of each read.
     pub cycle: Vec<u64>,
-    /// Operating point the firmware subtracts (`EXCITE … u0= y0=`): duty 1/10 000.
+    /// Operating point the firmware subtracts (`EXCITE … u0= y0=`): duty 1/10 000 (the map's
+    /// flow there is what it subtracts from the map's flow).
     pub u0: u16,
     /// Operating point flow, counts (`raw − 32768`).
     pub y0: i16,
     /// The operating point recomputed from the served frames as the firmware defines it:
-    /// rounded mean (halves away from zero) of the 50 readings before the record.
+    /// rounded mean (halves away from zero) of the last 50 readings of the settle phase (the
+    /// one read in the tick that printed `SCAN` the last).
     pub y0_frames: Option<i16>,
 }
 
 impl Samples {
+    /// The model's input at sample `i`: the map's flow at its duty, slm (the duty as a
+    /// fraction without a map).
+    pub fn input(&self, i: usize) -> f64 {
+        let u = self.u.get(i).copied().unwrap_or(0);
+        match &self.map {
+            Some(m) => f64::from(m.at(u)) * f64::from(SLM_PER_COUNT),
+            None => f64::from(u) / 10_000.0,
+        }
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.u.len()
@@ -117,6 +136,9 @@ pub struct Outcome {
     pub bench: Bench,
     /// The `ID` line's model (the last one).
     pub id: Option<IdLine>,
+    /// The static map of that model (the last `MAP` line before it; without an `ID` line the
+    /// last `MAP` line, e.g. a loaded model's).
+    pub map: Option<InputMap>,
     /// The `ACCEPT` line, if any.
     pub accept: Option<ParsedLine>,
     /// `REJECT` lines.
@@ -216,6 +238,13 @@ pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
         .collect();
     let id_idx = parsed.iter().rev().find(|(_, r)| r.keyword == "ID");
     let id = id_idx.and_then(|(i, _)| IdLine::parse(&bench.lines[*i].text).ok());
+    let map_before = id_idx.map_or(bench.lines.len(), |(i, _)| *i);
+    let map = bench.lines[..map_before]
+        .iter()
+        .rev()
+        .find(|l| l.text.starts_with("MAP "))
+        .and_then(|l| MapLine::parse(&l.text).ok())
+        .map(|m| m.map);
     let accept = parsed
         .iter()
         .find(|(_, r)| r.keyword == "ACCEPT")
@@ -307,6 +336,7 @@ pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
     Outcome {
         bench,
         id,
+        map,
         accept,
         rejects,
         faults,
@@ -400,22 +430,35 @@ fn timing(
     }
 }
 
-/// Rebuilds the record announced by line `idx` (`EXCITE <name> n=.. u0=.. y0=..` /
-/// `VALIDATE <name> n=..`) from the frames served and the PWM log, aligned on the generator's
-/// duty sequence.
+/// Rebuilds the record announced by line `idx` (`EXCITE flow-steps n=.. u0=.. y0=..` /
+/// `VALIDATE flow-steps n=..`) from the frames served and the PWM log, aligned on the record
+/// generator's duty sequence: [`FlowSteps`] on the map of the last `MAP` line before it, with
+/// the firmware's settings and the lag of the last `SCAN` line (the validation record's seed
+/// is the complement of the estimation record's).
 pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
     let text = &bench.lines.get(idx)?.text;
-    // (preset name, samples, operating point: duty 1/10 000, flow counts; none on VALIDATE)
-    let (name, n, u0, y0) = match ExciteLine::parse(text) {
-        Ok(e) => (e.record, e.samples, e.u0, e.y0),
+    // (samples, operating point: duty 1/10 000, flow counts (none on VALIDATE), seed)
+    let r = &DEFAULT_CONFIG.records;
+    let (n, u0, y0, seed) = match ExciteLine::parse(text) {
+        Ok(e) => (e.samples, e.u0, e.y0, r.seed),
         Err(_) => {
             let v = ValidateLine::parse(text).ok()?;
-            (v.record, v.samples, 0, 0)
+            (v.samples, 0, 0, !r.seed)
         }
     };
-    let record = name.parse::<Record>().ok()?;
-    let n = n as usize;
-    let gen: Vec<u16> = record.generator().take(n).collect();
+    let before = |keyword: &str| {
+        bench.lines[..idx]
+            .iter()
+            .rev()
+            .find(|l| l.text.split_whitespace().next() == Some(keyword))
+    };
+    let map = MapLine::parse(&before("MAP")?.text).ok()?.map;
+    let scan = before("SCAN")?;
+    let lag = ScanLine::parse(&scan.text).ok()?.lag;
+    let scan_at = bench.lines.iter().position(|l| std::ptr::eq(l, scan))?;
+    let samples = u16::try_from(n).ok()?;
+    let mut steps = FlowSteps::new(&map, &r.shape(lag, samples, seed))?;
+    let gen: Vec<u16> = std::iter::from_fn(|| steps.next_step().map(|(d, _)| d)).collect();
     let frames = bench.sensor.borrow().served();
     let at = bench.line_starts[idx];
     let j0 = frames.partition_point(|(c, _)| *c < at);
@@ -433,8 +476,9 @@ pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
             .enumerate()
             .all(|(i, &g)| counts_at(frames[k + i].0) == pwm_counts(g));
         if ok {
-            let y0_frames = (k >= 50).then(|| {
-                let sum: i32 = frames[k - 50..k]
+            let settled = frames.partition_point(|(c, _)| *c < bench.line_starts[scan_at]);
+            let y0_frames = (settled >= 50).then(|| {
+                let sum: i32 = frames[settled - 50..settled]
                     .iter()
                     .map(|(_, raw)| i32::from(raw_to_counts(*raw)))
                     .sum();
@@ -442,7 +486,7 @@ pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
                 ((sum + half) / 50) as i16
             });
             let mut s = Samples {
-                record: Some(record),
+                map: Some(map),
                 u0,
                 y0,
                 y0_frames,
@@ -459,16 +503,22 @@ pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
     None
 }
 
-/// The firmware's search configuration (`selfid::Config::default().search`: ridge-core's
-/// default search, no offset, on deviations from the operating point), in `T`.
+/// The firmware's search configuration (`selfid::DEFAULT_CONFIG.search`: ridge-core's
+/// default search on the device's grid, p ≤ 5, with an intercept, on deviations from the
+/// operating point), in `T`.
 pub fn firmware_search<T: Real>() -> Search<T> {
-    Search::default()
+    Search {
+        grid: DEFAULT_CONFIG.search.grid,
+        offset: DEFAULT_CONFIG.search.offset,
+        ..Search::default()
+    }
 }
 
 /// Reruns the firmware's search on the host from `samples` with exact integer statistics and
 /// `f64` normal equations (ridge-core `IntGram` + `Search<f64>` on the deviations
-/// `(u − u0, y − y0)`), and converts the result to the absolute model with an intercept as the
-/// firmware does (`selfid::absolute_model`: `c = c_dev + y0 (1 − Σθ) − u0 Σφ`).
+/// `(v − v0, y − y0)`, `v` the map's flow at the duty), and converts the result to the absolute
+/// model with an intercept as the firmware does (`selfid::absolute_model`:
+/// `c = c_dev + y0 (1 − Σθ) − v0 Σφ`).
 pub fn host_search(samples: &Samples) -> Result<IdLine, String> {
     host_search_in::<f64>(samples)
 }
@@ -476,18 +526,19 @@ pub fn host_search(samples: &Samples) -> Result<IdLine, String> {
 /// [`host_search`] with the normal equations and the search in `T` (`f32` is what the
 /// firmware runs).
 pub fn host_search_in<T: Real>(samples: &Samples) -> Result<IdLine, String> {
+    let map = samples.map.ok_or("no MAP line before the record")?;
     let mut g = IntGram::new();
-    let (u0, y0) = (i32::from(samples.u0), i32::from(samples.y0));
+    let (v0, y0) = (map.at(samples.u0), i32::from(samples.y0));
     for (&u, &raw) in samples.u.iter().zip(&samples.raw) {
-        g.push(i32::from(u) - u0, i32::from(raw_to_counts(raw)) - y0)
+        let dv = i32::from(map.at(u)) - i32::from(v0);
+        g.push(dv, i32::from(raw_to_counts(raw)) - y0)
             .map_err(|e| format!("{e:?}"))?;
     }
-    let normal = g.normal::<T>(SCALE).map_err(|e| format!("{e:?}"))?;
+    let normal = g.normal::<T>(MODEL_SCALE).map_err(|e| format!("{e:?}"))?;
     let sel = firmware_search::<T>()
         .run(&normal, None)
         .map_err(|e| format!("{e:?}"))?;
-    let m =
-        absolute_model(&sel.fit.model(), samples.u0, samples.y0).map_err(|e| format!("{e:?}"))?;
+    let m = absolute_model(&sel.fit.model(), v0, samples.y0).map_err(|e| format!("{e:?}"))?;
     let s = m.structure();
     Ok(IdLine {
         model: PrintedModel {
@@ -526,15 +577,14 @@ pub fn coefficient_error(a: &PrintedModel, b: &PrintedModel) -> Option<f64> {
     )
 }
 
-/// Free-run and one-step scores of `model` on `samples` (physical units), with the trace for
-/// a plot.
+/// Free-run and one-step scores of `model` on `samples` (physical units, the input through the
+/// samples' map), with the trace for a plot.
 pub fn score(model: &ArxModel<f64>, samples: &Samples) -> (Option<f64>, Option<f64>, Trace) {
     let mut ev = Evaluation::new(*model);
     let mut trace = Trace::new(samples.len() as u64, 2000);
-    for (i, (&u, &raw)) in samples.u.iter().zip(&samples.raw).enumerate() {
-        let uf = f64::from(u) / f64::from(DUTY_FULL_SCALE);
+    for (i, &raw) in samples.raw.iter().enumerate() {
         let y = pump_sim::sfm3300::raw_to_flow(raw);
-        let p = ev.push(uf, y);
+        let p = ev.push(samples.input(i), y);
         trace.push(i as u64, y, p);
     }
     trace.finish();
@@ -548,13 +598,16 @@ pub fn score(model: &ArxModel<f64>, samples: &Samples) -> (Option<f64>, Option<f
 /// A fresh validation signal on the host, with the loop's timing: the plant (blower `pump`,
 /// test lung `lung` if any) sub-stepped as in the bench, the reading taken at the tick, the new
 /// duty applied `latency` sub-steps later, the sensor noise from `seed`. Starts from `base`
-/// duty held for 2 s, as the firmware settles.
+/// duty held for 2 s, as the firmware settles. `map`: the model's map, kept with the samples
+/// for scoring.
+#[allow(clippy::too_many_arguments)]
 pub fn fresh_record(
     pump: &PumpParams,
     lung: Option<&LungParams>,
     sensor: &Sfm3300Params,
     seed: u64,
     record: Record,
+    map: Option<InputMap>,
     base: u16,
     latency: usize,
 ) -> Samples {
@@ -584,6 +637,7 @@ pub fn fresh_record(
     }
     let mut s = Samples {
         record: Some(record),
+        map,
         ..Samples::default()
     };
     for g in record.generator() {

@@ -4,21 +4,23 @@
 //! instructions per control tick, of the search and of the design, and the image's sizes.
 //!
 //! Sample convention (firmware `selfid`): at each tick the firmware reads `y_t` and pushes
-//! `(u, y_t)` with `u` the duty applied during the interval that ends with that reading. The
-//! bench logged every frame the sensor served and every duty on the pin, so the record is
-//! rebuilt from them: the frames of the record are the run of consecutive frames whose duty
-//! at the read matches the excitation generator's sequence (in TIM3 counts), as
-//! `simavr-harness` rebuilds it from the ATmega2560's timer.
+//! `(v, y_t)` with `v` the static map's flow at the duty applied during the interval that ends
+//! with that reading. The bench logged every frame the sensor served and every duty on the
+//! pin, so the record is rebuilt from them: the frames of the record are the run of
+//! consecutive frames whose duty at the read matches the record generator's sequence (in TIM3
+//! counts; the generator rebuilt from the `MAP` and `SCAN` lines and the firmware's settings),
+//! as `simavr-harness` rebuilds it from the ATmega2560's timer.
 
 use std::time::Instant;
 
 use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
-use ridge_core::{ArxModel, Evaluation, IntGram, Offset, Real, Search};
-use ridge_pump_firmware::excitation::Record;
+use ridge_core::{ArxModel, Evaluation, InputMap, IntGram, Offset, Real, Search};
+use ridge_pump_firmware::excitation::{FlowSteps, Record};
+use ridge_pump_firmware::lines::{ExciteLine, MapLine, ScanLine};
 use ridge_pump_firmware::pump::duty_to_counts;
-use ridge_pump_firmware::selfid::absolute_model;
+use ridge_pump_firmware::selfid::{absolute_model, DEFAULT_CONFIG};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, SCALE};
+use ridge_pump_firmware::units::{MODEL_SCALE, SLM_PER_COUNT};
 
 use crate::bench::{Bench, BenchConfig, RunEnd, SUBSTEPS};
 use crate::elf::Sizes;
@@ -72,7 +74,7 @@ impl IdLine {
         })
     }
 
-    /// As a ridge-core model (slm, duty fraction).
+    /// As a ridge-core model (from the map's flow to the flow, slm).
     pub fn model(&self) -> Option<ArxModel<f64>> {
         ArxModel::new(&self.theta, &self.phi, self.d, self.offset, self.c).ok()
     }
@@ -81,8 +83,12 @@ impl IdLine {
 /// A record as the firmware saw it.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Samples {
-    /// The excitation preset.
+    /// The preset the duties follow ([`fresh_record`]); `None` for the device's own records
+    /// (`flow-steps`).
     pub record: Option<Record>,
+    /// The static map the model's input goes through (the `MAP` line before the record, or
+    /// the model's for a fresh record).
+    pub map: Option<InputMap>,
     /// Duties, 1/10 000.
     pub u: Vec<u16>,
     /// SFM3300 raw words.
@@ -96,6 +102,16 @@ pub struct Samples {
 }
 
 impl Samples {
+    /// The model's input at sample `i`: the map's flow at its duty, slm (the duty as a
+    /// fraction without a map).
+    pub fn input(&self, i: usize) -> f64 {
+        let u = self.u.get(i).copied().unwrap_or(0);
+        match &self.map {
+            Some(m) => f64::from(m.at(u)) * f64::from(SLM_PER_COUNT),
+            None => f64::from(u) / 10_000.0,
+        }
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.u.len()
@@ -144,6 +160,9 @@ pub struct Outcome {
     pub bench: Bench,
     /// The last `ID` line's model.
     pub id: Option<IdLine>,
+    /// The static map of that model (the last `MAP` line before it; without an `ID` line the
+    /// last `MAP` line, e.g. a loaded model's).
+    pub map: Option<InputMap>,
     /// The `ACCEPT` line.
     pub accept: Option<ParsedLine>,
     /// `REJECT` lines.
@@ -247,12 +266,20 @@ pub fn analyse(bench: Bench, wall_s: f64) -> Outcome {
         Some(j) => parsed[..j].iter().rposition(|r| r.keyword == "EXCITE"),
         None => parsed.iter().position(|r| r.keyword == "EXCITE"),
     };
+    let map_before = id_idx.unwrap_or(bench.lines.len());
+    let map = bench.lines[..map_before]
+        .iter()
+        .rev()
+        .find(|l| l.keyword() == "MAP")
+        .and_then(|l| MapLine::parse(&l.text).ok())
+        .map(|m| m.map);
     let estimation = excite.and_then(|i| rebuild(&bench, i));
     let timing = timing(&bench, &parsed, id_idx);
     let sizes = bench.machine.image().sizes;
     Outcome {
         bench,
         id,
+        map,
         accept,
         rejects,
         faults,
@@ -330,15 +357,24 @@ pub fn duty_counts(duty: u16, period: u32) -> u32 {
     ))
 }
 
-/// Rebuilds the record announced by line `idx` (`EXCITE <name> n=.. u0=.. y0=..`) from the
-/// frames served and the duty log.
+/// Rebuilds the record announced by line `idx` (`EXCITE flow-steps n=.. u0=.. y0=..`) from
+/// the frames served and the duty log, aligned on the record generator's duty sequence:
+/// [`FlowSteps`] on the map of the last `MAP` line before it, with the firmware's settings
+/// and the lag of the last `SCAN` line.
 pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
-    let r = bench.lines.get(idx)?.parsed();
-    let record = r.words.iter().find_map(|w| w.parse::<Record>().ok())?;
-    let n = r
-        .int("n")
-        .map_or(record.len_samples() as usize, |v| v as usize);
-    let gen: Vec<u16> = record.generator().take(n).collect();
+    let e = ExciteLine::parse(&bench.lines.get(idx)?.text).ok()?;
+    let before = |keyword: &str| {
+        bench.lines[..idx]
+            .iter()
+            .rev()
+            .find(|l| l.keyword() == keyword)
+    };
+    let map = MapLine::parse(&before("MAP")?.text).ok()?.map;
+    let lag = ScanLine::parse(&before("SCAN")?.text).ok()?.lag;
+    let r = &DEFAULT_CONFIG.records;
+    let samples = u16::try_from(e.samples).ok()?;
+    let mut steps = FlowSteps::new(&map, &r.shape(lag, samples, r.seed))?;
+    let gen: Vec<u16> = std::iter::from_fn(|| steps.next_step().map(|(d, _)| d)).collect();
     let frames = bench.sensor.borrow().served();
     let at = bench.lines[idx].start;
     let j0 = frames.partition_point(|f| f.0 < at);
@@ -352,11 +388,9 @@ pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
         });
         if ok {
             let mut s = Samples {
-                record: Some(record),
-                u0: r.num("u0").map_or(0, |v| (v * 100.0).round() as u16),
-                y0: r
-                    .num("y0")
-                    .map_or(0, |v| (v * f64::from(FLOW_SCALE)).round() as i16),
+                map: Some(map),
+                u0: e.u0,
+                y0: e.y0,
                 ..Samples::default()
             };
             for (i, &g) in gen.iter().enumerate() {
@@ -371,21 +405,27 @@ pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
 }
 
 /// Reruns the firmware's search on the host from `samples`: ridge-core's exact integer
-/// statistics (`IntGram`) and its default search in `T` on the deviations from the operating
-/// point, then the absolute model as the firmware forms it (`selfid::absolute_model`).
+/// statistics (`IntGram`) and the firmware's search (`selfid::DEFAULT_CONFIG.search`: the
+/// default search on the device's grid, p ≤ 5, with an intercept) in `T` on the deviations `(v − v0, y − y0)` from the
+/// operating point (`v` the map's flow at the duty), then the absolute model as the firmware
+/// forms it (`selfid::absolute_model`).
 pub fn host_search<T: Real>(samples: &Samples) -> Result<IdLine, String> {
+    let map = samples.map.ok_or("no MAP line before the record")?;
     let mut g = IntGram::new();
-    let (u0, y0) = (i32::from(samples.u0), i32::from(samples.y0));
+    let (v0, y0) = (map.at(samples.u0), i32::from(samples.y0));
     for (&u, &raw) in samples.u.iter().zip(&samples.raw) {
-        g.push(i32::from(u) - u0, i32::from(raw_to_counts(raw)) - y0)
+        let dv = i32::from(map.at(u)) - i32::from(v0);
+        g.push(dv, i32::from(raw_to_counts(raw)) - y0)
             .map_err(|e| format!("{e:?}"))?;
     }
-    let normal = g.normal::<T>(SCALE).map_err(|e| format!("{e:?}"))?;
-    let sel = Search::<T>::default()
-        .run(&normal, None)
-        .map_err(|e| format!("{e:?}"))?;
-    let m =
-        absolute_model(&sel.fit.model(), samples.u0, samples.y0).map_err(|e| format!("{e:?}"))?;
+    let normal = g.normal::<T>(MODEL_SCALE).map_err(|e| format!("{e:?}"))?;
+    let search = Search::<T> {
+        grid: DEFAULT_CONFIG.search.grid,
+        offset: DEFAULT_CONFIG.search.offset,
+        ..Search::default()
+    };
+    let sel = search.run(&normal, None).map_err(|e| format!("{e:?}"))?;
+    let m = absolute_model(&sel.fit.model(), v0, samples.y0).map_err(|e| format!("{e:?}"))?;
     let s = m.structure();
     Ok(IdLine {
         p: s.p,
@@ -441,15 +481,12 @@ pub fn write_capture(
     Ok(counts)
 }
 
-/// Free-run fit (%) of `model` on `samples` (duty fractions, flows in slm), ridge-core's
-/// `Evaluation` (eq. 16 of the paper).
+/// Free-run fit (%) of `model` on `samples` (the input through the samples' map, flows in
+/// slm), ridge-core's `Evaluation` (eq. 16 of the paper).
 pub fn free_run_fit(model: &ArxModel<f64>, samples: &Samples) -> Option<f64> {
     let mut ev = Evaluation::new(*model);
-    for (&u, &raw) in samples.u.iter().zip(&samples.raw) {
-        ev.push(
-            f64::from(u) / f64::from(DUTY_FULL_SCALE),
-            pump_sim::sfm3300::raw_to_flow(raw),
-        );
+    for (i, &raw) in samples.raw.iter().enumerate() {
+        ev.push(samples.input(i), pump_sim::sfm3300::raw_to_flow(raw));
     }
     ev.free_run().map(|m| m.fit)
 }
@@ -458,7 +495,7 @@ pub fn free_run_fit(model: &ArxModel<f64>, samples: &Samples) -> Option<f64> {
 /// it: the plant (blower `pump`, test lung `lung` if any) sub-stepped as in the bench, the
 /// reading taken at the tick, the new duty (TIM3 counts of a `period`-count PWM period) seen
 /// `latency` sub-steps later, the sensor noise from `seed`; from `base` duty held for 2 s, as
-/// the firmware settles.
+/// the firmware settles. `map`: the model's map, kept with the samples for scoring.
 #[allow(clippy::too_many_arguments)]
 pub fn fresh_record(
     pump: &PumpParams,
@@ -466,6 +503,7 @@ pub fn fresh_record(
     sensor: &Sfm3300Params,
     seed: u64,
     record: Record,
+    map: Option<InputMap>,
     base: u16,
     latency: usize,
     period: u32,
@@ -495,6 +533,7 @@ pub fn fresh_record(
     }
     let mut s = Samples {
         record: Some(record),
+        map,
         u0: base,
         ..Samples::default()
     };

@@ -283,7 +283,7 @@ fn set_watchdog(watchdog: &mut IndependentWatchdog, ms: u32) {
 /// The record store ([`ridge_pump_firmware::flash_store`]): a log of slots over flash sectors
 /// 6 and 7 (0x0804_0000 and 0x0806_0000, 128 KB each), so that a power cut at any program
 /// access of a save, or during the erase that makes room, leaves the previous record
-/// loadable. A save programs 81 bytes (~16 µs each, the CPU stalled meanwhile); when the
+/// loadable. A save programs 117 bytes (~16 µs each, the CPU stalled meanwhile); when the
 /// sector in use is full (1 365 saves), it first erases the other one, which stalls the CPU
 /// for ~2 s (up to 4 s): the watchdog's timeout is raised for it ([`set_watchdog`]), the PWM
 /// keeps running in hardware and the tick counter counts on.

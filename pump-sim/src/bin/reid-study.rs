@@ -13,7 +13,7 @@
 use clap::Parser;
 use pump_sim::reid::{
     self, breaths_in, linearisation, mean_sd, model_step, models_in, rise63, secant_gain,
-    step_error_pct, Dither, Linearisation, Mode, Study, StudyRun,
+    secant_through_map, step_error_pct, through_map, Dither, Linearisation, Mode, Study, StudyRun,
 };
 use ridge_core::RidgeM;
 
@@ -76,26 +76,61 @@ fn truth(study: &Study, breath: u32) -> [Linearisation; 3] {
 fn main() {
     let args = Args::parse();
     let base = Study::lung_change(1);
-    let adult = truth(&base, 0);
-    let stiff = truth(&base, 10);
+    let adult_duty = truth(&base, 0);
+    let stiff_duty = truth(&base, 10);
+    // The models are the dynamics after the power-up's static map (duty -> the map's flow):
+    // the truth through seed 1's map.
+    let Some(first) = runs(
+        &Study {
+            mode: Mode::Frozen,
+            breaths: 1,
+            ..base.clone()
+        },
+        1,
+    )
+    .pop() else {
+        eprintln!("no power-up");
+        std::process::exit(1);
+    };
+    let table = first.switchover.map.table();
+    let adult = adult_duty.clone().map(|l| through_map(&l, &table));
+    let stiff = stiff_duty.clone().map(|l| through_map(&l, &table));
+    let secant = |t: &[Linearisation; 3]| {
+        if std::ptr::eq(t, &adult) {
+            secant_through_map(&adult_duty[0], &adult_duty[2], &table)
+        } else {
+            secant_through_map(&stiff_duty[0], &stiff_duty[2], &table)
+        }
+    };
 
-    println!("## Truth: the noise-free plant linearised (default blower; ±0.5 % duty steps)");
+    println!(
+        "## Truth: the noise-free plant linearised (default blower; ±0.5 % duty steps), and \
+         through the power-up's map (seed 1)"
+    );
     println!();
-    println!("| lung | flow slm | duty % | gain slm/duty | 63 % rise, ticks |");
-    println!("|---|---|---|---|---|");
-    for (name, t) in [("C 50 R 5", &adult), ("C 10 R 50", &stiff)] {
-        for l in t {
+    println!(
+        "| lung | flow slm | duty % | gain slm/duty | gain through the map, slm/slm | 63 % rise, \
+         ticks |"
+    );
+    println!("|---|---|---|---|---|---|");
+    for (name, t, v) in [
+        ("C 50 R 5", &adult_duty, &adult),
+        ("C 10 R 50", &stiff_duty, &stiff),
+    ] {
+        for (l, lv) in t.iter().zip(v.iter()) {
             println!(
-                "| {name} | {:.0} | {:.2} | {:.1} | {} |",
+                "| {name} | {:.0} | {:.2} | {:.1} | {:.3} | {} |",
                 l.flow,
                 100.0 * l.duty,
                 l.gain,
+                lv.gain,
                 rise63(&l.step).map_or("-".into(), |r| r.to_string())
             );
         }
         println!(
-            "| {name} | secant 10-60 | | {:.1} | |",
-            secant_gain(&t[0], &t[2])
+            "| {name} | secant 10-60 | | {:.1} | {:.3} | |",
+            secant_gain(&t[0], &t[2]),
+            secant(v)
         );
     }
 
@@ -127,7 +162,7 @@ fn main() {
         .filter_map(|m| rise63(&model_step(m, reid::STEP_TICKS)).map(|r| r as f64))
         .collect();
     println!(
-        "Power-up models (adult lung): gain {:.1} ± {:.1}, 63 % rise {:.1} ticks, step error {:.1} %.",
+        "Power-up models (adult lung): gain {:.3} ± {:.3}, 63 % rise {:.1} ticks, step error {:.1} %.",
         mean_sd(&pu_gain).0,
         mean_sd(&pu_gain).1,
         mean_sd(&pu_rise).0,
@@ -136,7 +171,7 @@ fn main() {
     println!();
     println!(
         "| Ridge-M iterates | dither | phase | estimates | gain (mean ± sd) | secant | 63 % rise \
-         (truth) | step error % | held-out fit % | window's duty RMS % |"
+         (truth) | step error % | held-out fit % | window's input RMS, slm |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for max_iter in [200u32, 5000] {
@@ -188,15 +223,15 @@ fn main() {
                     .iter()
                     .flat_map(|r| r.estimates.iter())
                     .filter(|e| e.breath >= from && e.breath < to)
-                    .map(|e| 100.0 * f64::from(e.input_response))
+                    .map(|e| f64::from(e.input_response))
                     .collect();
                 let (g, gs) = mean_sd(&gains);
                 println!(
-                    "| {max_iter} | {} | {label} | {} | {g:.1} ± {gs:.1} | {:.1} | {:.1} ({}) | \
+                    "| {max_iter} | {} | {label} | {} | {g:.3} ± {gs:.3} | {:.3} | {:.1} ({}) | \
                      {:.1} | {:.1} | {:.1} |",
                     if dither.is_some() { "±1 slm" } else { "none" },
                     models.len(),
-                    secant_gain(&t[0], &t[2]),
+                    secant(t),
                     mean_sd(&rises).0,
                     rise63(&t[1].step).map_or("-".into(), |r| r.to_string()),
                     mean_sd(&errs).0,
@@ -216,7 +251,7 @@ fn main() {
     println!();
     println!(
         "| dither | estimates | gain (mean ± sd) | truth at 35 slm | 63 % rise (truth) | window's \
-         duty RMS % | refused |"
+         input RMS, slm | refused |"
     );
     println!("|---|---|---|---|---|---|---|");
     for (label, dither) in [
@@ -259,11 +294,11 @@ fn main() {
             .iter()
             .flat_map(|r| r.estimates.iter())
             .filter(|e| e.breath >= 6)
-            .map(|e| 100.0 * f64::from(e.input_response))
+            .map(|e| f64::from(e.input_response))
             .collect();
         let (g, gs) = mean_sd(&gains);
         println!(
-            "| {label} | {} | {g:.1} ± {gs:.1} | {:.1} | {:.1} ({}) | {:.2} | {refused} |",
+            "| {label} | {} | {g:.3} ± {gs:.3} | {:.3} | {:.1} ({}) | {:.2} | {refused} |",
             models.len(),
             adult[1].gain,
             mean_sd(&rises).0,
@@ -278,7 +313,7 @@ fn main() {
          gain of the estimates from breath 12 on against the noise-free plant's secant gain \
          ({:.1}) and against the noise-free sensor's estimate (x0: quantisation only)",
         args.seeds,
-        secant_gain(&adult[0], &adult[2])
+        secant(&adult)
     );
     println!();
     println!(
@@ -286,7 +321,7 @@ fn main() {
          secant % | x6 vs secant % |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
-    let secant = secant_gain(&adult[0], &adult[2]);
+    let secant = secant(&adult);
     for max_iter in [200u32, 5000] {
         for shift in [1u8, 2, 3, 4] {
             let gain = |noise_x: f64| {
@@ -313,7 +348,7 @@ fn main() {
             let g: Vec<f64> = [0.0, 1.0, 3.0, 6.0].iter().map(|&x| gain(x)).collect();
             let pct = |v: f64| 100.0 * (v - secant) / secant;
             println!(
-                "| {max_iter} | {shift} | {:.1} | {:.1} | {:.1} | {:.1} | {:+.1} | {:+.1} | {:+.1} |",
+                "| {max_iter} | {shift} | {:.3} | {:.3} | {:.3} | {:.3} | {:+.1} | {:+.1} | {:+.1} |",
                 g[0],
                 g[1],
                 g[2],

@@ -12,6 +12,7 @@ use clap::Parser;
 use pump_sim::baseline::experiment::run_ticks;
 use pump_sim::PlantArgs;
 use ridge_id::capture::{classify, Kind};
+use ridge_pump_firmware::event::RECORD_NAME;
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::lines::PrintedModel;
 use simavr_harness::session::{self, Outcome, SessionConfig, TICK_CYCLES};
@@ -180,7 +181,20 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
     );
     let mut ok = true;
 
-    println!("\n== identified model (ID line, physical units: slm, duty 0..1)");
+    println!("\n== identified model (ID line: dynamics from the map's flow to the flow, slm/slm)");
+    if let Some(map) = &out.map {
+        let flows: Vec<String> = map
+            .knots()
+            .iter()
+            .map(|k| format!("{:.1}", f64::from(*k) / 120.0))
+            .collect();
+        println!(
+            "  map (MAP line): duty {:.2} % + k x {:.2} % -> flow [{}] slm",
+            f64::from(map.first()) / 100.0,
+            f64::from(map.step()) / 100.0,
+            flows.join(", ")
+        );
+    }
     match &out.id {
         Some(id) => {
             println!("  {}", show_model(&id.model));
@@ -270,7 +284,7 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
             panels.push((
                 format!(
                     "closed loop, firmware validation record ({}): free-run fit {:.1} %",
-                    val.record.map_or("?", Record::name),
+                    val.record.map_or(RECORD_NAME, Record::name),
                     free.unwrap_or(f64::NAN)
                 ),
                 trace,
@@ -286,6 +300,7 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
             &cfg.bench.sensor,
             cfg.bench.seed.wrapping_add(1000),
             FRESH_RECORD,
+            out.map,
             3_000,
             latency,
         );
