@@ -1,19 +1,22 @@
 //! The closed-loop re-identification study (issue 32, item 3): the firmware identifies the
 //! simulated blower and lung at power-up and designs its controller as on the device; the loop
-//! then tracks square breaths while `ridge_core::reid` re-estimates the ARX model of the same
-//! structure from the loop's own data (the direct method), checks it, and the controller is
-//! re-designed and swapped at a breath boundary. The lung changes suddenly at chosen breaths.
+//! then tracks square breaths while `ridge_core::reid` re-estimates the ARX part of its
+//! Hammerstein model (the dynamics from the static map's flow `v` to the flow; the map stays) at
+//! the same structure from the loop's own data (the direct method), checks it, and the
+//! controller is re-designed and swapped at a breath boundary. The lung changes suddenly at
+//! chosen breaths.
 //!
 //! - [`linearisation`]: the truth, the noise-free plant's small-signal step response and static
-//!   gain at a steady flow (central differences of `±δ` duty steps).
+//!   gain at a steady flow (central differences of `±δ` duty steps); [`through_map`] and
+//!   [`secant_through_map`]: the same as the model sees it, after the power-up's map.
 //! - [`run`]: one closed-loop run ([`Study`]) with the per-breath figures ([`BreathFigures`])
 //!   and every re-estimate ([`Estimate`]).
 //!
 //! # Timing
 //! As in [`crate::baseline::experiment`]: tick `k` reads the flow at the end of interval
 //! `k − 1`, sets the duty of interval `k` (setpoint `value(program, start, k + preview)`), and
-//! the window takes `(duty_k, reading_k)` after the interval, the firmware's order (statistics
-//! after the PWM write). [`Study::units`] [`Refit`] units per tick. Breath `b` (from 0) is ticks
+//! the window takes `(v_k, reading_k)` after the interval (`v_k` the map's flow at the duty
+//! written), the firmware's order (statistics after the PWM write). [`Study::units`] [`Refit`] units per tick. Breath `b` (from 0) is ticks
 //! `b·P … (b + 1)·P − 1`; a lung change, a re-estimate's start and its verdict happen at breath
 //! boundaries, a controller swap at the boundary as the controller sees it (its preview ahead).
 
@@ -42,10 +45,12 @@ pub struct Linearisation {
     pub flow: f64,
     /// The duty that holds it, fraction 0..1.
     pub duty: f64,
-    /// Step response to a unit duty step (slm per duty fraction), tick `k` = the flow at the
+    /// Step response to a unit duty step (slm per duty fraction; through the map, slm per slm of
+    /// the map's flow), tick `k` = the flow at the
     /// end of interval `k` after the step at interval 0, as `(y₊ − y₋) / 2δ`.
     pub step: Vec<f64>,
-    /// The static gain, slm per duty fraction (the step response's last value).
+    /// The static gain, slm per duty fraction (through the map, slm per slm; the step response's
+    /// last value).
     pub gain: f64,
 }
 
