@@ -185,6 +185,9 @@ pub enum Mode {
     Observe,
     /// Re-estimates, judges, re-designs and swaps at a breath boundary.
     Adapt,
+    /// As [`Mode::Adapt`], but each swap restarts the running model's own design: the swaps'
+    /// restarts without their new models (the control experiment of the adaptive runs).
+    Restart,
 }
 
 /// A setpoint dither: a PRBS of `±amplitude` slm added to the controller's setpoint (its
@@ -527,7 +530,7 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
                     let verdict = acceptance().judge(h);
                     let i = *i;
                     estimates[i].verdict = Some(verdict.map(|v| (v.candidate.fit, v.running.fit)));
-                    if study.mode == Mode::Adapt && verdict.is_ok() {
+                    if matches!(study.mode, Mode::Adapt | Mode::Restart) && verdict.is_ok() {
                         if let Some(Ok(m)) = estimates[i].model {
                             pending = Some((m, i));
                         }
@@ -566,6 +569,11 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
         if (k + running.preview) % period == 0 {
             if let Some((model, i)) = pending.take() {
                 let y = f32::from(raw_to_counts(raw)) * SLM_PER_COUNT;
+                let model = if study.mode == Mode::Restart {
+                    running.model
+                } else {
+                    model
+                };
                 match design(&model) {
                     Some(d) => {
                         running = Running::new(model, &d, &table, running.ctrl.last(), y);

@@ -373,6 +373,12 @@ fn main() {
         ("frozen", Mode::Frozen, None, 200),
         ("adaptive", Mode::Adapt, None, 200),
         ("adaptive + dither", Mode::Adapt, Some(DITHER), 200),
+        (
+            "restarts only (the running model's design)",
+            Mode::Restart,
+            None,
+            200,
+        ),
         ("adaptive, 5000 iterates", Mode::Adapt, None, 5000),
         (
             "adaptive + dither, 5000 iterates",
@@ -421,7 +427,7 @@ fn main() {
                     .count()
             })
             .sum();
-        if mode == Mode::Adapt {
+        if mode != Mode::Frozen {
             println!("| {name} | swaps / refused re-estimates | {swaps} / {refused} | |");
         }
     }
