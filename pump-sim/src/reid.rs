@@ -16,9 +16,10 @@
 //! As in [`crate::baseline::experiment`]: tick `k` reads the flow at the end of interval
 //! `k − 1`, sets the duty of interval `k` (setpoint `value(program, start, k + preview)`), and
 //! the window takes `(v_k, reading_k)` after the interval (`v_k` the map's flow at the duty
-//! written), the firmware's order (statistics after the PWM write). [`Study::units`] [`Refit`] units per tick. Breath `b` (from 0) is ticks
-//! `b·P … (b + 1)·P − 1`; a lung change, a re-estimate's start and its verdict happen at breath
-//! boundaries, a controller swap at the boundary as the controller sees it (its preview ahead).
+//! written), the firmware's order (statistics after the PWM write). [`Study::units`] [`Refit`]
+//! units per tick. Breath `b` (from 0) is ticks `b·P … (b + 1)·P − 1`; a lung change, a
+//! re-estimate's start and its verdict happen at breath boundaries, a controller swap at the
+//! boundary as the controller sees it (its preview ahead).
 
 use ridge_core::control::Limits;
 use ridge_core::control::{Controller, Design};
@@ -370,7 +371,7 @@ pub struct StudyRun {
 
 /// The smallest RMS of the window's input (the map's flow) about its mean for a re-estimate,
 /// slm (5). Measured (`reid-study`): square breaths 10 → 60 slm move it by 22 slm RMS on the
-/// adult lung and 35 slm on C 10 R 50; a constant 30 slm setpoint by 2.4–2.7 slm (the sensor
+/// adult lung and 35 slm on C 10 R 50; a constant 30 slm setpoint by 2.3–2.7 slm (the sensor
 /// noise fed back, with or without a ±1 slm dither), whose estimates rise 20 % too fast.
 pub const MIN_INPUT_RESPONSE: f32 = 5.0;
 

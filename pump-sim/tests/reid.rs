@@ -114,8 +114,8 @@ fn without_breaths_every_re_estimate_is_refused_and_the_model_kept() {
     assert!(!run.estimates.is_empty());
     // Without the breaths' steps the loop's data hold the sensor noise fed back (estimates that
     // rise 20 % too fast, reid-study). The window's output RMS passes the power-up's 1 slm
-    // rule; its input's (the map's flow, 2.4 slm) does not pass the 5 slm input rule. The first
-    // windows hold the move from the switch-over flow to 30 slm.
+    // rule; its input's (the map's flow, 2.3–2.7 slm) does not pass the 5 slm input rule. The
+    // first windows hold the move from the switch-over flow to 30 slm.
     for e in &run.estimates {
         assert!(matches!(e.verdict, Some(Err(_)) | None), "{e:?}");
         assert_eq!(e.swapped_at, None);
