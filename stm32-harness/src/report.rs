@@ -82,8 +82,22 @@ pub fn render(out: &Outcome, all_lines: bool) -> (String, bool) {
 
     let _ = writeln!(
         s,
-        "\n== identified model (ID line, physical units: slm, duty 0..1)"
+        "\n== identified model (ID line: dynamics from the map's flow to the flow, slm/slm)"
     );
+    if let Some(map) = &out.map {
+        let flows: Vec<String> = map
+            .knots()
+            .iter()
+            .map(|k| format!("{:.1}", f64::from(*k) / 120.0))
+            .collect();
+        let _ = writeln!(
+            s,
+            "  map (MAP line): duty {:.2} % + k x {:.2} % -> flow [{}] slm",
+            f64::from(map.first()) / 100.0,
+            f64::from(map.step()) / 100.0,
+            flows.join(", ")
+        );
+    }
     match &out.id {
         Some(id) => {
             let _ = writeln!(s, "  {}", show_model(id));

@@ -330,7 +330,7 @@ impl FlashStore {
         flash_store::record(sectors, &plan).and_then(|r| r.try_into().ok())
     }
 
-    /// Saves `record` ([`RECORD_LEN`] bytes, or all `0xFF` to forget), blocking: ~1.3 ms of
+    /// Saves `record` ([`RECORD_LEN`] bytes, or all `0xFF` to forget), blocking: ~1.9 ms of
     /// programming, plus a sector erase of ~2 s when the sector in use is full. A record
     /// equal to the one loaded now (or forgetting with none loaded) is not written again. The
     /// outcome comes from [`take_result`](Self::take_result).

@@ -218,7 +218,8 @@ pub struct Records {
     pub scan_low: u16,
     /// Highest duty of the scan (default 9500 = 95 %, the controller's highest duty).
     pub scan_high: u16,
-    /// Duty change per scan tick (default 40 = 4 %/s: 4.0 s for the default scan).
+    /// Duty change per scan tick (default 40 = 0.4 % a tick, 40 %/s: 4.0 s for the default
+    /// scan).
     pub scan_rate: u16,
     /// Duty of the map's first knot (default 1500 = 15 %).
     pub map_first: u16,
