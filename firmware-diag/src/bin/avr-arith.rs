@@ -1,6 +1,7 @@
 //! Arithmetic self-check image for the ATmega2560 (diagnostics, not flashed by users): runs
 //! the ridge-core statistics path on a fixed record and prints the results over USART0, so
-//! that a host run of the same computation can be compared bit for bit.
+//! that a host run of the same computation can be compared bit for bit. `AVR_ARITH=reid` at
+//! build time selects the re-identification part (`arith_check::write_reid`) instead.
 //!
 //! With the feature `pad-64k` the linker places 64 KB of `.progmem.data` (the first output in
 //! `.text` after the vectors) ahead of the code: every function then runs from above 64 KB
@@ -57,7 +58,10 @@ mod image {
         dp.USART0.ucsr0c().write(|w| unsafe { w.bits(0b110) });
         #[cfg(feature = "pad-64k")]
         core::hint::black_box([PAD1.as_ptr(), PAD2.as_ptr(), PAD3.as_ptr()]);
-        firmware_diag::arith_check::write(&mut Tx);
+        match option_env!("AVR_ARITH") {
+            Some("reid") => firmware_diag::arith_check::write_reid(&mut Tx),
+            _ => firmware_diag::arith_check::write(&mut Tx),
+        }
         loop {}
     }
 
