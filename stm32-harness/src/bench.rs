@@ -16,13 +16,13 @@ use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
 use ridge_pump_firmware::flash_store::SECTORS;
 
 use crate::bus::{BusSlave, Lines, SdaHold};
-use crate::lines::Line;
 use crate::machine::Machine;
 use crate::periph::flash::{self, EraseCut};
 use crate::periph::i2c::BusFault;
 use crate::periph::rcc::ResetCause;
 use crate::periph::{Time, PS_PER_S};
 use crate::sensor::{Fault, SensorState, Sfm3300Slave};
+use crate::transcript::Line;
 
 /// Plant sub-steps per 10 ms sample (0.5 ms each).
 pub const SUBSTEPS: usize = 20;

@@ -31,12 +31,13 @@ use ridge_id::cli::{Cli, Command};
 use ridge_pump_firmware::flash_store::{
     self, slot_bytes, PROGRAMMED_LEN, SECTOR_LEN, SLOTS, SLOT_LEN,
 };
+use ridge_pump_firmware::lines::IdLine;
+use ridge_pump_firmware::lines::ParsedLine;
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use stm32_harness::bench::{ps, secs, Bench, BenchConfig, RunEnd, FRAME_PS};
-use stm32_harness::lines::ParsedLine;
 use stm32_harness::periph::Time;
-use stm32_harness::session::{self, duty_counts, IdLine, SessionConfig};
+use stm32_harness::session::{self, duty_counts, SessionConfig};
 
 /// The control tick's budget, instructions (tick start → TIM3_CCR1 written).
 const TICK_BUDGET: u64 = 10_000;
@@ -673,7 +674,7 @@ fn identification_on_the_log_matches_ridge_id() {
         .iter()
         .position(|l| l.keyword() == "ID")
         .unwrap_or_else(|| panic!("no ID line:\n{}", transcript(b)));
-    let id = IdLine::parse(&b.lines[id_at].parsed()).expect("ID line");
+    let id = IdLine::parse(&b.lines[id_at].text).expect("ID line").model;
     assert!(accept_fit.is_some(), "no ACCEPT:\n{}", transcript(b));
 
     // MODEL after ACCEPT: the ID line's model, in the ID line's fields and digits.

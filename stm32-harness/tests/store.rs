@@ -19,13 +19,14 @@ use ridge_core::{ArxModel, Offset};
 use ridge_pump_firmware::flash_store::{
     self, slot_bytes, At, PROGRAMMED_LEN, RUN_SAVES, SECTORS, SECTOR_LEN, SLOTS, SLOT_LEN,
 };
+use ridge_pump_firmware::lines::PrintedModel;
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
 use stm32_harness::bench::{ps, secs, Action, Bench, BenchConfig, RunEnd};
-use stm32_harness::lines::Line;
 use stm32_harness::periph::flash::{EraseCut, Programmed, BASE};
 use stm32_harness::periph::rcc::ResetCause;
 use stm32_harness::periph::Time;
-use stm32_harness::session::{self, IdLine, SessionConfig};
+use stm32_harness::session::{self, SessionConfig};
+use stm32_harness::transcript::Line;
 
 /// Offset of θ₁ in a record, and of the first φ and of the CRC (`firmware/src/persist.rs`).
 const THETA_AT: usize = 9;
@@ -83,18 +84,18 @@ fn boot(mem: Vec<u8>, limit_s: f64) -> Bench {
 }
 
 /// The model of the first `LOADED` line.
-fn loaded(b: &Bench) -> Option<IdLine> {
+fn loaded(b: &Bench) -> Option<PrintedModel> {
     b.find("LOADED")
         .next()
-        .and_then(|l| IdLine::parse(&l.parsed()))
+        .and_then(|l| PrintedModel::from_line(&l.parsed()).ok())
 }
 
 /// The model a record holds, as a LOADED line prints it (6 decimals).
-fn printed(record: &[u8]) -> IdLine {
+fn printed(record: &[u8]) -> PrintedModel {
     let (m, _) = persist::decode(record).expect("a whole record");
     let r6 = |v: f32| (f64::from(v) * 1e6).round() / 1e6;
     let s = m.structure();
-    IdLine {
+    PrintedModel {
         p: s.p,
         q: s.q,
         d: s.d,
@@ -102,13 +103,11 @@ fn printed(record: &[u8]) -> IdLine {
         theta: m.theta().iter().map(|&v| r6(v)).collect(),
         phi: m.phi().iter().map(|&v| r6(v)).collect(),
         c: r6(m.intercept()),
-        score: None,
-        eval: None,
     }
 }
 
 /// The same model (structure and coefficients as printed).
-fn same_model(a: &IdLine, b: &IdLine) -> bool {
+fn same_model(a: &PrintedModel, b: &PrintedModel) -> bool {
     (a.p, a.q, a.d) == (b.p, b.q, b.d)
         && a.theta.len() == b.theta.len()
         && a.phi.len() == b.phi.len()
@@ -128,7 +127,7 @@ fn the_record_is_written_loaded_after_a_reset_and_checked() {
     let cfg = SessionConfig::new(elf());
     let first = session::run(&cfg).expect("session");
     assert!(first.bench.lines.iter().any(|l| l.text == "PERSIST saved"));
-    let id = first.id.clone().expect("ID line");
+    let id = first.id.clone().expect("ID line").model;
     let store = first.bench.store();
     let plan = flash_store::plan([&store[0], &store[1]]);
     assert_eq!(plan.load, Some(At { sector: 0, slot: 0 }), "{plan:?}");
@@ -296,7 +295,7 @@ fn a_power_cut_at_every_program_access_of_a_save_keeps_a_record() {
         transcript(&saved)
     );
     let writes = saved.machine.chip().flash.programmed.clone();
-    let id = session::analyse(saved, 0.0).id.expect("ID line");
+    let id = session::analyse(saved, 0.0).id.expect("ID line").model;
     assert_eq!(writes.len(), PROGRAMMED_LEN, "program accesses of the save");
     let slot1 = SECTORS[0].1 + SLOT_LEN as u32;
     for (k, w) in writes.iter().enumerate() {
