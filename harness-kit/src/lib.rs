@@ -13,6 +13,8 @@
 //! - [`image`]: a firmware image's section sizes ([`image::Sizes`]).
 //! - [`run`]: run mode rebuilt tick by tick and checked against the `TRACK` lines
 //!   ([`run::RunTrace`]), scored as `pump_sim::baseline` scores its host runs.
+//! - [`sfm3300`]: the SFM3300's I2C side (commands, frames, NACKs, faults), which each
+//!   harness's bus feeds ([`sfm3300::SensorState`]).
 //! - [`report`]: the report `scripts/simulate` prints for either board, one function per
 //!   section, with the board-specific figures labelled as such ([`report::Board`]).
 
@@ -21,4 +23,5 @@ pub mod image;
 pub mod report;
 pub mod run;
 pub mod samples;
+pub mod sfm3300;
 pub mod validation;

@@ -4,30 +4,24 @@
 //! search rerun on the host from the exact samples the firmware saw, tick timing, CPU load,
 //! missed ticks, search time, stack and image sizes.
 //!
-//! Sample convention (firmware `selfid`): at each tick the firmware reads `y_t` and pushes
-//! `(u, y_t)` with `u` the duty applied during the interval that ends with that reading, i.e.
-//! the duty it wrote in the previous tick. The bench records every frame it served and every PWM
-//! change, so the pairs are rebuilt from the bench's own logs: the duty in effect when a frame
-//! was read, mapped back to the excitation generator's duty (1/10 000) and checked against the
-//! timer count it must produce.
+//! The records are rebuilt as `harness_kit::samples` describes (the duty checked in the timer
+//! counts OCR4A + 1 the board writes, [`pwm_counts`]); the host rerun, the scoring and the fresh
+//! validation signal are `harness_kit`'s (re-exported here for the tests).
 
-use std::path::Path;
 use std::time::Instant;
 
-use ridge_core::{ArxModel, Evaluation, IntGram, Real, Search};
+pub use harness_kit::host::{coefficient_error, firmware_search, host_search, host_search_in};
+pub use harness_kit::samples::Samples;
+pub use harness_kit::validation::{plot, score};
 
-use crate::bench::{Bench, BenchConfig, RunEnd, TickTiming, SUBSTEPS};
+use crate::bench::{Bench, BenchConfig, RunEnd, TickTiming};
 use crate::firmware::{self, Sizes};
 use crate::transcript::Line;
-use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
-use ridge_id::eval::Trace;
-use ridge_id::plot::{write_fit_png, Axes, Panel};
+use harness_kit::{samples, validation};
+use pump_sim::{LungParams, PumpParams, Sfm3300Params};
 use ridge_pump_firmware::excitation::Record;
-use ridge_pump_firmware::lines::{ExciteLine, IdLine, ParsedLine, PrintedModel, ValidateLine};
+use ridge_pump_firmware::lines::{IdLine, ParsedLine};
 use ridge_pump_firmware::pump::duty_to_counts;
-use ridge_pump_firmware::selfid::absolute_model;
-use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, SCALE};
 
 /// Timer TOP + 1 of the board's pump PWM (OC4A, 20 kHz): `max_duty_cycle()`.
 pub const PWM_MAX: u32 = 800;
@@ -40,38 +34,6 @@ pub const DESIGN_BUDGET_CYCLES: u64 = 1_600_000;
 /// pump driver's [`duty_to_counts`] with `max_duty_cycle() = PWM_MAX`.
 pub fn pwm_counts(duty: u16) -> u32 {
     u32::from(duty_to_counts(duty, PWM_MAX as u16))
-}
-
-/// A record as the firmware saw it: duty (1/10 000) in effect at each read, the raw word read.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Samples {
-    /// The excitation preset the duties follow (named on the `EXCITE` / `VALIDATE` line).
-    pub record: Option<Record>,
-    /// Duties, 1/10 000.
-    pub u: Vec<u16>,
-    /// SFM3300 raw words.
-    pub raw: Vec<u16>,
-    /// Core cycle of each read.
-    pub cycle: Vec<u64>,
-    /// Operating point the firmware subtracts (`EXCITE … u0= y0=`): duty 1/10 000.
-    pub u0: u16,
-    /// Operating point flow, counts (`raw − 32768`).
-    pub y0: i16,
-    /// The operating point recomputed from the served frames as the firmware defines it:
-    /// rounded mean (halves away from zero) of the 50 readings before the record.
-    pub y0_frames: Option<i16>,
-}
-
-impl Samples {
-    /// Number of samples.
-    pub fn len(&self) -> usize {
-        self.u.len()
-    }
-
-    /// Whether empty.
-    pub fn is_empty(&self) -> bool {
-        self.u.is_empty()
-    }
 }
 
 /// Tick timing summary.
@@ -259,10 +221,7 @@ pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
             .map(|(j, _)| *j)
     });
     let search_cycles = match (&estimation, search_end) {
-        (Some(s), Some(j)) => s
-            .cycle
-            .last()
-            .map(|c| bench.line_starts[j].saturating_sub(*c)),
+        (Some(s), Some(j)) => s.at.last().map(|c| bench.line_starts[j].saturating_sub(*c)),
         _ => None,
     };
     // Every search: from the end of an excitation record to the next ID/REJECT line.
@@ -401,154 +360,24 @@ fn timing(
 }
 
 /// Rebuilds the record announced by line `idx` (`EXCITE <name> n=.. u0=.. y0=..` /
-/// `VALIDATE <name> n=..`) from the frames served and the PWM log, aligned on the generator's
-/// duty sequence.
+/// `VALIDATE <name> n=..`) from the frames served and the PWM log
+/// (`harness_kit::samples::rebuild`, the duty checked in the timer's counts).
 pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
     let text = &bench.lines.get(idx)?.text;
-    // (preset name, samples, operating point: duty 1/10 000, flow counts; none on VALIDATE)
-    let (name, n, u0, y0) = match ExciteLine::parse(text) {
-        Ok(e) => (e.record, e.samples, e.u0, e.y0),
-        Err(_) => {
-            let v = ValidateLine::parse(text).ok()?;
-            (v.record, v.samples, 0, 0)
-        }
-    };
-    let record = name.parse::<Record>().ok()?;
-    let n = n as usize;
-    let gen: Vec<u16> = record.generator().take(n).collect();
     let frames = bench.sensor.borrow().served();
-    let at = bench.line_starts[idx];
-    let j0 = frames.partition_point(|(c, _)| *c < at);
     let counts_at = |c: u64| {
         bench
             .duty_at(c)
             .map_or(0, |d| if d.connected { u32::from(d.ocr) + 1 } else { 0 })
     };
-    for k in j0.saturating_sub(3)..=j0 + 3 {
-        if k + gen.len() > frames.len() {
-            break;
-        }
-        let ok = gen
-            .iter()
-            .enumerate()
-            .all(|(i, &g)| counts_at(frames[k + i].0) == pwm_counts(g));
-        if ok {
-            let y0_frames = (k >= 50).then(|| {
-                let sum: i32 = frames[k - 50..k]
-                    .iter()
-                    .map(|(_, raw)| i32::from(raw_to_counts(*raw)))
-                    .sum();
-                let half = if sum >= 0 { 25 } else { -25 };
-                ((sum + half) / 50) as i16
-            });
-            let mut s = Samples {
-                record: Some(record),
-                u0,
-                y0,
-                y0_frames,
-                ..Samples::default()
-            };
-            for (i, &g) in gen.iter().enumerate() {
-                s.u.push(g);
-                s.raw.push(frames[k + i].1);
-                s.cycle.push(frames[k + i].0);
-            }
-            return Some(s);
-        }
-    }
-    None
-}
-
-/// The firmware's search configuration (`selfid::Config::default().search`: ridge-core's
-/// default search, no offset, on deviations from the operating point), in `T`.
-pub fn firmware_search<T: Real>() -> Search<T> {
-    Search::default()
-}
-
-/// Reruns the firmware's search on the host from `samples` with exact integer statistics and
-/// `f64` normal equations (ridge-core `IntGram` + `Search<f64>` on the deviations
-/// `(u − u0, y − y0)`), and converts the result to the absolute model with an intercept as the
-/// firmware does (`selfid::absolute_model`: `c = c_dev + y0 (1 − Σθ) − u0 Σφ`).
-pub fn host_search(samples: &Samples) -> Result<IdLine, String> {
-    host_search_in::<f64>(samples)
-}
-
-/// [`host_search`] with the normal equations and the search in `T` (`f32` is what the
-/// firmware runs).
-pub fn host_search_in<T: Real>(samples: &Samples) -> Result<IdLine, String> {
-    let mut g = IntGram::new();
-    let (u0, y0) = (i32::from(samples.u0), i32::from(samples.y0));
-    for (&u, &raw) in samples.u.iter().zip(&samples.raw) {
-        g.push(i32::from(u) - u0, i32::from(raw_to_counts(raw)) - y0)
-            .map_err(|e| format!("{e:?}"))?;
-    }
-    let normal = g.normal::<T>(SCALE).map_err(|e| format!("{e:?}"))?;
-    let sel = firmware_search::<T>()
-        .run(&normal, None)
-        .map_err(|e| format!("{e:?}"))?;
-    let m =
-        absolute_model(&sel.fit.model(), samples.u0, samples.y0).map_err(|e| format!("{e:?}"))?;
-    let s = m.structure();
-    Ok(IdLine {
-        model: PrintedModel {
-            p: s.p,
-            q: s.q,
-            d: s.d,
-            offset: m.offset(),
-            theta: m.theta().iter().map(|v| v.to_f64()).collect(),
-            phi: m.phi().iter().map(|v| v.to_f64()).collect(),
-            c: m.intercept().to_f64(),
-        },
-        score: sel.score.to_f64(),
-        evaluated: sel.evaluated,
-        candidates: sel.candidates,
-        skipped: sel.skipped,
-        iterations: sel.fit.iterations,
+    samples::rebuild(text, bench.line_starts[idx], &frames, |c, g| {
+        counts_at(c) == pwm_counts(g)
     })
 }
 
-/// Largest coefficient difference between two models of the same structure, relative to
-/// `max(1, |b|)` per coefficient (θ, φ, c); `None` if the structures differ.
-pub fn coefficient_error(a: &PrintedModel, b: &PrintedModel) -> Option<f64> {
-    if (a.p, a.q, a.d) != (b.p, b.q, b.d) || a.theta.len() != b.theta.len() {
-        return None;
-    }
-    let pairs = a
-        .theta
-        .iter()
-        .zip(&b.theta)
-        .chain(a.phi.iter().zip(&b.phi))
-        .chain(std::iter::once((&a.c, &b.c)));
-    Some(
-        pairs
-            .map(|(x, y)| (x - y).abs() / y.abs().max(1.0))
-            .fold(0.0, f64::max),
-    )
-}
-
-/// Free-run and one-step scores of `model` on `samples` (physical units), with the trace for
-/// a plot.
-pub fn score(model: &ArxModel<f64>, samples: &Samples) -> (Option<f64>, Option<f64>, Trace) {
-    let mut ev = Evaluation::new(*model);
-    let mut trace = Trace::new(samples.len() as u64, 2000);
-    for (i, (&u, &raw)) in samples.u.iter().zip(&samples.raw).enumerate() {
-        let uf = f64::from(u) / f64::from(DUTY_FULL_SCALE);
-        let y = pump_sim::sfm3300::raw_to_flow(raw);
-        let p = ev.push(uf, y);
-        trace.push(i as u64, y, p);
-    }
-    trace.finish();
-    (
-        ev.free_run().map(|m| m.fit),
-        ev.one_step().map(|m| m.fit),
-        trace,
-    )
-}
-
-/// A fresh validation signal on the host, with the loop's timing: the plant (blower `pump`,
-/// test lung `lung` if any) sub-stepped as in the bench, the reading taken at the tick, the new
-/// duty applied `latency` sub-steps later, the sensor noise from `seed`. Starts from `base`
-/// duty held for 2 s, as the firmware settles.
+/// A fresh validation signal on the host with the loop's timing
+/// (`harness_kit::validation::fresh_record`), the duty as the board's timer makes it
+/// ([`pwm_counts`] of [`PWM_MAX`]).
 pub fn fresh_record(
     pump: &PumpParams,
     lung: Option<&LungParams>,
@@ -558,79 +387,13 @@ pub fn fresh_record(
     base: u16,
     latency: usize,
 ) -> Samples {
-    let mut p = pump.clone();
-    p.ts_s /= SUBSTEPS as f64;
-    p.delay_samples *= SUBSTEPS;
-    let mut pump = Pump::new(p);
-    let mut lung = lung.cloned().map(Lung::new);
-    let mut sfm = Sfm3300::new(sensor.clone(), seed);
     let frac = |d: u16| pwm_counts(d) as f64 / f64::from(PWM_MAX);
-    // One 0.5 ms plant step at duty `d`: the flow at its end.
-    let mut step = |d: u16| {
-        let open = pump.step(frac(d));
-        match &mut lung {
-            Some(l) => {
-                let p = pump.params();
-                l.step(open, p.shutoff_of_speed(pump.speed()), p.ts_s)
-            }
-            None => open,
-        }
-    };
-    let latency = latency.min(SUBSTEPS);
-    let mut prev = base;
-    let mut flow = 0.0;
-    for _ in 0..200 * SUBSTEPS {
-        flow = step(base);
-    }
-    let mut s = Samples {
-        record: Some(record),
-        ..Samples::default()
-    };
-    for g in record.generator() {
-        for _ in 0..latency {
-            flow = step(prev);
-        }
-        for _ in latency..SUBSTEPS {
-            flow = step(g);
-        }
-        prev = g;
-        let raw = sfm.measure_raw(flow);
-        s.u.push(g);
-        s.raw.push(raw);
-        s.cycle.push(0);
-    }
-    s.u0 = base;
-    s
+    validation::fresh_record(pump, lung, sensor, seed, record, base, latency, frac)
 }
 
 /// Median sub-steps between a read and the PWM change that follows it in the same tick, over
-/// `samples` (the duty written is seen by the plant at the next 0.5 ms step).
+/// `samples` (`harness_kit::validation::write_latency`).
 pub fn write_latency(bench: &Bench, samples: &Samples) -> usize {
-    let step = TICK_CYCLES / SUBSTEPS as u64;
-    let mut lat: Vec<u64> = samples
-        .cycle
-        .iter()
-        .filter_map(|&c| {
-            let i = bench.duty_log.partition_point(|d| d.cycle <= c);
-            let d = bench.duty_log.get(i)?;
-            (d.cycle - c < TICK_CYCLES).then(|| (d.cycle - c).div_ceil(step))
-        })
-        .collect();
-    if lat.is_empty() {
-        return 1;
-    }
-    lat.sort_unstable();
-    lat[lat.len() / 2] as usize
-}
-
-/// Writes a PNG with one panel per `(title, trace)`.
-pub fn plot(path: &Path, panels: &[(String, Trace)]) -> Result<(), String> {
-    let p: Vec<Panel<'_>> = panels
-        .iter()
-        .map(|(t, tr)| Panel {
-            title: t.clone(),
-            trace: tr,
-        })
-        .collect();
-    write_fit_png(path, &Axes::pump(), &p).map_err(|e| e.to_string())
+    let changes: Vec<u64> = bench.duty_log.iter().map(|d| d.cycle).collect();
+    validation::write_latency(samples, &changes, TICK_CYCLES)
 }

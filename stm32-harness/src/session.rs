@@ -296,13 +296,7 @@ pub fn duty_counts(duty: u16, period: u32) -> u32 {
 /// and the duty log (`harness_kit::samples::rebuild`, the duty checked in TIM3 counts).
 pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
     let line = bench.lines.get(idx)?;
-    let frames: Vec<(u64, u16)> = bench
-        .sensor
-        .borrow()
-        .served()
-        .iter()
-        .map(|&(at, raw, _)| (at, raw))
-        .collect();
+    let frames = bench.sensor.borrow().served();
     samples::rebuild(&line.text, line.start, &frames, |at, g| {
         bench
             .duty_at(at)

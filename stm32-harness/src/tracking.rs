@@ -32,7 +32,7 @@ pub fn run_trace(bench: &Bench) -> Result<RunTrace, String> {
             .map(|k| k.start)
             .collect(),
         per_s: PS_PER_S as f64,
-        frames: bench.sensor.borrow().served(),
+        frames: bench.sensor.borrow().served_with_flow(),
         duty_at: &duty_at,
         flow_at: &flow_at,
         now: bench.machine.now(),
