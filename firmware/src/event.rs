@@ -10,13 +10,15 @@
 //!
 //! | Event | Line |
 //! |---|---|
-//! | [`Event::StoredRejected`] | `STORED-REJECTED crc`, `STORED-REJECTED unstable`, `STORED-REJECTED fit=-1000.0<70.0` |
-//! | [`Event::Loaded`] | `LOADED p=1 q=1 d=3 off=1 theta=0.935000 phi=6.500000 c=-0.125000 fit=87.3` |
-//! | [`Event::Excite`] | `EXCITE A-Multistep n=3000 u0=30.00 y0=19.058 attempt=1/3` |
-//! | [`Event::Identified`] | `ID p=1 q=1 d=3 off=1 theta=0.935000 phi=6.500000 c=-0.125000 score=-1234.5 eval=14/252 skip=0 iters=200` |
-//! | [`Event::Validate`] | `VALIDATE B-Multistep n=3000` |
+//! | [`Event::StoredRejected`] | `STORED-REJECTED crc`, `STORED-REJECTED unstable`, `STORED-REJECTED map-slope=0.500`, `STORED-REJECTED fit=-1000.0<70.0` |
+//! | [`Event::Loaded`] | `LOADED p=1 q=1 d=3 off=1 theta=0.935000 phi=0.065000 c=-0.125000 fit=87.3` |
+//! | [`Event::Scan`] | `SCAN n=520 lag=20 u0=30.00 y0=19.058 attempt=1/3` |
+//! | [`Event::Map`] | `MAP first=15.00 step=5.33 flow=0.125,6.608,…` (16 flows) |
+//! | [`Event::Excite`] | `EXCITE flow-steps n=700 u0=30.00 y0=19.058 attempt=1/3` |
+//! | [`Event::Identified`] | `ID p=1 q=1 d=3 off=1 theta=0.935000 phi=0.065000 c=-0.125000 score=-1234.5 eval=14/252 skip=0 iters=200` |
+//! | [`Event::Validate`] | `VALIDATE flow-steps n=300` |
 //! | [`Event::Accepted`] | `ACCEPT fit=87.3 rmse=3.230 one=2.094 n=2994 persist` |
-//! | [`Event::Rejected`] | `REJECT fit=42.1<70.0 attempt=1/3` |
+//! | [`Event::Rejected`] | `REJECT fit=42.1<70.0 attempt=1/3`, `REJECT map=unscanned attempt=1/3` |
 //! | [`Event::Control`] | `CTRL method=pole-placement tau=0.040 poles=0.779,0.900 kept=4 mm=0.571 tries=1 preview=8` |
 //! | [`Event::Track`] | `TRACK sp=40.000 flow=39.875 rms=0.512 max=1.250 duty=35.20 tick=1050` |
 //! | [`Event::Alarm`] | `ALARM track err=5.125 s=0.50` / `ALARM track clear` |
@@ -24,9 +26,8 @@
 //! | [`Event::Drift`] | `DRIFT rms=3.200 mean=-2.997 flow=35.400 s=3 reid=0` |
 //! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125`, `FAULT sensor=frozen flow=19.058`, `FAULT noflow duty=30.00 flow=0.125 expect=19.058`, `FAULT control margin=0.412 tries=5`, `FAULT resets watchdog=2 brownout=1` |
 
-use crate::excitation::Record;
 use ridge_core::control::{DesignError, ModelFault};
-use ridge_core::{ArxModel, Error as CoreError, Offset};
+use ridge_core::{ArxModel, Error as CoreError, InputMap, MapError, Offset};
 use ufmt::{uDisplay, uWrite, Formatter};
 
 use crate::numfmt::{Decimal, Fixed, Int, Milli};
@@ -95,6 +96,13 @@ pub enum StoredReason {
     /// The record is valid but its model is unfit for control (the same checks as an
     /// identified one). Line: `STORED-REJECTED unstable`, `STORED-REJECTED gain=-3.125`.
     Model(ModelFault<f32>),
+    /// The record's map rises implausibly little or much over the records' duty range (see
+    /// `ControlConfig::map_slope`): `slope` in slm per unit duty. Line:
+    /// `STORED-REJECTED map-slope=0.500`.
+    MapSlope {
+        /// The map's mean slope, slm per unit duty.
+        slope: f32,
+    },
     /// The record's validation fit is below the acceptance fit. Line:
     /// `STORED-REJECTED fit=-1000.0<70.0`.
     Fit {
@@ -180,6 +188,8 @@ pub enum RejectReason {
         /// RMS of the flow around its mean over the record, slm.
         rms: f32,
     },
+    /// The scan gave no static map (see [`map_error_name`]). Line: `REJECT map=unscanned`.
+    Map(MapError),
     /// The structure search failed with this ridge-core error.
     /// Line: `REJECT search=no-candidate` (see [`core_error_name`]).
     Search(CoreError),
@@ -225,18 +235,35 @@ pub enum Event {
     /// The stored model given to `SelfIdentification::new` is unusable; the pump
     /// identifies a new one. Line: `STORED-REJECTED <reason>` (see [`PersistError::name`]).
     StoredRejected(StoredReason),
-    /// A valid stored model was loaded; identification is skipped and the pump runs.
+    /// A valid stored model was loaded (its map comes on the [`Event::Map`] before);
+    /// identification is skipped and the pump runs.
     Loaded {
-        /// The model (physical units: slm and duty fraction).
+        /// The model's dynamics (physical units: the map's flow in slm in, slm out).
         model: ArxModel<f32>,
         /// Its stored validation fit, percent.
         fit: f32,
     },
-    /// An excitation record starts (`samples` ticks of `record`), identification attempt
-    /// `attempt` of `attempts`.
+    /// An identification attempt starts with the scan of the duty range (`samples` ticks:
+    /// the ramps and the lead-in at the base duty), attempt `attempt` of `attempts`.
+    Scan {
+        /// Ticks of the scan.
+        samples: u16,
+        /// The plant's lag the scan credits its readings with, ticks.
+        lag: u8,
+        /// Operating point: the base duty, 1/10 000 of full scale.
+        u0: u16,
+        /// Operating point: the mean settled flow, counts (1/120 slm).
+        y0: i16,
+        /// This attempt, from 1.
+        attempt: u8,
+        /// Configured number of attempts.
+        attempts: u8,
+    },
+    /// The scan's static map from duty to flow (the model's input map).
+    Map(InputMap),
+    /// The estimation record starts ([`crate::excitation::FlowSteps`], `samples` ticks),
+    /// around the operating point of the attempt's [`Event::Scan`].
     Excite {
-        /// The excitation preset.
-        record: Record,
         /// Its length in samples (10 ms each).
         samples: u32,
         /// Operating point: the base duty, 1/10 000 of full scale.
@@ -250,15 +277,14 @@ pub enum Event {
     },
     /// The structure search picked `model`.
     Identified {
-        /// The identified model (physical units).
+        /// The identified model's dynamics (physical units: the map's flow in slm in, slm
+        /// out).
         model: ArxModel<f32>,
         /// Search figures.
         stats: SearchStats,
     },
-    /// The validation record starts (`samples` ticks of `record`).
+    /// The validation record starts ([`crate::excitation::FlowSteps`], `samples` ticks).
     Validate {
-        /// The validation preset.
-        record: Record,
         /// Its length in samples.
         samples: u32,
     },
@@ -479,6 +505,16 @@ impl Event {
     }
 }
 
+/// Short kebab-case name of a map error, as used in `REJECT map=<name>`: `grid`,
+/// `not-increasing`, `unscanned`.
+pub const fn map_error_name(e: MapError) -> &'static str {
+    match e {
+        MapError::Grid => "grid",
+        MapError::NotIncreasing => "not-increasing",
+        MapError::Unscanned => "unscanned",
+    }
+}
+
 /// Short kebab-case name of a ridge-core error, as used in `REJECT search=<name>`:
 /// `nonfinite`, `overflow`, `too-short`, `invalid-structure`, `invalid-parameter`,
 /// `not-excited`, `not-positive-definite`, `no-candidate`.
@@ -513,6 +549,30 @@ where
             f.write_str(",")?;
         }
         uDisplay::fmt(&Fixed::new(*v * scale, digits), f)?;
+    }
+    Ok(())
+}
+
+/// The records' name on the `EXCITE` and `VALIDATE` lines ([`crate::excitation::FlowSteps`]).
+pub const RECORD_NAME: &str = "flow-steps";
+
+/// Writes `MAP first=<duty %> step=<duty %> flow=<16 flows, slm>` (the knots in counts printed
+/// as slm with 3 decimals, which read back to the same counts).
+pub(crate) fn write_map<W>(f: &mut Formatter<'_, W>, map: &InputMap) -> Result<(), W::Error>
+where
+    W: uWrite + ?Sized,
+{
+    ufmt::uwrite!(
+        f,
+        "MAP first={} step={} flow=",
+        percent(map.first()),
+        percent(map.step())
+    )?;
+    for (i, k) in map.knots().iter().enumerate() {
+        if i > 0 {
+            f.write_str(",")?;
+        }
+        uDisplay::fmt(&slm(*k), f)?;
     }
     Ok(())
 }
@@ -565,6 +625,7 @@ impl uDisplay for RejectReason {
             RejectReason::NotExcited { rms } => {
                 ufmt::uwrite!(f, "not-excited rms={}", Fixed::new(rms, 3))
             }
+            RejectReason::Map(e) => ufmt::uwrite!(f, "map={}", map_error_name(e)),
             RejectReason::Search(e) => ufmt::uwrite!(f, "search={}", core_error_name(e)),
             RejectReason::Fit { fit, min } => {
                 ufmt::uwrite!(f, "fit={}<{}", Fixed::new(fit, 1), Fixed::new(min, 1))
@@ -659,6 +720,9 @@ impl uDisplay for StoredReason {
         match self {
             StoredReason::Record(e) => f.write_str(e.name()),
             StoredReason::Model(m) => write_model_fault(f, m),
+            StoredReason::MapSlope { slope } => {
+                ufmt::uwrite!(f, "map-slope={}", Fixed::new(*slope, 3))
+            }
             StoredReason::Fit { fit, min } => {
                 ufmt::uwrite!(f, "fit={}<{}", Fixed::new(*fit, 1), Fixed::new(*min, 1))
             }
@@ -678,8 +742,25 @@ impl uDisplay for Event {
                 write_model(f, model)?;
                 ufmt::uwrite!(f, " fit={}", Fixed::new(*fit, 1))
             }
+            Event::Scan {
+                samples,
+                lag,
+                u0,
+                y0,
+                attempt,
+                attempts,
+            } => ufmt::uwrite!(
+                f,
+                "SCAN n={} lag={} u0={} y0={} attempt={}/{}",
+                Int::from(*samples),
+                Int::from(*lag),
+                percent(*u0),
+                slm(*y0),
+                Int::from(*attempt),
+                Int::from(*attempts)
+            ),
+            Event::Map(map) => write_map(f, map),
             Event::Excite {
-                record,
                 samples,
                 u0,
                 y0,
@@ -688,7 +769,7 @@ impl uDisplay for Event {
             } => ufmt::uwrite!(
                 f,
                 "EXCITE {} n={} u0={} y0={} attempt={}/{}",
-                record.name(),
+                RECORD_NAME,
                 Int::from(*samples),
                 percent(*u0),
                 slm(*y0),
@@ -708,8 +789,8 @@ impl uDisplay for Event {
                     Int::from(stats.iterations)
                 )
             }
-            Event::Validate { record, samples } => {
-                ufmt::uwrite!(f, "VALIDATE {} n={}", record.name(), Int::from(*samples))
+            Event::Validate { samples } => {
+                ufmt::uwrite!(f, "VALIDATE {} n={}", RECORD_NAME, Int::from(*samples))
             }
             Event::Accepted {
                 fit,

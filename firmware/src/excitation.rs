@@ -1,17 +1,110 @@
-//! The pump's excitation presets: the records the power-up identification drives the blower
-//! with, built from ridge-core's generic generators ([`ridge_core::excitation`]) in duty units
-//! (1/[`DUTY_FULL_SCALE`] of full scale) at [`SAMPLE_RATE_HZ`](crate::units::SAMPLE_RATE_HZ).
+//! The pump's excitation records, built from ridge-core's generic generators
+//! ([`ridge_core::excitation`]) in duty units (1/[`DUTY_FULL_SCALE`] of full scale) at
+//! [`SAMPLE_RATE_HZ`](crate::units::SAMPLE_RATE_HZ):
 //!
-//! Each preset is about 30 s long with every duty within [`PRESET_DUTY_MIN`]..=
-//! [`PRESET_DUTY_MAX`] (20..90 %; the blower's dead zone lies below ~15 %). They mirror the four
-//! records of the paper (A/B-Multistep, A/B-Ramp) plus a PRBS: see [`Record`]. Every preset is
-//! validated at compile time (length, levels within full scale): a bad table fails the build.
+//! - [`FlowSteps`]: what the power-up identification drives the blower with (the estimation
+//!   and the validation record, `crate::selfid`): random steps whose levels are uniform in the
+//!   static map's flow, driven at the map's inverse.
+//! - [`Record`]: the paper's four records (A/B-Multistep, A/B-Ramp) plus a PRBS, about 30 s
+//!   each with every duty within [`PRESET_DUTY_MIN`]..=[`PRESET_DUTY_MAX`] (20..90 %; the
+//!   blower's dead zone lies below ~15 %), for the simulator's experiments and the host tools.
+//!   Every preset is validated at compile time (length, levels within full scale): a bad table
+//!   fails the build.
 
 use core::str::FromStr;
 
-use ridge_core::excitation::{Excitation, Multistep, Prbs, Ramp, RampShape, Step};
+use ridge_core::excitation::{
+    Excitation, Multistep, Prbs, Ramp, RampShape, RandomShape, RandomSteps, Step,
+};
+use ridge_core::InputMap;
 
 use crate::units::DUTY_FULL_SCALE;
+
+/// Random steps uniform in flow (see the [module docs](self)): each level of a
+/// [`RandomSteps`] is a flow (SFM3300 counts) between the map's flow at the lowest duty (at
+/// least a given flow) and at the highest; it is driven at the map's inverse within the duty
+/// range, and reported with the map's flow at that duty (the Hammerstein model's input).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FlowSteps {
+    steps: RandomSteps,
+    map: InputMap,
+    /// Duty range, 1/10 000.
+    low: u16,
+    high: u16,
+    /// The current level (flow counts; `u16::MAX` before the first), its duty and the map's
+    /// flow there.
+    level: u16,
+    duty: u16,
+    flow: i16,
+}
+
+/// The shape of a [`FlowSteps`] record (duties 1/10 000, flows in counts, holds in samples).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FlowShape {
+    /// Lowest duty.
+    pub low: u16,
+    /// Highest duty.
+    pub high: u16,
+    /// Lowest flow of a level, counts.
+    pub min_flow: i16,
+    /// Shortest hold, samples (≥ 1).
+    pub hold_min: u16,
+    /// Longest hold, samples (≥ `hold_min`).
+    pub hold_max: u16,
+    /// Length, samples.
+    pub len: u32,
+    /// Seed of the generator.
+    pub seed: u16,
+}
+
+impl FlowSteps {
+    /// The record of `shape` through `map`; `None` when the map's flows leave no range (the
+    /// flow at the highest duty not above the lowest level) or the holds are invalid.
+    pub fn new(map: &InputMap, shape: &FlowShape) -> Option<Self> {
+        let low_flow = map.at(shape.low).max(shape.min_flow).max(0);
+        let high_flow = map.at(shape.high);
+        if high_flow <= low_flow || shape.high < shape.low {
+            return None;
+        }
+        // Both within 0..=32 767 here.
+        let steps = RandomSteps::new(RandomShape {
+            low: low_flow as u16,
+            high: high_flow as u16,
+            hold_min: shape.hold_min,
+            hold_max: shape.hold_max,
+            len: shape.len,
+            seed: shape.seed,
+        })?;
+        Some(FlowSteps {
+            steps,
+            map: *map,
+            low: shape.low,
+            high: shape.high,
+            level: u16::MAX,
+            duty: shape.low,
+            flow: 0,
+        })
+    }
+
+    /// Total length in samples.
+    pub fn len_samples(&self) -> u32 {
+        self.steps.len_samples()
+    }
+
+    /// The next sample's duty (1/10 000) and the map's flow at it (counts), or `None` at the
+    /// end. The map is inverted once per level, not per sample.
+    pub fn next_step(&mut self) -> Option<(u16, i16)> {
+        let level = self.steps.next_duty()?;
+        if level != self.level {
+            self.level = level;
+            // Levels are within 0..=32 767 (`new`).
+            let duty = self.map.inverse(level as i16).max(self.low).min(self.high);
+            self.duty = duty;
+            self.flow = self.map.at(duty);
+        }
+        Some((self.duty, self.flow))
+    }
+}
 
 /// Lowest duty any preset emits, in duty units (20 %). Below ~15 % the pump does not turn.
 pub const PRESET_DUTY_MIN: u16 = 2_000;

@@ -10,11 +10,11 @@
 //!
 //! | Offset in a slot | Size | Field |
 //! |---:|---:|---|
-//! | 0 | 69 | the record ([`crate::persist`]), or all `0xFF`: forgotten (a tombstone) |
-//! | 69 | 4 | sequence number `n`, `u32` little-endian: one more than every slot before it |
-//! | 73 | 4 | `!n`, its complement |
-//! | 77 | 4 | commit mark: `"RP"`, the record length as `u16` little-endian |
-//! | 81 | 15 | `0xFF` (unprogrammed), to [`SLOT_LEN`] = 96 bytes |
+//! | 0 | 105 | the record ([`crate::persist`]), or all `0xFF`: forgotten (a tombstone) |
+//! | 105 | 4 | sequence number `n`, `u32` little-endian: one more than every slot before it |
+//! | 109 | 4 | `!n`, its complement |
+//! | 113 | 4 | commit mark: `"RP"`, the record length as `u16` little-endian |
+//! | 117 | 11 | `0xFF` (unprogrammed), to [`SLOT_LEN`] = 128 bytes |
 //!
 //! A slot is **committed** when it holds the mark and a sequence number equal to the
 //! complement of the word after it. A save programs its slot in address order: record,

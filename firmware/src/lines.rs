@@ -9,8 +9,9 @@
 //!   fields (e.g. `REJECT fit=42.1<70.0 attempt=1/3`), with numbers read by [`number`].
 //! - [`IdLine`]: the `ID` line ([`Event::Identified`](crate::event::Event::Identified)), with
 //!   [`PrintedModel`], the model part it shares with `LOADED` and `MODEL`.
-//! - [`LoadedLine`]: the `LOADED` line; [`ExciteLine`], [`ValidateLine`]: the records'
-//!   announcements (`EXCITE`, `VALIDATE`).
+//! - [`LoadedLine`]: the `LOADED` line; [`ScanLine`], [`ExciteLine`], [`ValidateLine`]: the
+//!   records' announcements (`SCAN`, `EXCITE`, `VALIDATE`); [`MapLine`]: the static map
+//!   (`MAP`).
 //!
 //! Errors ([`LineError`]) name the field that is missing or malformed; the caller adds the
 //! file and line number.
@@ -26,7 +27,7 @@ use std::fmt;
 use std::string::{String, ToString};
 use std::vec::Vec;
 
-use ridge_core::{ArxModel, Error as CoreError, Offset};
+use ridge_core::{ArxModel, Error as CoreError, InputMap, Offset, MAP_KNOTS};
 
 use crate::units::{DUTY_FULL_SCALE, FLOW_SCALE};
 
@@ -366,15 +367,114 @@ impl LoadedLine {
     }
 }
 
-/// The `EXCITE` line: an excitation record starts
+/// The `SCAN` line: an identification attempt starts with the scan
+/// ([`Event::Scan`](crate::event::Event::Scan)), e.g.
+/// `SCAN n=520 lag=20 u0=30.00 y0=19.058 attempt=1/3` (operating point read back exactly, as
+/// on [`ExciteLine`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScanLine {
+    /// Ticks of the scan (`n=`).
+    pub samples: u32,
+    /// The lag its readings are credited with, ticks (`lag=`).
+    pub lag: u8,
+    /// Operating point: base duty, 1/10 000 of full scale.
+    pub u0: u16,
+    /// Operating point: settled flow, counts of 1/120 slm.
+    pub y0: i16,
+    /// Attempt and attempts configured (`attempt=1/3`).
+    pub attempt: (u8, u8),
+}
+
+impl ScanLine {
+    /// Parses a `SCAN` line (every field required).
+    pub fn parse(text: &str) -> Result<Self, LineError> {
+        let line = ParsedLine::parse(text);
+        line.expect("SCAN")?;
+        let (u0, y0) = operating_point(&line)?;
+        let attempt = line
+            .ratio("attempt")
+            .and_then(|(a, b)| Some((u8::try_from(a).ok()?, u8::try_from(b).ok()?)))
+            .ok_or(LineError::Field {
+                key: "attempt",
+                expected: "ratio",
+            })?;
+        Ok(Self {
+            samples: line.whole("n")?,
+            lag: line.whole("lag")?,
+            u0,
+            y0,
+            attempt,
+        })
+    }
+}
+
+/// The `MAP` line: the static map from duty to flow
+/// ([`Event::Map`](crate::event::Event::Map)), e.g. `MAP first=15.00 step=5.33
+/// flow=0.125,6.608,…` (16 flows), read back exactly: the duties in percent with 2 decimals
+/// are whole 1/10 000, the flows in slm with 3 decimals whole counts of 1/120 slm.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MapLine {
+    /// The map.
+    pub map: InputMap,
+}
+
+impl MapLine {
+    /// Parses a `MAP` line; the map must be one (16 strictly increasing flows, a positive
+    /// spacing).
+    pub fn parse(text: &str) -> Result<Self, LineError> {
+        let line = ParsedLine::parse(text);
+        line.expect("MAP")?;
+        let duty = |key: &'static str| -> Result<u16, LineError> {
+            in_range((line.finite(key)? * 100.0).round(), key)
+        };
+        let flows = line
+            .list("flow")
+            .filter(|v| v.iter().all(|x| x.is_finite()))
+            .ok_or(LineError::Field {
+                key: "flow",
+                expected: "list of numbers",
+            })?;
+        if flows.len() != MAP_KNOTS {
+            return Err(LineError::Length {
+                key: "flow",
+                expected: MAP_KNOTS,
+                found: flows.len(),
+            });
+        }
+        let mut knots = [0i16; MAP_KNOTS];
+        for (k, f) in knots.iter_mut().zip(&flows) {
+            *k = in_range((f * f64::from(FLOW_SCALE)).round(), "flow")?;
+        }
+        let map =
+            InputMap::new(duty("first")?, duty("step")?, knots).map_err(|_| LineError::Field {
+                key: "flow",
+                expected: "increasing flows",
+            })?;
+        Ok(Self { map })
+    }
+}
+
+/// The operating point `u0=` (percent, 2 decimals) and `y0=` (slm, 3 decimals) of a line, in
+/// the firmware's units: 1/10 000 duty and counts of 1/120 slm (nearest).
+fn operating_point(line: &ParsedLine) -> Result<(u16, i16), LineError> {
+    let percent = line.finite("u0")?;
+    let slm = line.finite("y0")?;
+    // Percent · 100 = 1/10 000 of full scale.
+    const _: () = assert!(DUTY_FULL_SCALE == 10_000);
+    let u0 = (percent * 100.0).round();
+    let y0 = (slm * f64::from(FLOW_SCALE)).round();
+    Ok((in_range(u0, "u0")?, in_range(y0, "y0")?))
+}
+
+/// The `EXCITE` line: the estimation record starts
 /// ([`Event::Excite`](crate::event::Event::Excite)), e.g.
-/// `EXCITE A-Multistep n=3000 u0=30.00 y0=19.058 attempt=1/3`. The operating point is read
+/// `EXCITE flow-steps n=700 u0=30.00 y0=19.058 attempt=1/3`. The operating point is read
 /// back in the firmware's units, exactly: the line prints `u0` (1/10 000 duty) in percent with
 /// 2 decimals and `y0` (whole counts of 1/120 slm) in slm with 3.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ExciteLine {
-    /// The excitation preset's name, e.g. `A-Multistep`
-    /// ([`Record`](crate::excitation::Record) parses it).
+    /// The record's name: `flow-steps`
+    /// ([`RECORD_NAME`](crate::event::RECORD_NAME)).
     pub record: String,
     /// Samples announced (`n=`).
     pub samples: u32,
@@ -391,20 +491,15 @@ impl ExciteLine {
     pub fn parse(text: &str) -> Result<Self, LineError> {
         let line = ParsedLine::parse(text);
         line.expect("EXCITE")?;
-        let percent = line.finite("u0")?;
-        let slm = line.finite("y0")?;
-        // Percent · 100 = 1/10 000 of full scale.
-        const _: () = assert!(DUTY_FULL_SCALE == 10_000);
-        let u0 = (percent * 100.0).round();
-        let y0 = (slm * f64::from(FLOW_SCALE)).round();
+        let (u0, y0) = operating_point(&line)?;
         let attempt = line
             .ratio("attempt")
             .and_then(|(a, b)| Some((u8::try_from(a).ok()?, u8::try_from(b).ok()?)));
         Ok(Self {
             record: line.record()?,
             samples: line.whole("n")?,
-            u0: in_range(u0, "u0")?,
-            y0: in_range(y0, "y0")?,
+            u0,
+            y0,
             attempt,
         })
     }
@@ -428,10 +523,10 @@ fn in_range<T: TryFrom<i64>>(v: f64, key: &'static str) -> Result<T, LineError> 
 }
 
 /// The `VALIDATE` line: the validation record starts
-/// ([`Event::Validate`](crate::event::Event::Validate)), e.g. `VALIDATE B-Multistep n=3000`.
+/// ([`Event::Validate`](crate::event::Event::Validate)), e.g. `VALIDATE flow-steps n=300`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ValidateLine {
-    /// The preset's name.
+    /// The record's name.
     pub record: String,
     /// Samples announced (`n=`).
     pub samples: u32,

@@ -1,10 +1,11 @@
 //! Run-mode model monitor: one-step-ahead prediction of the flow from the identified model
 //! against the measured flow, residual statistics per window, and drift detection.
 //!
-//! Every tick the monitor takes the duty applied during the interval that ended with the
-//! reading, and the reading. A [`ridge_core::Predictor`] in [`Mode::OneStep`] predicts the
-//! reading from the measured past flows and the past duties (seeded with the first
-//! `m = max(p, d + q − 1)` samples). The residual `e = y − ŷ` (slm) is accumulated over a
+//! Every tick (after the tick's PWM write) the monitor takes the duty applied during the
+//! interval that ended with the reading, the static map's flow at it (the model's input, see
+//! [`crate::selfid`]), and the reading. A [`ridge_core::Predictor`] in [`Mode::OneStep`]
+//! predicts the reading from the measured past flows and the past inputs (seeded with the
+//! first `m = max(p, d + q − 1)` samples). The residual `e = y − ŷ` (slm) is accumulated over a
 //! window ([`MonitorConfig::window`] ticks, 1 s by default) and reported as
 //! [`Event::Residual`].
 //!
@@ -35,7 +36,7 @@
 use ridge_core::{ArxModel, Mode, Predictor, Real};
 
 use crate::event::{Event, Residuals};
-use crate::units::{FRACTION_PER_DUTY, SLM_PER_COUNT};
+use crate::units::SLM_PER_COUNT;
 
 /// Settings of the run-mode monitor.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -102,7 +103,7 @@ pub struct Monitor {
 }
 
 impl Monitor {
-    /// A monitor of `model` (physical units: slm and duty fraction).
+    /// A monitor of `model` (physical units: the map's flow in slm in, the flow in slm out).
     pub fn new(model: ArxModel<f32>, cfg: MonitorConfig) -> Self {
         Monitor {
             cfg,
@@ -124,13 +125,12 @@ impl Monitor {
     }
 
     /// Takes one tick: `duty` (1/10 000) applied during the interval that ended with the
-    /// reading `counts` (1/120 slm; `None` after a sensor error). Puts [`Event::Residual`]
-    /// into `event` at the end of each window with scored samples, or [`Event::Drift`]
-    /// instead when the drift is raised in that window; leaves it alone otherwise. (Written in
-    /// place, not returned: a returned event is a 74-byte copy, ~550 cycles on the ATmega2560
-    /// inside the control tick.)
-    pub fn step(&mut self, duty: u16, counts: Option<i16>, event: &mut Option<Event>) {
-        let u = f32::from(duty) * FRACTION_PER_DUTY;
+    /// reading `counts` (1/120 slm; `None` after a sensor error), `u` the model's input for it
+    /// (the map's flow at `duty`, slm). Puts [`Event::Residual`] into `event` at the end of
+    /// each window with scored samples, or [`Event::Drift`] instead when the drift is raised
+    /// in that window; leaves it alone otherwise. (Written in place, not returned: a returned
+    /// event is a 74-byte copy, ~550 cycles on the ATmega2560.)
+    pub fn step(&mut self, duty: u16, u: f32, counts: Option<i16>, event: &mut Option<Event>) {
         let measured = counts.map(|c| f32::from(c) * SLM_PER_COUNT);
         let y = measured.unwrap_or(self.last_y);
         self.last_y = y;

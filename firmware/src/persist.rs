@@ -1,7 +1,8 @@
 //! Fixed-size non-volatile record of an identified model (EEPROM on the ATmega2560, a flash
-//! page on the STM32F411).
+//! page on the STM32F411): the dynamics (ARX), its validation fit and the static map from duty
+//! to flow its input goes through (`ridge_core::InputMap`, see [`crate::selfid`]).
 //!
-//! Layout (all multi-byte values little-endian), [`RECORD_LEN`] = 69 bytes:
+//! Layout (all multi-byte values little-endian), [`RECORD_LEN`] = 105 bytes:
 //!
 //! | Offset | Size | Field |
 //! |---:|---:|---|
@@ -12,25 +13,30 @@
 //! | 7 | 1 | `d` (0..=6), samples of 10 ms |
 //! | 8 | 1 | offset flag: 0 = none, 1 = intercept |
 //! | 9 | 24 | `θ_1 … θ_6` as `f32` (dimensionless); slots past `p` are `+0.0` |
-//! | 33 | 24 | `φ_0 … φ_5` as `f32` (slm per unit duty fraction); slots past `q` are `+0.0` |
+//! | 33 | 24 | `φ_0 … φ_5` as `f32` (slm of measured flow per slm of the map's flow); slots past `q` are `+0.0` |
 //! | 57 | 4 | `c` as `f32` (slm); `+0.0` without intercept |
 //! | 61 | 4 | validation free-run fit as `f32` (percent) |
-//! | 65 | 4 | CRC-32 (IEEE 802.3: reflected polynomial 0xEDB88320, init and final XOR 0xFFFFFFFF) of bytes 0..65 |
+//! | 65 | 2 | the map's first knot, `u16` duty (1/10 000) |
+//! | 67 | 2 | the map's knot spacing, `u16` duty (1/10 000, > 0) |
+//! | 69 | 32 | the map's 16 knots, `i16` flow (SFM3300 counts, 1/120 slm), strictly increasing |
+//! | 101 | 4 | CRC-32 (IEEE 802.3: reflected polynomial 0xEDB88320, init and final XOR 0xFFFFFFFF) of bytes 0..101 |
 //!
 //! [`decode`] accepts only what [`encode`] can produce: it rejects a wrong length, magic,
-//! version or CRC, an invalid structure or offset flag, non-zero unused slots and non-finite
-//! numbers. CRC-32 detects every single-bit and every burst error up to 32 bits.
+//! version or CRC, an invalid structure or offset flag, non-zero unused slots, non-finite
+//! numbers and a map that is not one (knots not increasing, spacing 0 or past full range).
+//! CRC-32 detects every single-bit and every burst error up to 32 bits. Version 1 (69 bytes,
+//! a model from duty to flow without a map) is refused as [`PersistError::Version`].
 
-use ridge_core::{ArxModel, Offset, Real, P_MAX, Q_MAX};
+use ridge_core::{ArxModel, InputMap, Offset, Real, MAP_KNOTS, P_MAX, Q_MAX};
 
 /// Length of a record in bytes.
-pub const RECORD_LEN: usize = 69;
+pub const RECORD_LEN: usize = 105;
 
 /// The record's first four bytes ("Ridge-Pump Model Data").
 pub const MAGIC: [u8; 4] = *b"RPMD";
 
 /// Format version written by [`encode`] and the only one [`decode`] accepts.
-pub const VERSION: u8 = 1;
+pub const VERSION: u8 = 2;
 
 /// Offset of the CRC in the record (the CRC covers bytes `0..CRC_AT`).
 const CRC_AT: usize = RECORD_LEN - 4;
@@ -38,7 +44,9 @@ const THETA_AT: usize = 9;
 const PHI_AT: usize = THETA_AT + 4 * P_MAX;
 const C_AT: usize = PHI_AT + 4 * Q_MAX;
 const FIT_AT: usize = C_AT + 4;
-const _: () = assert!(FIT_AT + 4 == CRC_AT);
+const MAP_AT: usize = FIT_AT + 4;
+const KNOTS_AT: usize = MAP_AT + 4;
+const _: () = assert!(KNOTS_AT + 2 * MAP_KNOTS == CRC_AT);
 
 /// Why a stored record was not accepted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -56,11 +64,13 @@ pub enum PersistError {
     Structure,
     /// A coefficient or the fit is NaN or infinite.
     NonFinite,
+    /// The map's knots are not strictly increasing, or its grid is invalid.
+    Map,
 }
 
 impl PersistError {
     /// Short lower-case name used in report lines: `length`, `magic`, `version`, `crc`,
-    /// `structure`, `nonfinite`.
+    /// `structure`, `nonfinite`, `map`.
     pub const fn name(self) -> &'static str {
         match self {
             PersistError::Length => "length",
@@ -69,6 +79,7 @@ impl PersistError {
             PersistError::Crc => "crc",
             PersistError::Structure => "structure",
             PersistError::NonFinite => "nonfinite",
+            PersistError::Map => "map",
         }
     }
 }
@@ -94,9 +105,9 @@ pub fn crc32(data: &[u8]) -> u32 {
     !crc
 }
 
-/// Encodes `model` and its validation `fit` (percent) into a record (layout in the
-/// [module docs](self)).
-pub fn encode(model: &ArxModel<f32>, fit: f32) -> [u8; RECORD_LEN] {
+/// Encodes `model`, its validation `fit` (percent) and the `map` its input goes through into a
+/// record (layout in the [module docs](self)).
+pub fn encode(model: &ArxModel<f32>, map: &InputMap, fit: f32) -> [u8; RECORD_LEN] {
     let mut out = [0u8; RECORD_LEN];
     let s = model.structure();
     let mut w = Writer {
@@ -122,6 +133,11 @@ pub fn encode(model: &ArxModel<f32>, fit: f32) -> [u8; RECORD_LEN] {
     }
     w.bytes(&model.intercept().to_le_bytes());
     w.bytes(&fit.to_le_bytes());
+    w.bytes(&map.first().to_le_bytes());
+    w.bytes(&map.step().to_le_bytes());
+    for k in map.knots() {
+        w.bytes(&k.to_le_bytes());
+    }
     let crc = crc32(out.get(..CRC_AT).unwrap_or(&[]));
     if let Some(slot) = out.get_mut(CRC_AT..) {
         slot.copy_from_slice(&crc.to_le_bytes());
@@ -129,11 +145,12 @@ pub fn encode(model: &ArxModel<f32>, fit: f32) -> [u8; RECORD_LEN] {
     out
 }
 
-/// Decodes a record written by [`encode`]: the model and its fit (percent).
+/// Decodes a record written by [`encode`]: the model, its map and its fit (percent).
 ///
 /// Only the first [`RECORD_LEN`] bytes are read (a board may pass a whole EEPROM page).
-/// Checks, in this order: length, magic, version, CRC, structure and layout, finiteness.
-pub fn decode(bytes: &[u8]) -> Result<(ArxModel<f32>, f32), PersistError> {
+/// Checks, in this order: length, magic, version, CRC, structure and layout, finiteness, the
+/// map.
+pub fn decode(bytes: &[u8]) -> Result<(ArxModel<f32>, InputMap, f32), PersistError> {
     let rec = intact(bytes)?;
     let [_, _, _, _, _, p, q, d, off, ..] = *rec;
     let offset = match off {
@@ -176,7 +193,14 @@ pub fn decode(bytes: &[u8]) -> Result<(ArxModel<f32>, f32), PersistError> {
         ridge_core::Error::NonFinite => PersistError::NonFinite,
         _ => PersistError::Structure,
     })?;
-    Ok((model, fit))
+    let half = |at: usize| (read_u32(rec, at) & 0xFFFF) as u16;
+    let mut knots = [0i16; MAP_KNOTS];
+    for (k, v) in knots.iter_mut().enumerate() {
+        *v = half(KNOTS_AT + 2 * k) as i16;
+    }
+    let map =
+        InputMap::new(half(MAP_AT), half(MAP_AT + 2), knots).map_err(|_| PersistError::Map)?;
+    Ok((model, map, fit))
 }
 
 /// The first [`RECORD_LEN`] bytes of `bytes` if they are whole as [`encode`] wrote them:

@@ -1,15 +1,15 @@
 //! Two slots for the persisted record, so that a write cut at any byte (reset, power loss)
 //! never loses the previous valid model: the EEPROM of the ATmega2560 is written a byte per
-//! tick (~3.4 ms each), and a record takes 70 ticks to write.
+//! tick (~3.4 ms each), and a record takes 106 ticks to write.
 //!
-//! Layout, [`STORE_LEN`] = 140 bytes from the board's base address:
+//! Layout, [`STORE_LEN`] = 212 bytes from the board's base address:
 //!
 //! | Offset | Size | Field |
 //! |---:|---:|---|
-//! | 0 | 69 | slot 0: the record ([`crate::persist`]) |
-//! | 69 | 1 | slot 0: sequence number, 0..=254; 255 (erased) = never written |
-//! | 70 | 69 | slot 1: the record |
-//! | 139 | 1 | slot 1: sequence number |
+//! | 0 | 105 | slot 0: the record ([`crate::persist`]) |
+//! | 105 | 1 | slot 0: sequence number, 0..=254; 255 (erased) = never written |
+//! | 106 | 105 | slot 1: the record |
+//! | 211 | 1 | slot 1: sequence number |
 //!
 //! A slot is written in address order, record first and sequence number last, into the slot
 //! that does not hold the record in use, with the sequence number after the newest one

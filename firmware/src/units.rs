@@ -43,9 +43,18 @@ pub const SLM_PER_COUNT: f32 = 1.0 / FLOW_SCALE as f32;
 /// Calibrated measurement range of the SFM3300, ± this many slm (datasheet): ±30 000 counts.
 pub const FLOW_RANGE_SLM: u16 = 250;
 
-/// Physical units per raw count of the device's statistics: duty units → fraction 0..1,
-/// flow counts → slm. Identified models are therefore in slm per duty fraction.
+/// Physical units per raw count of a record of duty and flow: duty units → fraction 0..1, flow
+/// counts → slm; models identified on it are in slm per duty fraction (the host tools'
+/// records; the device's statistics use [`MODEL_SCALE`]).
 pub const SCALE: Scale = Scale {
     u: 1.0 / DUTY_FULL_SCALE as f64,
+    y: 1.0 / FLOW_SCALE as f64,
+};
+
+/// Physical units per raw count of the device's statistics: the static map's flow in, the
+/// measured flow out, both SFM3300 counts → slm. Its models are in slm per slm (see
+/// `crate::selfid`: the model's dynamics after the map).
+pub const MODEL_SCALE: Scale = Scale {
+    u: 1.0 / FLOW_SCALE as f64,
     y: 1.0 / FLOW_SCALE as f64,
 };

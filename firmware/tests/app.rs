@@ -14,8 +14,10 @@
 mod common;
 
 use firmware_testkit::{self as testkit, FakePwm, FakeSensor, Uart, POLL_US, TICK_US};
+use ridge_core::{Method, RidgeM, Search};
 use ridge_pump_firmware::app::{App, Console, ANSWER_ROOM, START_TICKS};
-use ridge_pump_firmware::lines::ParsedLine;
+use ridge_pump_firmware::excitation::FlowSteps;
+use ridge_pump_firmware::lines::{MapLine, ParsedLine, ScanLine};
 use ridge_pump_firmware::persist;
 use ridge_pump_firmware::pump::Pump;
 use ridge_pump_firmware::selfid::{Config, SelfIdentification, State, DEFAULT_CONFIG};
@@ -56,11 +58,32 @@ fn console_board(w: &Shared) -> FakeBoard<false> {
 type TestApp = App<FakeSensor<Plant>, FakePwm<Plant>, Uart>;
 
 fn app(w: &Shared, uart: &Uart) -> TestApp {
+    app_with(w, uart, &DEFAULT_CONFIG)
+}
+
+fn app_with(w: &Shared, uart: &Uart, config: &'static Config) -> TestApp {
     let sensor = Sfm3300::new(FakeSensor(w.clone()));
     let pump = Pump::new(FakePwm(w.clone())).unwrap();
-    let sid = SelfIdentification::new(&DEFAULT_CONFIG, None);
+    let sid = SelfIdentification::new(config, None);
     App::new(sensor, pump, uart.clone(), sid, 400_000)
 }
+
+/// The default settings with a search that runs for many tick boundaries, so that faults,
+/// commands and ticks can happen while it runs: Ridge-M to 3 000 iterates without a
+/// tolerance (a pet each). With the defaults it converges in ~10 iterates on the pump's
+/// records (0.6 s on the ATmega2560, most of it the bounds), on this plant within a few ticks
+/// of the fake board's clock.
+static SLOW_SEARCH: Config = Config {
+    search: Search {
+        method: Method::RidgeM(RidgeM {
+            max_iter: 3_000,
+            tol: 0.0,
+            ..RidgeM::PAPER
+        }),
+        ..DEFAULT_CONFIG.search
+    },
+    ..Config::DEFAULT
+};
 
 /// Steps the loop until `until` holds or `max_steps` passes ran; returns the passes run.
 fn run_until<const T: bool>(
@@ -80,7 +103,7 @@ fn run_until<const T: bool>(
 
 /// Whether the next pass ends the estimation record, and therefore runs the search.
 fn search_is_next(a: &TestApp) -> bool {
-    let n = Config::default().excitation.len_samples();
+    let n = u32::from(Config::default().records.samples);
     a.selfid().gram().is_some_and(|g| g.len() + 1 == n)
 }
 
@@ -113,9 +136,11 @@ fn identifies<const TICKING: bool>() {
     let lines = uart.lines();
     let order = [
         "SENSOR ready tries=",
-        "EXCITE A-Multistep",
+        "SCAN n=",
+        "MAP first=",
+        "EXCITE flow-steps",
         "ID p=",
-        "VALIDATE B-Multistep",
+        "VALIDATE flow-steps",
         "SEARCH ticks=",
         "ACCEPT fit=",
         "PERSIST saved",
@@ -147,8 +172,9 @@ fn identifies<const TICKING: bool>() {
     );
     // One record stored, and it is the model in use with its fit.
     assert_eq!(board.saves.len(), 1);
-    let (model, fit) = persist::decode(&board.saves[0]).unwrap();
+    let (model, map, fit) = persist::decode(&board.saves[0]).unwrap();
     assert_eq!(Some(&model), app.selfid().model());
+    assert_eq!(Some(&map), app.selfid().map());
     assert_eq!(Some(fit), app.selfid().fit());
     // No late passes or lost ticks in normal operation.
     assert_eq!(count(&lines, "MISSED"), 0, "{lines:#?}");
@@ -182,7 +208,7 @@ fn ticking_search_keeps_writing_the_pump() {
     let w = world(Plant::reference());
     let uart = Uart::default();
     let mut board = board::<true>(&w);
-    let mut app = app(&w, &uart);
+    let mut app = app_with(&w, &uart, &SLOW_SEARCH);
     app.start(&mut board);
     run_until(&mut app, &mut board, 8_000, search_is_next);
     let (t0, writes0) = {
@@ -269,7 +295,7 @@ fn fault_during_the_blocking_search(fault: impl FnOnce(&mut World)) -> (u64, u64
     let w = world(Plant::reference());
     let uart = Uart::default();
     let mut board = board::<false>(&w);
-    let mut app = app(&w, &uart);
+    let mut app = app_with(&w, &uart, &SLOW_SEARCH);
     app.start(&mut board);
     run_until(&mut app, &mut board, 8_000, search_is_next);
     let t0 = {
@@ -336,7 +362,7 @@ fn sensor_fault_during_the_ticking_search_stops_the_pump_at_once() {
     let w = world(Plant::reference());
     let uart = Uart::default();
     let mut board = board::<true>(&w);
-    let mut app = app(&w, &uart);
+    let mut app = app_with(&w, &uart, &SLOW_SEARCH);
     app.start(&mut board);
     run_until(&mut app, &mut board, 8_000, search_is_next);
     let t0 = {
@@ -533,7 +559,7 @@ fn answers_wait_for_room_in_the_transmit_queue() {
     let answers = |uart: &Uart| -> Vec<String> {
         uart.lines()[from..]
             .iter()
-            .filter(|l| l.starts_with("MODEL ") || l.starts_with("RST "))
+            .filter(|l| ["MODEL ", "MAP ", "RST "].iter().any(|k| l.starts_with(k)))
             .cloned()
             .collect()
     };
@@ -552,8 +578,13 @@ fn answers_wait_for_room_in_the_transmit_queue() {
         app.step(&mut board);
     }
     assert_eq!(answers(&uart).len(), 1);
-    // One polynomial per pass, each once there is room.
-    for (n, prefix) in [(2, "RST r=1.000000,"), (3, "RST s="), (4, "RST t=")] {
+    // The map, then one polynomial per pass, each once there is room.
+    for (n, prefix) in [
+        (2, "MAP first="),
+        (3, "RST r=1.000000,"),
+        (4, "RST s="),
+        (5, "RST t="),
+    ] {
         board.room = ANSWER_ROOM;
         app.step(&mut board);
         let got = answers(&uart);
@@ -577,7 +608,7 @@ fn stop_during_the_blocking_search_stops_the_pump_at_the_next_tick_boundary() {
     let w = world(Plant::reference());
     let uart = Uart::default();
     let mut board = console_board(&w);
-    let mut app = app(&w, &uart);
+    let mut app = app_with(&w, &uart, &SLOW_SEARCH);
     app.start(&mut board);
     run_until(&mut app, &mut board, 8_000, search_is_next);
     // Arrives 25 ms into the search (the search blocks the loop far longer in simulated time).
@@ -788,9 +819,17 @@ fn status_model_and_forget_answer() {
     for key in ["p", "q", "d", "theta", "phi", "c"] {
         assert_eq!(field(&model, key), field(&id, key), "{key}");
     }
-    for _ in 0..3 {
+    for _ in 0..4 {
         app.step(&mut board);
     }
+    // The map line after MODEL is the one identification printed.
+    let maps: Vec<String> = uart
+        .lines()
+        .into_iter()
+        .filter(|l| l.starts_with("MAP "))
+        .collect();
+    assert_eq!(maps.len(), 2, "{maps:?}");
+    assert_eq!(maps[0], maps[1]);
     for prefix in ["RST r=1.000000,", "RST s=", "RST t="] {
         assert!(
             uart.lines().iter().any(|l| l.starts_with(prefix)),
@@ -835,14 +874,17 @@ fn log_rows_are_the_samples_of_the_record() {
     // The excitation rows: as many as the record has samples, each duty the one the pump
     // held during the interval before the reading, each flow the plant's reading.
     let excite: Vec<&Vec<&str>> = rows.iter().filter(|r| r[4] == "excite").collect();
-    assert_eq!(
-        excite.len() as u32,
-        Config::default().excitation.len_samples()
-    );
-    let excitation = ridge_pump_firmware::excitation::Record::AMultistep;
-    let mut gen = excitation.generator();
-    let first: u16 = (excite[0][1].parse::<f64>().unwrap() * 1e4).round() as u16;
-    assert_eq!(Some(first), gen.next_duty(), "the record's first duty");
+    let records = Config::default().records;
+    assert_eq!(excite.len(), usize::from(records.samples));
+    // Every duty is the record's: its generator rebuilt from the MAP and SCAN lines.
+    let line = |k: &str| lines.iter().find(|l| l.starts_with(k)).unwrap();
+    let map = MapLine::parse(line("MAP ")).unwrap().map;
+    let lag = ScanLine::parse(line("SCAN ")).unwrap().lag;
+    let mut gen = FlowSteps::new(&map, &records.shape(lag, records.samples, records.seed)).unwrap();
+    for (i, r) in excite.iter().enumerate() {
+        let duty = (r[1].parse::<f64>().unwrap() * 1e4).round() as u16;
+        assert_eq!(Some(duty), gen.next_step().map(|s| s.0), "duty {i}");
+    }
     for r in &excite {
         let y: f64 = r[2].parse().unwrap();
         let counts = (y * 120.0).round();

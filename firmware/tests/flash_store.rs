@@ -7,7 +7,7 @@
 //! Truths: the records saved (which one must load after a cut is known from the cut point),
 //! never one the state machine has to refuse, never none while one was saved.
 
-use ridge_core::{ArxModel, Offset};
+use ridge_core::{ArxModel, InputMap, Offset};
 use ridge_pump_firmware::flash_store::{
     self, boot_erase, plan, slot_bytes, At, PROGRAMMED_LEN, RUN_SAVES, SECTOR_LEN, SLOTS, SLOT_LEN,
 };
@@ -31,7 +31,8 @@ fn loaded(m: &[Vec<u8>; 2]) -> Option<Vec<u8>> {
 /// A distinct whole record (`k` in its fit).
 fn record(k: u16) -> [u8; RECORD_LEN] {
     let model = ArxModel::new(&[0.9f32], &[12.0], 3, Offset::Intercept, -1.5).unwrap();
-    persist::encode(&model, 70.0 + f32::from(k) / 100.0)
+    let map = InputMap::new(1_500, 533, core::array::from_fn(|i| 100 * i as i16)).unwrap();
+    persist::encode(&model, &map, 70.0 + f32::from(k) / 100.0)
 }
 
 /// Deterministic bit noise (xorshift64*).
@@ -97,14 +98,14 @@ fn save(m: &mut [Vec<u8>; 2], rec: &[u8], cut: Cut) -> flash_store::Plan {
 #[test]
 fn layout() {
     assert_eq!(PROGRAMMED_LEN, RECORD_LEN + 12);
-    assert_eq!(SLOT_LEN, 96);
-    assert_eq!(SLOTS, 1365);
+    assert_eq!(SLOT_LEN, 128);
+    assert_eq!(SLOTS, 1024);
     assert_eq!(flash_store::SECTORS, [(6, 0x4_0000), (7, 0x6_0000)]);
     let b = slot_bytes(&record(1), 0x0102_0304).unwrap();
     assert_eq!(&b[..RECORD_LEN], &record(1));
     assert_eq!(&b[RECORD_LEN..RECORD_LEN + 4], &[4, 3, 2, 1]);
     assert_eq!(&b[RECORD_LEN + 4..RECORD_LEN + 8], &[!4, !3, !2, !1]);
-    assert_eq!(&b[RECORD_LEN + 8..], b"RP\x45\x00");
+    assert_eq!(&b[RECORD_LEN + 8..], b"RP\x69\x00");
     assert_eq!(slot_bytes(&[0; 3], 0), None);
 }
 

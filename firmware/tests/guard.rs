@@ -177,57 +177,62 @@ fn unchecked_ticks_hold_the_count_and_a_good_reading_resets_it() {
 }
 
 #[test]
-fn the_model_gain_extends_the_expectation_to_every_duty() {
+fn a_given_flow_is_expected_at_the_next_check_only() {
+    // Run mode gives the model's steady state at the duty it wrote (here 10 slm, as at 25 %
+    // on a 200 slm-per-unit-duty blower) before every check, whatever the duty the check sees.
     let mut g = Guard::new(&cfg());
     g.expect_operating_point(3_000, 2_400);
-    // 200 slm per unit duty through 20 slm at 30 %: 60 slm at 50 %, 0 slm at 20 %.
-    g.expect_model(200.0);
-    for (u, slm) in [
-        (5_000u16, 60.0f64),
-        (3_000, 20.0),
-        (2_500, 10.0),
-        (2_000, 0.0),
-    ] {
-        let e = f64::from(g.expected(u).unwrap()) / 120.0;
-        assert!((e - slm).abs() < 0.1, "{u}: {e} slm vs {slm}");
+    g.expect_flow(1_200);
+    for u in [5_000u16, 3_000, 2_500, 2_000, 0] {
+        assert_eq!(g.expected(u), Some(1_200), "{u}");
     }
-    // Expected 10 slm at 25 %: a quarter is 2.5 slm = 300 counts.
-    let fault = feed(&mut g, 200, 2_500, 290).map(|(k, _)| k);
-    assert_eq!(fault, Some(50), "frozen first: the reading is constant");
-    let mut g2 = Guard::new(&cfg());
-    g2.expect_operating_point(3_000, 2_400);
-    g2.expect_model(200.0);
+    // A quarter is 2.5 slm = 300 counts: 100 checked ticks below it are no flow.
     let mut k = 0;
     let r = loop {
         k += 1;
-        if let Err(r) = g2.check(2_500, Ok(280 + (k % 3) as i16)) {
+        g.expect_flow(1_200);
+        if let Err(r) = g.check(2_500, Ok(280 + (k % 3) as i16)) {
             break r;
         }
     };
     assert_eq!(k, 100);
     assert!(
-        matches!(r, FaultReason::NoFlow { duty: 2_500, .. }),
+        matches!(
+            r,
+            FaultReason::NoFlow {
+                duty: 2_500,
+                expected: 1_200,
+                ..
+            }
+        ),
         "{r:?}"
     );
-    // At 20 % nothing (0 slm) is expected: no fault however long.
-    assert_eq!(
-        (0..10_000).find(|k| g2.check(2_000, Ok((k % 3) as i16)).is_err()),
-        None
-    );
-}
-
-#[test]
-fn a_gain_that_is_not_positive_finite_and_in_range_changes_nothing() {
+    // Where the model expects almost nothing (a quarter below the stall flow's 2 slm), nothing
+    // is checked, however long.
     let mut g = Guard::new(&cfg());
     g.expect_operating_point(3_000, 2_400);
-    let before = g;
-    // 0.1 slm per unit duty is 0.3 / 256 count per duty step: rounds to no slope; 1e5
-    // saturates the i16 slope.
-    for gain in [0.0f32, -200.0, f32::NAN, f32::INFINITY, 0.1, 1e5] {
-        g.expect_model(gain);
-        assert_eq!(g.expected(2_000), None, "{gain}");
-        assert_eq!(g.expected(6_000), before.expected(6_000), "{gain}");
-    }
+    assert_eq!(
+        (0..10_000).find(|k| {
+            g.expect_flow(900);
+            g.check(2_000, Ok((k % 3) as i16)).is_err()
+        }),
+        None
+    );
+    // Not given again (run mode left, e.g. stopped at duty 0): the operating point's law
+    // from the next check on, which expects nothing below its duty.
+    g.expect_flow(9_000);
+    assert_eq!(g.check(2_000, Ok(300)), Ok(Some(300)));
+    assert_eq!(g.expected(2_000), None);
+    assert_eq!(g.expected(0), None);
+    // 2 400 · 6 000 / 3 000 = 4 800, less the slope's rounding down to 204/256 count per step.
+    assert_eq!(
+        g.expected(6_000),
+        Some(2_400 + (204i32 * 3_000 / 256) as i16)
+    );
+    // A sensor error uses up the given flow too.
+    g.expect_flow(9_000);
+    assert_eq!(g.check(2_000, Err(SensorFault::Nack)), Ok(None));
+    assert_eq!(g.expected(2_000), None);
 }
 
 #[test]

@@ -8,16 +8,25 @@
 //! each event's documented line (`event` module docs), not taken from the writer.
 
 use ridge_core::control::{DesignError, ModelFault};
-use ridge_core::{ArxModel, Error as CoreError, Offset};
+use ridge_core::{ArxModel, Error as CoreError, InputMap, MapError, Offset, MAP_KNOTS};
 use ridge_pump_firmware::event::{
-    core_error_name, ControlRefusal, Event, FaultReason, RejectReason, Residuals, SearchStats,
-    SensorFault, StoredReason, LINE_MAX,
+    core_error_name, map_error_name, ControlRefusal, Event, FaultReason, RejectReason, Residuals,
+    SearchStats, SensorFault, StoredReason, LINE_MAX, RECORD_NAME,
 };
-use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::lines::{
-    number, ExciteLine, IdLine, LineError, LoadedLine, ParsedLine, PrintedModel, ValidateLine,
+    number, ExciteLine, IdLine, LineError, LoadedLine, MapLine, ParsedLine, PrintedModel, ScanLine,
+    ValidateLine,
 };
 use ridge_pump_firmware::persist::PersistError;
+
+/// A blower-like map on the firmware's grid (15 % + k · 5.33 %), knots in counts.
+fn map() -> InputMap {
+    let mut knots = [0i16; MAP_KNOTS];
+    for (k, v) in knots.iter_mut().enumerate() {
+        *v = (759 + 90 * k * k + k) as i16;
+    }
+    InputMap::new(1_500, 533, knots).unwrap()
+}
 
 fn text(e: &Event) -> String {
     let l = e.line::<LINE_MAX>();
@@ -231,6 +240,7 @@ fn expected(e: &Event) -> Expected {
             let (words, fields) = match r {
                 StoredReason::Record(p) => (vec![p.name()], vec![]),
                 StoredReason::Model(m) => model_fault(m),
+                StoredReason::MapSlope { slope } => (vec![], vec![("map-slope", f(slope))]),
                 StoredReason::Fit { fit, min } => {
                     (vec![], vec![("fit", V::Lt(f64::from(fit), f64::from(min)))])
                 }
@@ -242,8 +252,43 @@ fn expected(e: &Event) -> Expected {
             fields.push(("fit", f(fit)));
             exp("LOADED", &[], fields)
         }
+        Event::Scan {
+            samples,
+            lag,
+            u0,
+            y0,
+            attempt,
+            attempts,
+        } => exp(
+            "SCAN",
+            &[],
+            vec![
+                ("n", int(samples)),
+                ("lag", int(lag)),
+                ("u0", percent(u0)),
+                ("y0", slm(y0)),
+                ("attempt", V::R(attempt.into(), attempts.into())),
+            ],
+        ),
+        Event::Map(map) => exp(
+            "MAP",
+            &[],
+            vec![
+                ("first", percent(map.first())),
+                ("step", percent(map.step())),
+                // Each knot's counts in slm to 3 decimals, rounded half away from zero.
+                (
+                    "flow",
+                    V::L(
+                        map.knots()
+                            .iter()
+                            .map(|&k| (f64::from(k) * 1000.0 / 120.0).round() / 1000.0)
+                            .collect(),
+                    ),
+                ),
+            ],
+        ),
         Event::Excite {
-            record,
             samples,
             u0,
             y0,
@@ -251,7 +296,7 @@ fn expected(e: &Event) -> Expected {
             attempts,
         } => exp(
             "EXCITE",
-            &[record.name()],
+            &["flow-steps"],
             vec![
                 ("n", int(samples)),
                 ("u0", percent(u0)),
@@ -272,9 +317,7 @@ fn expected(e: &Event) -> Expected {
             ]);
             exp("ID", &[], fields)
         }
-        Event::Validate { record, samples } => {
-            exp("VALIDATE", &[record.name()], vec![("n", int(samples))])
-        }
+        Event::Validate { samples } => exp("VALIDATE", &["flow-steps"], vec![("n", int(samples))]),
         Event::Accepted {
             fit,
             rmse,
@@ -297,6 +340,7 @@ fn expected(e: &Event) -> Expected {
         } => {
             let (words, mut fields) = match reason {
                 RejectReason::NotExcited { rms } => (vec!["not-excited"], vec![("rms", f(rms))]),
+                RejectReason::Map(e) => (vec![], vec![("map", V::W(map_error_name(e)))]),
                 RejectReason::Search(e) => (vec![], vec![("search", V::W(core_error_name(e)))]),
                 RejectReason::Fit { fit, min } => {
                     (vec![], vec![("fit", V::Lt(f64::from(fit), f64::from(min)))])
@@ -406,20 +450,38 @@ fn events() -> Vec<Event> {
             fit: -1000.0,
             min: 70.0,
         }),
+        Event::StoredRejected(StoredReason::MapSlope { slope: 0.5 }),
         Event::Loaded {
             model: model(),
             fit: 87.5,
         },
+        Event::Scan {
+            samples: 441,
+            lag: 20,
+            u0: 3000,
+            y0: 2289,
+            attempt: 1,
+            attempts: 3,
+        },
+        Event::Map(map()),
+        Event::Map(
+            InputMap::new(
+                0,
+                1,
+                [
+                    -32_768, -32_767, -9, -8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 32_767,
+                ],
+            )
+            .unwrap(),
+        ),
         Event::Excite {
-            record: Record::AMultistep,
-            samples: 3000,
+            samples: 700,
             u0: 3000,
             y0: 2289,
             attempt: 1,
             attempts: 3,
         },
         Event::Excite {
-            record: Record::BMultistep,
             samples: 17,
             u0: 1,
             y0: -2289,
@@ -434,10 +496,7 @@ fn events() -> Vec<Event> {
             model: ArxModel::new(&[0.5], &[0.25], 0, Offset::None, 0.0).unwrap(),
             stats,
         },
-        Event::Validate {
-            record: Record::BMultistep,
-            samples: 3000,
-        },
+        Event::Validate { samples: 300 },
         Event::Accepted {
             fit: 87.5,
             rmse: 3.25,
@@ -525,6 +584,9 @@ fn events() -> Vec<Event> {
     }
     for reason in [
         RejectReason::NotExcited { rms: 0.125 },
+        RejectReason::Map(MapError::Unscanned),
+        RejectReason::Map(MapError::NotIncreasing),
+        RejectReason::Map(MapError::Grid),
         RejectReason::Fit {
             fit: 42.5,
             min: 70.0,
@@ -640,11 +702,36 @@ fn loaded_and_model_lines_share_the_model() {
 }
 
 #[test]
-fn excite_and_validate_lines_parse_back_equal() {
+fn scan_map_excite_and_validate_lines_parse_back_equal() {
+    let mut kinds = 0;
     for e in events() {
         match e {
+            Event::Scan {
+                samples,
+                lag,
+                u0,
+                y0,
+                attempt,
+                attempts,
+            } => {
+                let x = ScanLine::parse(&text(&e)).unwrap();
+                assert_eq!(
+                    x,
+                    ScanLine {
+                        samples: samples.into(),
+                        lag,
+                        u0,
+                        y0,
+                        attempt: (attempt, attempts),
+                    }
+                );
+                kinds |= 1;
+            }
+            Event::Map(map) => {
+                assert_eq!(MapLine::parse(&text(&e)), Ok(MapLine { map }));
+                kinds |= 2;
+            }
             Event::Excite {
-                record,
                 samples,
                 u0,
                 y0,
@@ -655,30 +742,73 @@ fn excite_and_validate_lines_parse_back_equal() {
                 assert_eq!(
                     x,
                     ExciteLine {
-                        record: record.name().to_owned(),
+                        record: RECORD_NAME.to_owned(),
                         samples,
                         u0,
                         y0,
                         attempt: Some((attempt, attempts)),
                     }
                 );
-                assert_eq!(x.record.parse::<Record>(), Ok(record));
                 let (u, y) = x.operating_point();
                 assert_eq!(u, f64::from(u0) / 10_000.0);
                 assert_eq!(y, f64::from(y0) / 120.0);
+                kinds |= 4;
             }
-            Event::Validate { record, samples } => {
+            Event::Validate { samples } => {
                 assert_eq!(
                     ValidateLine::parse(&text(&e)),
                     Ok(ValidateLine {
-                        record: record.name().to_owned(),
+                        record: RECORD_NAME.to_owned(),
                         samples
                     })
                 );
+                kinds |= 8;
             }
             _ => {}
         }
     }
+    assert_eq!(kinds, 15, "every kind was in the events");
+}
+
+/// Every map knot the line can carry (any `i16` count, strictly increasing) reads back as
+/// that count, and a line that is not a map is refused naming its field.
+#[test]
+fn map_lines_are_exact_for_every_count_and_refuse_what_is_not_a_map() {
+    for start in (i16::MIN..=i16::MAX - 16).step_by(13) {
+        let mut knots = [0i16; MAP_KNOTS];
+        for (k, v) in knots.iter_mut().enumerate() {
+            *v = start + k as i16;
+        }
+        let map = InputMap::new(1_500, 533, knots).unwrap();
+        let back = MapLine::parse(&text(&Event::Map(map))).unwrap().map;
+        assert_eq!(back, map);
+    }
+    let good = text(&Event::Map(map()));
+    // 15 flows, a decreasing pair, a zero spacing, a word where a number goes.
+    let short = good.rsplit_once(',').unwrap().0.to_owned();
+    assert_eq!(
+        MapLine::parse(&short),
+        Err(LineError::Length {
+            key: "flow",
+            expected: 16,
+            found: 15
+        })
+    );
+    let swapped = good.replacen("flow=", "flow=999.000,", 1);
+    let swapped = swapped.rsplit_once(',').unwrap().0.to_owned();
+    assert!(matches!(
+        MapLine::parse(&swapped),
+        Err(LineError::Field { key: "flow", .. })
+    ));
+    let zero = good.replacen("step=5.33", "step=0.00", 1);
+    assert!(MapLine::parse(&zero).is_err());
+    assert_eq!(
+        MapLine::parse(&good.replacen("first=15.00", "first=x", 1)),
+        Err(LineError::Field {
+            key: "first",
+            expected: "number"
+        })
+    );
 }
 
 /// Every whole count of 1/120 slm the line can carry prints (as milli-slm) and reads back as
@@ -691,7 +821,6 @@ fn excite_operating_point_is_exact_for_every_count() {
     {
         for u0 in [0, 1, 3333, 9999, 10_000] {
             let e = Event::Excite {
-                record: Record::AMultistep,
                 samples: 3000,
                 u0,
                 y0,

@@ -12,8 +12,10 @@
 //! Case counts: `CASES` below (×4 families); `RIDGE_FUZZ_SCALE=N` multiplies them for a
 //! longer local run.
 
-use ridge_core::{ArxModel, Offset};
-use ridge_pump_firmware::persist::{crc32, decode, encode, PersistError, MAGIC, RECORD_LEN};
+use ridge_core::{ArxModel, InputMap, Offset, MAP_KNOTS};
+use ridge_pump_firmware::persist::{
+    crc32, decode, encode, PersistError, MAGIC, RECORD_LEN, VERSION,
+};
 
 /// Cases per family in `cargo test` (measured: 0.5 s for all four families in the test
 /// profile on a 2-core machine).
@@ -69,9 +71,9 @@ fn seal(rec: &mut [u8; RECORD_LEN]) {
 
 /// `Ok` ⇒ re-encoding gives the same bytes.
 fn check_round_trip(bytes: &[u8]) {
-    if let Ok((model, fit)) = decode(bytes) {
+    if let Ok((model, map, fit)) = decode(bytes) {
         assert_eq!(
-            &encode(&model, fit)[..],
+            &encode(&model, &map, fit)[..],
             &bytes[..RECORD_LEN],
             "accepted bytes that encode would not write"
         );
@@ -88,7 +90,7 @@ fn arbitrary_bytes_never_panic_and_accepted_ones_round_trip() {
         // Half of them with the magic and version, so the CRC check is reached.
         if len >= 5 && rng.below(2) == 0 {
             b[..4].copy_from_slice(&MAGIC);
-            b[4] = 1;
+            b[4] = VERSION;
         }
         // A quarter sealed, so the checks after the CRC are reached.
         if len >= RECORD_LEN && rng.below(2) == 0 {
@@ -116,6 +118,9 @@ struct Fields {
     phi: [f32; 6],
     c: f32,
     fit: f32,
+    first: u16,
+    step: u16,
+    knots: [i16; MAP_KNOTS],
 }
 
 /// The layout table of `persist`'s docs, as an independent oracle: is a sealed record with
@@ -133,6 +138,9 @@ fn valid_by_the_table(f: &Fields) -> bool {
         && f.phi[..qu].iter().all(|v| v.is_finite())
         && f.c.is_finite()
         && f.fit.is_finite()
+        && f.step > 0
+        && u32::from(f.first) + 15 * u32::from(f.step) <= 65_535
+        && f.knots.windows(2).all(|w| w[0] < w[1])
 }
 
 #[test]
@@ -167,11 +175,34 @@ fn sealed_records_are_accepted_exactly_when_their_fields_are_valid() {
             0.0
         };
         let fit = rng.f32();
+        // A map: mostly increasing knots on a grid within range, sometimes not.
+        let first = rng.below(4_000) as u16;
+        let step = match rng.below(64) {
+            0 => 0,
+            1 => 4_000 + rng.below(1_000) as u16,
+            _ => 1 + rng.below(600) as u16,
+        };
+        let mut knots = [0i16; MAP_KNOTS];
+        let mut v = rng.below(2_000) as i32 - 1_000;
+        for k in knots.iter_mut() {
+            *k = v as i16;
+            v += if rng.below(512) == 0 {
+                -1
+            } else {
+                1 + rng.below(1_500) as i32
+            };
+            v = v.min(i32::from(i16::MAX));
+        }
         let mut rec = [0u8; RECORD_LEN];
         rec[..4].copy_from_slice(&MAGIC);
-        rec[4..9].copy_from_slice(&[1, p, q, d, off]);
+        rec[4..9].copy_from_slice(&[VERSION, p, q, d, off]);
         for (i, v) in theta.iter().chain(&phi).chain([&c, &fit]).enumerate() {
             rec[9 + 4 * i..13 + 4 * i].copy_from_slice(&le(*v));
+        }
+        rec[65..67].copy_from_slice(&first.to_le_bytes());
+        rec[67..69].copy_from_slice(&step.to_le_bytes());
+        for (k, v) in knots.iter().enumerate() {
+            rec[69 + 2 * k..71 + 2 * k].copy_from_slice(&v.to_le_bytes());
         }
         seal(&mut rec);
         let want = valid_by_the_table(&Fields {
@@ -183,22 +214,29 @@ fn sealed_records_are_accepted_exactly_when_their_fields_are_valid() {
             phi,
             c,
             fit,
+            first,
+            step,
+            knots,
         });
         match decode(&rec) {
-            Ok((m, f)) => {
+            Ok((m, map, f)) => {
                 assert!(want, "accepted p {p} q {q} d {d} off {off}: {rec:?}");
                 let s = m.structure();
                 assert_eq!((s.p, s.q, s.d), (p, q, d));
                 assert_eq!(m.theta(), &theta[..usize::from(p)]);
                 assert_eq!(m.phi(), &phi[..usize::from(q)]);
                 assert_eq!(f.to_bits(), fit.to_bits());
+                assert_eq!(
+                    (map.first(), map.step(), *map.knots()),
+                    (first, step, knots)
+                );
                 ok += 1;
             }
             Err(e) => {
                 assert!(!want, "rejected ({e:?}) a valid record: {rec:?}");
                 assert!(matches!(
                     e,
-                    PersistError::Structure | PersistError::NonFinite
+                    PersistError::Structure | PersistError::NonFinite | PersistError::Map
                 ));
                 bad += 1;
             }
@@ -231,7 +269,14 @@ fn valid_record(rng: &mut Rng) -> [u8; RECORD_LEN] {
         0.0
     };
     let m = ArxModel::new(&theta, &phi, rng.below(7) as u8, offset, c).unwrap();
-    encode(&m, (rng.below(200) as f32) - 100.0)
+    let mut knots = [0i16; MAP_KNOTS];
+    let mut v = rng.below(1_000) as i16;
+    for k in knots.iter_mut() {
+        *k = v;
+        v += 1 + rng.below(1_500) as i16;
+    }
+    let map = InputMap::new(1_500, 1 + rng.below(600) as u16, knots).unwrap();
+    encode(&m, &map, (rng.below(200) as f32) - 100.0)
 }
 
 #[test]

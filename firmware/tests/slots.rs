@@ -2,7 +2,7 @@
 //! byte being written when power went left unchanged, zeroed, erased or garbled. The truth is
 //! the simulation's own bookkeeping of which records were written completely.
 
-use ridge_core::{ArxModel, Offset};
+use ridge_core::{ArxModel, InputMap, Offset, MAP_KNOTS};
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
 use ridge_pump_firmware::slots::{self, Plan, SLOT_LEN, STORE_LEN};
 
@@ -10,7 +10,11 @@ use ridge_pump_firmware::slots::{self, Plan, SLOT_LEN, STORE_LEN};
 fn record(k: u32) -> [u8; RECORD_LEN] {
     let theta = 0.5 + (k % 97) as f32 * 1e-3;
     let m = ArxModel::new(&[theta], &[2.0 + k as f32], 1, Offset::Intercept, 0.25).unwrap();
-    persist::encode(&m, 80.0)
+    let mut knots = [0i16; MAP_KNOTS];
+    for (i, v) in knots.iter_mut().enumerate() {
+        *v = (100 * i + (k % 50) as usize) as i16;
+    }
+    persist::encode(&m, &InputMap::new(1_500, 533, knots).unwrap(), 80.0)
 }
 
 /// Writes `bytes` at `at` as the board does, stopping after `cut` bytes (`None`: all). The

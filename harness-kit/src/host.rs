@@ -4,22 +4,28 @@
 
 use ridge_core::{IntGram, Real, Search};
 use ridge_pump_firmware::lines::{IdLine, PrintedModel};
-use ridge_pump_firmware::selfid::absolute_model;
+use ridge_pump_firmware::selfid::{absolute_model, DEFAULT_CONFIG};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::SCALE;
+use ridge_pump_firmware::units::MODEL_SCALE;
 
 use crate::samples::Samples;
 
-/// The firmware's search configuration (`selfid::Config::default().search`: ridge-core's
-/// default search, no offset, on deviations from the operating point), in `T`.
+/// The firmware's search configuration (`selfid::DEFAULT_CONFIG.search`: ridge-core's
+/// default search on the device's grid, p ≤ 5, with an intercept, on deviations from the
+/// operating point), in `T`.
 pub fn firmware_search<T: Real>() -> Search<T> {
-    Search::default()
+    Search {
+        grid: DEFAULT_CONFIG.search.grid,
+        offset: DEFAULT_CONFIG.search.offset,
+        ..Search::default()
+    }
 }
 
 /// Reruns the firmware's search on the host from `samples` with exact integer statistics and
 /// `f64` normal equations (ridge-core `IntGram` + `Search<f64>` on the deviations
-/// `(u − u0, y − y0)`), and converts the result to the absolute model with an intercept as the
-/// firmware does (`selfid::absolute_model`: `c = c_dev + y0 (1 − Σθ) − u0 Σφ`).
+/// `(v − v0, y − y0)`, `v` the map's flow at the duty), and converts the result to the absolute
+/// model with an intercept as the firmware does (`selfid::absolute_model`:
+/// `c = c_dev + y0 (1 − Σθ) − v0 Σφ`).
 pub fn host_search(samples: &Samples) -> Result<IdLine, String> {
     host_search_in::<f64>(samples)
 }
@@ -27,18 +33,19 @@ pub fn host_search(samples: &Samples) -> Result<IdLine, String> {
 /// [`host_search`] with the normal equations and the search in `T` (`f32` is what the
 /// firmware runs).
 pub fn host_search_in<T: Real>(samples: &Samples) -> Result<IdLine, String> {
+    let map = samples.map.ok_or("no MAP line before the record")?;
     let mut g = IntGram::new();
-    let (u0, y0) = (i32::from(samples.u0), i32::from(samples.y0));
+    let (v0, y0) = (map.at(samples.u0), i32::from(samples.y0));
     for (&u, &raw) in samples.u.iter().zip(&samples.raw) {
-        g.push(i32::from(u) - u0, i32::from(raw_to_counts(raw)) - y0)
+        let dv = i32::from(map.at(u)) - i32::from(v0);
+        g.push(dv, i32::from(raw_to_counts(raw)) - y0)
             .map_err(|e| format!("{e:?}"))?;
     }
-    let normal = g.normal::<T>(SCALE).map_err(|e| format!("{e:?}"))?;
+    let normal = g.normal::<T>(MODEL_SCALE).map_err(|e| format!("{e:?}"))?;
     let sel = firmware_search::<T>()
         .run(&normal, None)
         .map_err(|e| format!("{e:?}"))?;
-    let m =
-        absolute_model(&sel.fit.model(), samples.u0, samples.y0).map_err(|e| format!("{e:?}"))?;
+    let m = absolute_model(&sel.fit.model(), v0, samples.y0).map_err(|e| format!("{e:?}"))?;
     let s = m.structure();
     Ok(IdLine {
         model: PrintedModel {

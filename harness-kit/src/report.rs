@@ -8,8 +8,9 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use pump_sim::baseline::experiment::run_ticks;
-use ridge_core::ArxModel;
+use ridge_core::{ArxModel, InputMap};
 use ridge_id::capture::{classify, Kind};
+use ridge_pump_firmware::event::RECORD_NAME;
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::lines::{IdLine, ParsedLine, PrintedModel};
 
@@ -112,15 +113,34 @@ pub fn run_summary(out: &mut String, sim_s: f64, wall_s: f64, extra: &str, notes
     }
 }
 
-/// The identified model (`ID` line) and the host's rerun of the search on the samples the
-/// firmware saw (`est`); without a model, what the host finds on the first record. `false`
-/// when there is no model.
-pub fn model(out: &mut String, id: Option<&IdLine>, est: Option<&Samples>) -> bool {
+/// The static map (`MAP` line), the identified model (`ID` line) and the host's rerun of the
+/// search on the samples the firmware saw (`est`); without a model, what the host finds on the
+/// first record. `false` when there is no model.
+pub fn model(
+    out: &mut String,
+    map: Option<&InputMap>,
+    id: Option<&IdLine>,
+    est: Option<&Samples>,
+) -> bool {
     let mut ok = true;
     let _ = writeln!(
         out,
-        "\n== identified model (ID line, physical units: slm, duty 0..1)"
+        "\n== identified model (ID line: dynamics from the map's flow to the flow, slm/slm)"
     );
+    if let Some(map) = map {
+        let flows: Vec<String> = map
+            .knots()
+            .iter()
+            .map(|k| format!("{:.1}", f64::from(*k) / 120.0))
+            .collect();
+        let _ = writeln!(
+            out,
+            "  map (MAP line): duty {:.2} % + k x {:.2} % -> flow [{}] slm",
+            f64::from(map.first()) / 100.0,
+            f64::from(map.step()) / 100.0,
+            flows.join(", ")
+        );
+    }
     match id {
         Some(id) => {
             let _ = writeln!(out, "  {}", show_model(&id.model));
@@ -237,7 +257,7 @@ pub fn validation(out: &mut String, v: &Validation<'_>) {
             panels.push((
                 format!(
                     "closed loop, firmware validation record ({}): free-run fit {:.1} %",
-                    val.record.map_or("?", Record::name),
+                    val.record.map_or(RECORD_NAME, Record::name),
                     free.unwrap_or(f64::NAN)
                 ),
                 trace,

@@ -4,11 +4,10 @@
 use std::path::Path;
 
 use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params};
-use ridge_core::{ArxModel, Evaluation};
+use ridge_core::{ArxModel, Evaluation, InputMap};
 use ridge_id::eval::Trace;
 use ridge_id::plot::{write_fit_png, Axes, Panel};
 use ridge_pump_firmware::excitation::Record;
-use ridge_pump_firmware::units::DUTY_FULL_SCALE;
 
 use crate::samples::Samples;
 
@@ -19,15 +18,15 @@ pub const FRESH_RECORD: Record = Record::BRamp;
 /// Plant sub-steps per 10 ms tick in both benches (0.5 ms each).
 pub const SUBSTEPS: usize = 20;
 
-/// Free-run and one-step fits (%) of `model` on `samples` (physical units; ridge-core's
-/// `Evaluation`, eq. 16 of the paper), with the trace for a plot.
+/// Free-run and one-step fits (%) of `model` on `samples` (physical units, the input through
+/// the samples' map; ridge-core's `Evaluation`, eq. 16 of the paper), with the trace for a
+/// plot.
 pub fn score(model: &ArxModel<f64>, samples: &Samples) -> (Option<f64>, Option<f64>, Trace) {
     let mut ev = Evaluation::new(*model);
     let mut trace = Trace::new(samples.len() as u64, 2000);
-    for (i, (&u, &raw)) in samples.u.iter().zip(&samples.raw).enumerate() {
-        let uf = f64::from(u) / f64::from(DUTY_FULL_SCALE);
+    for (i, &raw) in samples.raw.iter().enumerate() {
         let y = pump_sim::sfm3300::raw_to_flow(raw);
-        let p = ev.push(uf, y);
+        let p = ev.push(samples.input(i), y);
         trace.push(i as u64, y, p);
     }
     trace.finish();
@@ -42,7 +41,8 @@ pub fn score(model: &ArxModel<f64>, samples: &Samples) -> (Option<f64>, Option<f
 /// test lung `lung` if any) sub-stepped as in the benches ([`SUBSTEPS`]), the reading taken at
 /// the tick, the new duty applied `latency` sub-steps later as the fraction `frac(duty)` the
 /// board's PWM timer makes of it, the sensor noise from `seed`. Starts from `base` duty held
-/// for 2 s, as the firmware settles.
+/// for 2 s, as the firmware settles. `map`: the model's map, kept with the samples for
+/// scoring.
 #[allow(clippy::too_many_arguments)]
 pub fn fresh_record(
     pump: &PumpParams,
@@ -50,6 +50,7 @@ pub fn fresh_record(
     sensor: &Sfm3300Params,
     seed: u64,
     record: Record,
+    map: Option<InputMap>,
     base: u16,
     latency: usize,
     frac: impl Fn(u16) -> f64,
@@ -79,6 +80,7 @@ pub fn fresh_record(
     }
     let mut s = Samples {
         record: Some(record),
+        map,
         ..Samples::default()
     };
     for g in record.generator() {

@@ -307,10 +307,14 @@ fn device_variant(
 /// same without the operating point (absolute samples, as eq. 6 on the raw record).
 ///
 /// The documented conclusion (docs/real-logs.md, "Device: zero history vs measured initial
-/// conditions"), asserted: on deviations both give the same structure and validation
-/// free-run fits within 0.05 percentage points and RMSEs within 0.2 % of each other, while
-/// dropping the operating point loses more than 20 points of fit. So the device keeps
-/// deviations with zero history. `--nocapture` prints the table.
+/// conditions"), asserted: on deviations both give the same structure, and zero history
+/// (the scan's lead-in settles the plant at the operating point before the record) validates
+/// at least as well as measured initial conditions (fit no more than 0.02 points below,
+/// measured ≤ 0.005; RMSE no more than 0.2 % above; better by up to 0.1 point and 1.5 % on the
+/// lungs and the sluggish blower), and no worse than dropping the operating point (which
+/// loses up to 2.8 points: with the model's intercept the absolute samples lose only the zero
+/// history's false start, not the 20 points they lost before the intercept). So the device
+/// keeps deviations with zero history. `--nocapture` prints the table.
 #[test]
 fn device_zero_history_validates_as_measured_initial_conditions() {
     use pump_sim::LungParams;
@@ -349,11 +353,11 @@ fn device_zero_history_validates_as_measured_initial_conditions() {
             );
             assert_eq!(sz, sm, "{name} seed {seed}: the same structure");
             assert!(
-                (fit_m - fit_z).abs() <= 0.05 && (rmse_m - rmse_z).abs() <= 2e-3 * rmse_z,
+                fit_z >= fit_m - 0.02 && rmse_z <= rmse_m * 1.002,
                 "{name} seed {seed}: zero {fit_z} % {rmse_z}, measured {fit_m} % {rmse_m}"
             );
             assert!(
-                fit_z - fit_abs > 20.0,
+                fit_z - fit_abs > -0.1,
                 "{name} seed {seed}: deviations {fit_z} %, absolute {fit_abs} %"
             );
             std::fs::remove_file(&path).ok();

@@ -21,7 +21,8 @@ use ridge_pump_firmware::selfid::{Config, SelfIdentification, State};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
 
 /// Tick boundaries the keepalive handles while the blocking search runs (the ATmega2560's search
-/// takes several seconds) and while the design runs (tens of milliseconds).
+/// takes 0.6 s on the default blower; 3 s here, for faults injected in it to be found in it) and
+/// while the design runs (tens of milliseconds).
 const SEARCH_TICKS: usize = 300;
 const DESIGN_TICKS: usize = 6;
 
@@ -40,6 +41,7 @@ struct Raised {
     duty: u16,
 }
 
+#[derive(Clone)]
 struct Loop {
     sm: SelfIdentification,
     rig: Rig,
@@ -174,6 +176,20 @@ impl Loop {
         assert!(until(self), "not reached in {max} ticks: {:?}", self.raised);
     }
 
+    /// The duties a healthy twin of this loop (the same plant, noise and state) applies during
+    /// its next `n` ticks: what the records would have driven after an injection now.
+    fn ahead(&self, n: usize) -> Vec<u16> {
+        let mut twin = self.clone();
+        (twin.dead, twin.frozen, twin.in_watch) = (false, None, None);
+        (0..n)
+            .map(|_| {
+                let applied = twin.duty;
+                twin.tick();
+                applied
+            })
+            .collect()
+    }
+
     /// Ticks from the injection to the fault, and the fault.
     fn detection(&mut self, max: usize) -> (usize, Raised) {
         self.run_until(max, |l| l.raised.is_some());
@@ -201,13 +217,15 @@ fn outlets() -> [(&'static str, Option<LungParams>); 3] {
 /// Where a fault is injected.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Where {
-    /// 1.5 s into the first settle phase (the pump at the base duty).
+    /// 1 s into the first settle phase (the pump at the base duty).
     Settle,
-    /// 10 s into the estimation record.
+    /// 2 s into the scan (past the top of its ramps).
+    Scan,
+    /// 3 s into the estimation record.
     Excite,
     /// At the first tick boundary of the blocking search.
     Search,
-    /// 10 s into the validation record.
+    /// 1 s into the validation record.
     Validate,
     /// At the first tick boundary of the blocking controller design.
     Design,
@@ -215,8 +233,9 @@ enum Where {
     Run,
 }
 
-const EVERY_STATE: [Where; 6] = [
+const EVERY_STATE: [Where; 7] = [
     Where::Settle,
+    Where::Scan,
     Where::Excite,
     Where::Search,
     Where::Validate,
@@ -236,9 +255,10 @@ fn inject_at(lp: &mut Loop, at: Where, what: Inject) {
         lp.inject(what);
     };
     match at {
-        Where::Settle => into(lp, State::Settle, 150),
-        Where::Excite => into(lp, State::Excite, 1_000),
-        Where::Validate => into(lp, State::Validate, 1_000),
+        Where::Settle => into(lp, State::Settle, 100),
+        Where::Scan => into(lp, State::Scan, 200),
+        Where::Excite => into(lp, State::Excite, 300),
+        Where::Validate => into(lp, State::Validate, 100),
         Where::Run => into(lp, State::Run, 500),
         Where::Search => {
             lp.run_until(30_000, |l| l.sm.state() == State::Excite);
@@ -262,8 +282,13 @@ fn inject_at(lp: &mut Loop, at: Where, what: Inject) {
 /// flow wherever it checks before a model is in use, and at least the flow before the fault
 /// in run mode (the controller only raises the duty when the flow goes).
 fn coast_down_ticks(p: &PumpParams) -> usize {
+    coast_ticks(p, p.steady_state_flow(0.30) / 4.0 * 0.8)
+}
+
+/// Ticks a blower with `p` needs after its PWM line died for its flow to fall from the
+/// largest it gives (at 95 % duty) below `to` slm.
+fn coast_ticks(p: &PumpParams, to: f64) -> usize {
     let from = p.steady_state_flow(0.95);
-    let to = p.steady_state_flow(0.30) / 4.0 * 0.8;
     let t = p.tau_down_s * (from / to).ln() / p.flow_exponent;
     p.delay_samples + (t / p.ts_s).ceil() as usize + 1
 }
@@ -294,35 +319,57 @@ fn a_frozen_sensor_is_detected_in_every_state_within_frozen_ticks() {
     println!("frozen sensor: detected after at most {worst} ticks");
 }
 
-/// The no-flow bound of a dead PWM line injected at `at`, ticks after the injection: the
-/// coast-down plus `loss_ticks` checked ticks. During the records only ticks at or above the
-/// base duty are checked: their count follows from the record's duty sequence (independent of
-/// the firmware's state), `record_tick` being the record's tick at the injection.
-fn loss_bound(pump: &PumpParams, at: Where, record_tick: usize) -> usize {
+/// Where the no-flow check expects a flow after an injection.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Expects {
+    /// Nowhere before the stall check fires: the operating point is not known yet, or (a line
+    /// that died during the first settle phase) measured near zero.
+    Nothing,
+    /// At or above the base duty (the settled operating point's law: the scan, the records,
+    /// the blocking jobs at the base duty).
+    AboveBase,
+    /// At every duty (run mode: the model's steady state).
+    Always,
+}
+
+/// The bound for a dead PWM line, ticks after the injection, on a blower `pump` whose healthy
+/// twin would have applied the duties `ahead` from the injection on (past them the base duty):
+/// the stall check (after the flow coasted below the stall flow, 50 consecutive ticks at the
+/// stall duty or more, one more for the applied duty's lag), or the no-flow check (the
+/// coast-down below a quarter of the expected flow, then `loss_ticks` checked ticks), whichever
+/// comes first.
+fn dead_bound(pump: &PumpParams, ahead: &[u16], expects: Expects) -> usize {
     let cfg = Config::default();
-    let loss = usize::from(cfg.loss_ticks);
-    let coast = coast_down_ticks(pump);
-    match at {
-        Where::Excite | Where::Validate => {
-            let rec = if at == Where::Excite {
-                cfg.excitation
-            } else {
-                cfg.validation
-            };
-            let duties: Vec<u16> = rec.generator().collect();
+    let duty = |k: usize| ahead.get(k).copied().unwrap_or(cfg.base_duty);
+    let stall_flow = f64::from(cfg.stall_flow) / 120.0;
+    let mut stall = usize::MAX;
+    let mut run = 0;
+    for k in coast_ticks(pump, stall_flow)..ahead.len() {
+        run = if duty(k) >= cfg.stall_duty {
+            run + 1
+        } else {
+            0
+        };
+        if run >= usize::from(cfg.stall_ticks) {
+            stall = k + 2;
+            break;
+        }
+    }
+    let loss = match expects {
+        Expects::Nothing => usize::MAX,
+        _ => {
             let mut checked = 0;
-            let mut k = record_tick + coast;
-            // Past the record's end the pump holds the base duty: every tick is checked.
-            while checked < loss {
-                if duties.get(k).is_none_or(|&d| d >= cfg.base_duty) {
+            let mut k = coast_down_ticks(pump);
+            while checked < usize::from(cfg.loss_ticks) {
+                if expects == Expects::Always || duty(k) >= cfg.base_duty {
                     checked += 1;
                 }
                 k += 1;
             }
-            k - record_tick + 1
+            k + 1
         }
-        _ => coast + loss + 1,
-    }
+    };
+    stall.min(loss)
 }
 
 #[test]
@@ -333,25 +380,25 @@ fn a_dead_pwm_line_is_detected_in_every_state_within_the_bound() {
         for at in EVERY_STATE {
             let mut lp = Loop::new(pump.clone(), None, 5);
             inject_at(&mut lp, at, Inject::DeadPwm);
+            // The first settle phase expects nothing yet (its operating point is then near
+            // zero): the stall check in the scan's ramp up that follows. The blocking jobs
+            // hold the base duty (every tick checked), run mode expects at every duty.
             let bound = match at {
-                // The first settle phase expects nothing yet (and its operating point is
-                // then near zero): the stall check in the excitation that follows.
-                Where::Settle => 50 + stall_bound(cfg.excitation, 0),
-                Where::Excite | Where::Validate => loss_bound(&pump, at, 1_000),
-                _ => loss_bound(&pump, at, 0),
+                Where::Settle => dead_bound(&pump, &lp.ahead(3_000), Expects::Nothing),
+                Where::Search | Where::Design => dead_bound(&pump, &[], Expects::AboveBase),
+                Where::Run => dead_bound(&pump, &[], Expects::Always),
+                _ => dead_bound(&pump, &lp.ahead(3_000), Expects::AboveBase),
             };
-            let (ticks, r) = lp.detection(bound + 50);
+            let (ticks, r) = lp.detection(bound.saturating_add(50));
             assert!(
                 ticks <= bound,
                 "{name} {at:?}: {ticks} > {bound} ticks, {r:?}"
             );
-            // A duty of 40 % or more trips the older stall check first; below it the no-flow
-            // check.
+            // The stall check (40 % or more) or the no-flow check, whichever the flow's
+            // coast-down lets fire first: below the stall duty only the no-flow check can.
             match r.reason {
-                FaultReason::NoFlow { duty, .. } => {
-                    assert!(duty < cfg.stall_duty || at == Where::Run)
-                }
-                FaultReason::Stall { .. } => {}
+                FaultReason::NoFlow { .. } => {}
+                FaultReason::Stall { duty, .. } => assert!(duty >= cfg.stall_duty),
                 other => panic!("{name} {at:?}: {other:?}"),
             }
             assert_eq!(r.duty, 0, "{name} {at:?}");
@@ -382,8 +429,8 @@ fn a_dead_pwm_line_below_the_stall_duty_is_detected_in_run_mode() {
         }
         assert!(lp.raised.is_none(), "{name}: {:?}", lp.raised);
         lp.inject(Inject::DeadPwm);
-        let bound = loss_bound(&pump, Where::Run, 0);
-        let (ticks, r) = lp.detection(bound + 50);
+        let bound = dead_bound(&pump, &[], Expects::Always);
+        let (ticks, r) = lp.detection(bound.saturating_add(50));
         assert!(ticks <= bound, "{name}: {ticks} > {bound}");
         match r.reason {
             FaultReason::NoFlow { duty, .. } => assert!(duty <= 3_500, "{name} {duty}"),
@@ -396,17 +443,16 @@ fn a_dead_pwm_line_below_the_stall_duty_is_detected_in_run_mode() {
 
 /// A dead PWM line from power-up: nothing is expected before the first operating point (a
 /// stiff test lung gives less than 1 slm at the 30 % base duty, so the settled flow says
-/// nothing), and that operating point is near zero; the excitation's first stretch at 40 % or
-/// more trips the stall check, instead of three rejected records (about 100 s).
+/// nothing), and that operating point is near zero; the scan's ramp up to 95 % trips the stall
+/// check within a second of the settle phase, instead of three rejected attempts.
 #[test]
-fn a_dead_pwm_line_from_power_up_is_a_stall_in_the_first_excitation() {
-    let cfg = Config::default();
+fn a_dead_pwm_line_from_power_up_is_a_stall_in_the_first_scan() {
     for (name, pump) in pumps() {
-        let mut lp = Loop::new(pump, None, 9);
+        let mut lp = Loop::new(pump.clone(), None, 9);
+        // One wait tick, the settle phase, then the scan's ramp up to its first stall.
+        let bound = dead_bound(&pump, &lp.ahead(1_000), Expects::Nothing);
         lp.inject(Inject::DeadPwm);
-        // One wait tick, the settle phase, then the record up to its first stall.
-        let bound = 1 + usize::from(cfg.settle_ticks) + stall_bound(cfg.excitation, 0);
-        let (ticks, r) = lp.detection(bound + 50);
+        let (ticks, r) = lp.detection(bound.saturating_add(50));
         assert!(ticks <= bound, "{name}: {ticks} > {bound}");
         assert!(
             matches!(r.reason, FaultReason::Stall { .. }),
@@ -415,22 +461,6 @@ fn a_dead_pwm_line_from_power_up_is_a_stall_in_the_first_excitation() {
         assert_eq!(r.duty, 0);
         println!("{name}: dead from power-up, stall after {ticks} ticks (bound {bound})");
     }
-}
-
-/// Ticks from the record's tick `from` until its duty sequence (independent of the firmware's
-/// state) completes `stall_ticks` consecutive ticks at the stall duty or more, plus one for
-/// the applied duty's lag.
-fn stall_bound(rec: ridge_pump_firmware::excitation::Record, from: usize) -> usize {
-    let cfg = Config::default();
-    let duties: Vec<u16> = rec.generator().collect();
-    let mut run = 0;
-    for (k, &d) in duties.iter().enumerate().skip(from) {
-        run = if d >= cfg.stall_duty { run + 1 } else { 0 };
-        if run >= usize::from(cfg.stall_ticks) {
-            return k - from + 2;
-        }
-    }
-    panic!("the record never holds the stall duty for the stall time");
 }
 
 /// The healthy plants, several noise seeds each: identification, design and 40 s of the demo

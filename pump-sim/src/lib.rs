@@ -17,6 +17,7 @@ pub mod baseline;
 pub mod lung;
 pub mod paper;
 pub mod plant;
+pub mod powerup;
 pub mod pump;
 pub mod sfm3300;
 

@@ -58,7 +58,7 @@ pub mod wide;
 pub use error::{Error, Result, UnknownName};
 pub use estimate::{Estimator, Fit, Ols, Ridge, RidgeM};
 pub use gram::{Accumulator, FloatGram, Gram, IntGram, MeasuredGram, Scale};
-pub use input_map::{InputMap, MapError, MapScan, MAP_KNOTS};
+pub use input_map::{InputMap, MapError, MapScan, MapTable, MAP_KNOTS};
 #[cfg(feature = "alasso")]
 pub use lasso::{AdaptiveLasso, Lambda};
 pub use model::{ArxModel, Evaluation, Metrics, Mode, Predictor, Score};

@@ -588,6 +588,51 @@ fn rate_limit_bounds_every_step_and_start_is_bumpless() {
     assert!(us.iter().any(|&u| u > 0.45), "the duty did move");
 }
 
+/// `output`, the limits applied by the caller, then `commit` is `step`: bit for bit, through
+/// saturation, the rate limit, a NaN reading (the previous input held) and the reference
+/// model's hold at a limit. (`step` itself is checked against the RST difference equation
+/// and closed loops above.)
+#[test]
+fn output_then_commit_is_step() {
+    for reference in [None, Some(0.08)] {
+        let (_, m) = plants().remove(0);
+        let d = design_with_reference(&m, reference);
+        let limits = Limits {
+            min: 0.15,
+            max: 0.6,
+            max_step: 0.03,
+        };
+        let mut whole = Controller::new(d.rst, limits);
+        let mut split = Controller::new(d.rst, limits);
+        whole.start(0.3, 20.0);
+        split.start(0.3, 20.0);
+        for t in 0..400usize {
+            let y = if t == 150 {
+                f64::NAN
+            } else {
+                20.0 + 15.0 * ((t * 7919 % 101) as f64 / 50.0 - 1.0)
+            };
+            // Steps up to beyond what the limit can give, and down.
+            let r = [20.0, 300.0, 5.0, 40.0][(t / 60) % 4];
+            let a = whole.step(r, y);
+            let last = split.last();
+            let v = split.output(r, y);
+            let b = if v.is_finite() {
+                v.clamp(
+                    (last - limits.max_step).max(limits.min),
+                    (last + limits.max_step).min(limits.max),
+                )
+            } else {
+                last
+            };
+            split.commit(b);
+            assert_eq!(a.to_bits(), b.to_bits(), "tick {t}: {a} {b}");
+            // Debug, not ==: a NaN reading stays in both histories, and NaN != NaN.
+            assert_eq!(format!("{whole:?}"), format!("{split:?}"), "tick {t}");
+        }
+    }
+}
+
 fn limits() -> ModelLimits<f64> {
     ModelLimits {
         stable_radius: 0.995,

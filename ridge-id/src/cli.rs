@@ -282,10 +282,10 @@ pub struct IdentifyArgs {
     )]
     pub operating_point: Option<OperatingPoint>,
     /// Identify as the pump does (docs/real-logs.md), with the firmware's own settings: the
-    /// same as --phase excite --operating-point log --initial zero --offset none --method
-    /// ridge-m --criterion aic --gamma 1000 --beta 0.01 --alpha 12 --max-iter 200 --tol 1e-6
-    /// --p 1..=6 --q 1..=6 --d 0..=6 (--phase, --attempt and --operating-point may still be
-    /// given).
+    /// same as --phase excite --operating-point log --initial zero --offset intercept
+    /// --method ridge-m --criterion aic --gamma 1000 --beta 0.01 --alpha 12 --max-iter 200
+    /// --tol 1e-6 --p 1..=5 --q 1..=6 --d 0..=6 (--phase, --attempt and --operating-point may
+    /// still be given; the segment's input goes through the capture's MAP line).
     #[arg(long, conflicts_with_all = [
         "method", "criterion", "gamma", "beta", "alpha", "max_iter", "tol", "p", "q", "d",
         "structure", "offset", "initial", "select", "refine",

@@ -2,16 +2,18 @@
 //! from the firmware's own settings (`ridge_pump_firmware::selfid::DEFAULT_CONFIG`, the
 //! configuration the board images run with).
 //!
-//! The pump (`firmware/src/selfid/`): the estimation record's samples `(u − u0, y − y0)`
-//! around the operating point of its `EXCITE` line go into exact integer statistics with zero
-//! history before the record; the structure search is ridge-core's `Search` of the settings
-//! (Ridge-M γ = 1000, β = 0.01, ε = 1e-6, 200 iterates, delay-free AIC with α = 12, p 1..=6,
-//! q 1..=6, d 0..=6, no offset, exact pruning) in `f32`; the model of the deviations becomes
-//! the absolute model with the intercept `c = y0 (1 − Σθ) − u0 Σφ`. `--device` sets exactly
-//! these options (the hyper-parameters are the firmware's `f32` constants as the decimals its
-//! source names); the arithmetic stays `ridge-id`'s `f64`, so coefficients agree to `f32`
-//! precision, not bit for bit. The validation record does not change the model (it only
-//! accepts or rejects it), so `--device` sets nothing for it.
+//! The pump (`firmware/src/selfid/`): the estimation record's samples `(v − v0, y − y0)`,
+//! `v` the map of the attempt's `MAP` line at the duty, around the operating point of its
+//! `EXCITE` line go into exact integer statistics with zero history before the record; the
+//! structure search is ridge-core's `Search` of the settings (Ridge-M γ = 1000, β = 0.01,
+//! ε = 1e-6, 200 iterates, delay-free AIC with α = 12, p 1..=5, q 1..=6, d 0..=6, an
+//! intercept, exact pruning) in `f32`; the model of the deviations becomes the absolute model
+//! with the intercept `c = c_dev + y0 (1 − Σθ) − v0 Σφ`. `--device` sets exactly these options
+//! (the hyper-parameters are the firmware's `f32` constants as the decimals its source names;
+//! `--phase` takes the segment's input through the capture's `MAP` line, `src/phase/`); the
+//! arithmetic stays `ridge-id`'s `f64`, so coefficients agree to `f32` precision, not bit for
+//! bit. The validation record does not change the model (it only accepts or rejects it), so
+//! `--device` sets nothing for it.
 
 use ridge_core_host::{Criterion, Grid, MethodKind, Offset, OrderRange};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
@@ -24,8 +26,8 @@ use crate::phase::{SegmentOptions, EXCITE_PHASE};
 /// The command-line options `--device` stands for, as they would be typed (for messages and
 /// the docs; `device_options_are_the_documented_ones` checks the two agree).
 pub const DEVICE_OPTIONS: &str = "--phase excite --operating-point log --initial zero \
---offset none --method ridge-m --criterion aic --gamma 1000 --beta 0.01 --alpha 12 \
---max-iter 200 --tol 1e-6 --p 1..=6 --q 1..=6 --d 0..=6";
+--offset intercept --method ridge-m --criterion aic --gamma 1000 --beta 0.01 --alpha 12 \
+--max-iter 200 --tol 1e-6 --p 1..=5 --q 1..=6 --d 0..=6";
 
 /// Sets `opts` to the firmware's identification: the search settings of
 /// `DEFAULT_CONFIG.search`, zero initial conditions, no offset, and (unless a phase is

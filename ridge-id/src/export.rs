@@ -1,23 +1,27 @@
 //! `identify --eeprom PATH.hex`, `--record PATH.bin`, `--stm32-store PATH.bin`: the identified
 //! model as the firmware's persisted record, ready to be flashed into the pump.
 //!
-//! The record's bytes are the firmware's own [`persist::encode`] (69 bytes, layout in
-//! `firmware/src/persist.rs`); nothing here re-implements that layout. The model of
+//! The record's bytes are the firmware's own [`persist::encode`] (105 bytes, layout in
+//! `firmware/src/persist.rs`); nothing here re-implements that layout. The pump's model is a
+//! static map from duty to flow and the dynamics from the map's flow (`firmware/src/selfid/`):
+//! a model identified through a pump's map (`--phase` on a capture with a `# MAP` line) is
+//! written with that map; any other, a model from the duty, with its own steady flow as the
+//! map ([`through_steady_map`]: the same model, up to the map's 1/120 slm). The model of
 //! `ridge-id` is `f64` with `p, q, d ≤ 12`; the record holds `p, q ∈ 1..=6`, `d ∈ 0..=6` and
 //! `f32` numbers. A model that does not fit is refused ([`ExportError`]), and so is one the
-//! firmware would reject when it loads the record at boot (the same checks, run here on the
-//! decoded record: [`persist::decode`], `ridge_core::control::check_model` with the
-//! firmware's default limits, fit at least `Config::min_fit`), since it would be discarded and
-//! the pump would identify anew.
+//! firmware would reject when it loads the record at boot (the same checks, the firmware's
+//! `selfid::check_stored` on the encoded record: it decodes, the dynamics pass
+//! `check_model` with the firmware's default limits, the map's slope is plausible, the fit is
+//! at least `Config::min_fit`), since it would be discarded and the pump would identify anew.
 //!
 //! What goes where:
 //! - `--eeprom PATH.hex`: Intel HEX (I8HEX: 16 data bytes a line, an end-of-file record) of
-//!   the ATmega2560's two-slot store ([`slots`], 140 bytes at EEPROM byte address
+//!   the ATmega2560's two-slot store ([`slots`], 212 bytes at EEPROM byte address
 //!   [`slots::EEPROM_BASE`] = 0, where the image reads it: `board/arduino_mega2560/eeprom.rs`,
 //!   `BASE` is that constant) holding the record alone ([`slots::store_with`]: as a first save
 //!   leaves it, the other slot erased), for
 //!   `avrdude -p m2560 -c wiring -P /dev/ttyACM0 -b 115200 -D -U eeprom:w:PATH.hex:i`.
-//! - `--record PATH.bin`: the raw 69 record bytes.
+//! - `--record PATH.bin`: the raw 105 record bytes.
 //! - `--stm32-store PATH.bin`: what the STM32F411 image loads: its record store
 //!   ([`flash_store`], a log of slots over flash sectors 6 and 7) holding the record alone
 //!   ([`stm32_store`]: in the first slot with sequence number 0, as a first save leaves it,
@@ -28,7 +32,7 @@
 //!
 //! The fit field (percent, `f32`) holds the free-run fit of the `--validate` record as
 //! `ridge-id` reports it (`validation.fit_free_run`), the figure the firmware stores after
-//! its own validation record (B-Multistep); without `--validate`, the estimation record's
+//! its own validation record (`flow-steps`); without `--validate`, the estimation record's
 //! free-run fit (`estimation.fit_free_run`), which is optimistic: say `--validate`.
 //!
 //! Files are written only when the whole run succeeds (exit 0), each to a temporary file in
@@ -40,11 +44,13 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use clap::Args;
-use ridge_core::control::{check_model, ModelFault};
+use ridge_core::control::ModelFault;
+use ridge_pump_firmware::event::StoredReason;
 use ridge_pump_firmware::flash_store::{self, FLASH_BASE, SECTORS, SECTOR_LEN};
 use ridge_pump_firmware::persist::{self, PersistError, RECORD_LEN};
-use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
+use ridge_pump_firmware::selfid::{check_stored, DEFAULT_CONFIG};
 use ridge_pump_firmware::slots::{self, EEPROM_BASE, STORE_LEN};
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE};
 
 use crate::outcome::Report;
 
@@ -66,7 +72,7 @@ pub struct ExportArgs {
     /// 1..=6, d in 0..=6, f32 numbers) or the firmware's boot checks would reject it.
     #[arg(long, value_name = "PATH.hex")]
     pub eeprom: Option<PathBuf>,
-    /// Write the raw 69-byte record (same model, same checks as --eeprom).
+    /// Write the raw 105-byte record (same model, same checks as --eeprom).
     #[arg(long, value_name = "PATH.bin")]
     pub record: Option<PathBuf>,
     /// Write the STM32F411's record store holding the record (flash sectors 6 and 7, 256 KB,
@@ -104,6 +110,24 @@ pub enum ExportError {
     /// The firmware's model check at boot would reject it (unstable, static gain outside the
     /// firmware's limits, non-finite).
     Model(String),
+    /// The map's mean slope over the firmware's records' duty range is outside its limits:
+    /// it would refuse the record at boot.
+    MapSlope {
+        /// The slope, slm per unit duty.
+        slope: f32,
+        /// The firmware's limits.
+        min: f32,
+        /// The firmware's limits.
+        max: f32,
+    },
+    /// The model's steady flow at a knot of the firmware's map is beyond what the map holds
+    /// (±273 slm, `i16` counts of 1/120 slm).
+    Map {
+        /// The knot's duty, percent.
+        duty: f64,
+        /// The steady flow there, slm.
+        flow: f64,
+    },
     /// The fit is below the firmware's minimum: it would reject the record at boot.
     Fit {
         /// The fit written, percent.
@@ -144,6 +168,17 @@ impl fmt::Display for ExportError {
             ExportError::Model(why) => {
                 write!(f, "the firmware would reject this model at boot: {why}")
             }
+            ExportError::MapSlope { slope, min, max } => write!(
+                f,
+                "the flow rises by {slope:.3} slm per unit duty over the pump's records' duty \
+                 range, outside the firmware's {min}..={max}: it would reject the record at boot \
+                 (is u the duty as a fraction 0..1 and y the flow in slm, as in the pump's log?)"
+            ),
+            ExportError::Map { duty, flow } => write!(
+                f,
+                "the model's steady flow at {duty:.2} % duty is {flow:.1} slm, beyond the \
+                 ±273 slm the firmware's map holds (is y the flow in slm?)"
+            ),
             ExportError::Fit { fit, min, source } => write!(
                 f,
                 "the {source} free-run fit {fit:.1} % is below the firmware's minimum {min:.1} %: \
@@ -181,9 +216,13 @@ fn to_f32(what: &str, value: f64) -> Result<f32, ExportError> {
 }
 
 /// The firmware's record of `model` with fit `fit` (percent; `source` names its record in
-/// messages), after the checks the firmware applies when it loads a record at boot.
+/// messages), after the checks the firmware applies when it loads a record at boot. With
+/// `map`, the model is the dynamics from that map's flow (a pump's capture) and goes with it;
+/// without, it is a model from the duty and goes through its own steady flow
+/// ([`through_steady_map`]).
 pub fn encode_record(
     model: &ridge_core_host::ArxModel<f64>,
+    map: Option<ridge_core::InputMap>,
     fit: f64,
     source: &'static str,
 ) -> Result<[u8; RECORD_LEN], ExportError> {
@@ -226,33 +265,97 @@ pub fn encode_record(
             pqd: (s.p, s.q, s.d),
         },
     })?;
-    let bytes = persist::encode(&m32, fit32);
+    let (m32, map) = match map {
+        Some(map) => (m32, map),
+        None => through_steady_map(&m32)?,
+    };
+    let bytes = persist::encode(&m32, &map, fit32);
     // The firmware's boot checks, on what it will read (`SelfIdentification::new`).
-    let (loaded, loaded_fit) = persist::decode(&bytes).map_err(ExportError::Decode)?;
-    check_model(&loaded, &DEFAULT_CONFIG.control.model).map_err(|e| {
-        let limits = &DEFAULT_CONFIG.control.model;
-        ExportError::Model(match e {
-            ModelFault::NonFinite => "a coefficient is not finite".into(),
-            ModelFault::Unstable => format!(
-                "a pole of the model lies outside the radius {} (unstable or nearly)",
-                limits.stable_radius
-            ),
-            ModelFault::Gain { gain } => format!(
-                "static gain B(1)/A(1) = {gain} outside the firmware's {}..={} slm per unit \
-                 duty (is u the duty as a fraction 0..1 and y the flow in slm, as in the \
-                 pump's log?)",
-                limits.gain_min, limits.gain_max
-            ),
-        })
+    // The firmware's boot checks, on what it will read (`SelfIdentification::new`).
+    let limits = &DEFAULT_CONFIG.control.model;
+    check_stored(&bytes, &DEFAULT_CONFIG).map_err(|e| match e {
+        StoredReason::Record(e) => ExportError::Decode(e),
+        StoredReason::Model(ModelFault::NonFinite) => {
+            ExportError::Model("a coefficient is not finite".into())
+        }
+        StoredReason::Model(ModelFault::Unstable) => ExportError::Model(format!(
+            "a pole of the model lies outside the radius {} (unstable or nearly)",
+            limits.stable_radius
+        )),
+        StoredReason::Model(ModelFault::Gain { gain }) => ExportError::Model(format!(
+            "the static gain of its dynamics from the map's flow, B(1)/A(1) = {gain}, is \
+             outside the firmware's {}..={} (is y the flow in slm, as in the pump's log?)",
+            limits.gain_min, limits.gain_max
+        )),
+        StoredReason::MapSlope { slope } => {
+            let [min, max] = DEFAULT_CONFIG.control.map_slope;
+            ExportError::MapSlope { slope, min, max }
+        }
+        StoredReason::Fit { fit, min } => ExportError::Fit { fit, min, source },
     })?;
-    if loaded_fit.is_nan() || loaded_fit < DEFAULT_CONFIG.min_fit {
-        return Err(ExportError::Fit {
-            fit: loaded_fit,
-            min: DEFAULT_CONFIG.min_fit,
-            source,
-        });
-    }
     Ok(bytes)
+}
+
+/// The firmware's form of a model `u → y` (duty fraction to slm): a static map and the
+/// dynamics after it (`firmware/src/selfid/`). A linear model is that with the map its own
+/// steady state, `v = K u + c / A(1)` (slm, `K = B(1)/A(1)` its static gain), sampled at the
+/// firmware's knots (`DEFAULT_CONFIG.records`: 16 knots from 15 % every 5.33 %, rounded to
+/// the SFM3300's 1/120 slm), and the dynamics `A y = (B / K) v`: the same model (up to that
+/// rounding), with a static gain of 1 and no intercept left.
+///
+/// Errors: a static gain that is not positive and finite (the firmware's check would refuse
+/// the model: [`ExportError::Model`]), or a steady flow beyond ±273 slm at a knot
+/// ([`ExportError::Map`]).
+pub fn through_steady_map(
+    model: &ridge_core::ArxModel<f32>,
+) -> Result<(ridge_core::ArxModel<f32>, ridge_core::InputMap), ExportError> {
+    let a1 = 1.0 - model.theta().iter().map(|&t| f64::from(t)).sum::<f64>();
+    let b1: f64 = model.phi().iter().map(|&f| f64::from(f)).sum();
+    let gain = b1 / a1;
+    if !(gain.is_finite() && gain > 0.0) {
+        return Err(ExportError::Model(format!(
+            "its static gain B(1)/A(1) = {gain} is not positive (more duty must give more \
+             flow; is u the duty as a fraction 0..1 and y the flow in slm, as in the pump's \
+             log?)"
+        )));
+    }
+    let steady = f64::from(model.intercept()) / a1;
+    let r = &DEFAULT_CONFIG.records;
+    let mut knots = [0i16; ridge_core::MAP_KNOTS];
+    for (k, v) in knots.iter_mut().enumerate() {
+        let duty = f64::from(r.map_first) + k as f64 * f64::from(r.map_step);
+        let flow = gain * duty / f64::from(DUTY_FULL_SCALE) + steady;
+        let counts = (flow * f64::from(FLOW_SCALE)).round();
+        if !(f64::from(i16::MIN)..=f64::from(i16::MAX)).contains(&counts) {
+            return Err(ExportError::Map {
+                duty: duty / 100.0,
+                flow,
+            });
+        }
+        *v = counts as i16;
+    }
+    let map = ridge_core::InputMap::new(r.map_first, r.map_step, knots).map_err(|_| {
+        ExportError::Model(format!(
+            "its static gain {gain} slm per unit duty is too small for the map's 1/120 slm"
+        ))
+    })?;
+    let phi: Vec<f32> = model
+        .phi()
+        .iter()
+        .map(|&f| (f64::from(f) / gain) as f32)
+        .collect();
+    let dynamics = ridge_core::ArxModel::new(
+        model.theta(),
+        &phi,
+        model.structure().d,
+        model.offset(),
+        0.0,
+    )
+    .map_err(|_| ExportError::NonFinite {
+        what: "a coefficient divided by the static gain".into(),
+        value: gain,
+    })?;
+    Ok((dynamics, map))
 }
 
 /// One Intel HEX record line (without its line end): `:LLAAAATT<data>CC`.
@@ -365,7 +468,14 @@ pub fn write_all_or_nothing(files: &[(PathBuf, Vec<u8>)]) -> Result<(), ExportEr
 /// for stderr. Nothing is written on an error.
 pub fn export(args: &ExportArgs, report: &Report) -> Result<Vec<String>, ExportError> {
     let (fit, source) = record_fit(report);
-    let record = encode_record(&report.model, fit, source)?;
+    // A model identified through a pump's map (`--phase` on a capture with a `# MAP` line)
+    // goes with that map; any other through its own steady flow.
+    let map = report
+        .segment
+        .as_ref()
+        .and_then(|s| s.map.as_ref())
+        .map(|m| m.map);
+    let record = encode_record(&report.model, map, fit, source)?;
     let s = report.model.structure();
     let what = format!(
         "(p, q, d) = ({}, {}, {}), fit {:.1} % ({source} free-run)",

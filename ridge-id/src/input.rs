@@ -40,6 +40,15 @@ pub enum Input {
         /// estimation and the validation record).
         samples: Arc<Vec<Sample>>,
     },
+    /// Another input whose `u` (a duty fraction) is read through a pump's static map: the
+    /// map's flow there, slm (the input of the pump's model, `--phase` on a capture with a
+    /// `# MAP` line).
+    Through {
+        /// The input as logged.
+        input: Box<Input>,
+        /// The map.
+        map: crate::phase::DeviceMap,
+    },
 }
 
 impl Input {
@@ -126,12 +135,25 @@ impl Input {
         match self {
             Input::File(p) => p,
             Input::Memory { name, .. } => name,
+            Input::Through { input, .. } => input.name(),
         }
     }
 
     /// `true` when the record was read into memory (it cannot be opened again).
     pub fn in_memory(&self) -> bool {
-        matches!(self, Input::Memory { .. })
+        match self {
+            Input::Memory { .. } => true,
+            Input::Through { input, .. } => input.in_memory(),
+            Input::File(_) => false,
+        }
+    }
+
+    /// This input with `u` read through `map` (see [`Input::Through`]).
+    pub fn through(self, map: crate::phase::DeviceMap) -> Input {
+        Input::Through {
+            input: Box::new(self),
+            map,
+        }
     }
 
     /// One pass over the samples: a regular file is opened (and its header read) anew.
@@ -141,6 +163,7 @@ impl Input {
         Ok(match self {
             Input::File(p) => Samples::File(Box::new(CsvRecord::open(p)?)),
             Input::Memory { samples, .. } => Samples::Memory(samples.iter()),
+            Input::Through { input, map } => Samples::Through(Box::new(input.samples()?), *map),
         })
     }
 }
@@ -169,6 +192,8 @@ pub enum Samples<'a> {
     File(Box<CsvRecord<File>>),
     /// From memory.
     Memory(std::slice::Iter<'a, Sample>),
+    /// Another pass with `u` through a map ([`Input::Through`]).
+    Through(Box<Samples<'a>>, crate::phase::DeviceMap),
 }
 
 impl Iterator for Samples<'_> {
@@ -178,6 +203,12 @@ impl Iterator for Samples<'_> {
         match self {
             Samples::File(r) => r.next(),
             Samples::Memory(it) => it.next().copied().map(Ok),
+            Samples::Through(inner, map) => inner.next().map(|s| {
+                s.map(|s| Sample {
+                    u: map.flow(s.u),
+                    ..s
+                })
+            }),
         }
     }
 }

@@ -1,10 +1,12 @@
 //! `identify --eeprom / --record / --stm32-store`: the files hold the firmware's record of the
 //! model the JSON report gives, at the addresses the boards read; refusals write nothing.
 //!
-//! Independent truths: the JSON of the same run (the model), the firmware's own
-//! `persist::decode` and boot path (`SelfIdentification::new` with the record, as the boards
-//! call it), the `ihex` crate and a small hand-written Intel HEX parser (checksums), the board
-//! sources for the addresses.
+//! Independent truths: the JSON of the same run (the model from the duty), its documented form
+//! in the record (the map its steady flow `K u + c/A(1)` at the firmware's knots, the dynamics
+//! `θ` and `φ / K`: the model's own free-run prediction computed here must equal the record's
+//! Hammerstein model's), the firmware's own `persist::decode` and boot path
+//! (`SelfIdentification::new` with the record, as the boards call it), the `ihex` crate and a
+//! small hand-written Intel HEX parser (checksums), the board sources for the addresses.
 
 mod common;
 
@@ -13,6 +15,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use pump_sim::arx::simulate_arx;
+use ridge_core::{ArxModel, Evaluation, InputMap};
 use ridge_pump_firmware::event::Event;
 use ridge_pump_firmware::flash_store;
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
@@ -120,21 +123,52 @@ fn eeprom_after(hex: &str) -> Vec<u8> {
 }
 
 /// What the firmware's boot path makes of `stored` (the bytes the board's load returns):
-/// the `LOADED` model and fit, or the first other event.
-fn boot(stored: &[u8]) -> Result<(ridge_core::ArxModel<f32>, f32), String> {
+/// the map (its `MAP` line, first), the `LOADED` model and fit, or the first other event.
+fn boot(stored: &[u8]) -> Result<(ArxModel<f32>, InputMap, f32), String> {
     let mut sm = SelfIdentification::new(&DEFAULT_CONFIG, Some(stored));
+    let mut map = None;
     // About 20 slm (2400 counts, dithered by one count as a real sensor's noise would: an
     // exactly constant reading is a frozen sensor) until the state machine has settled and
     // loads the model.
     for k in 0..2000 {
         if let Some(e) = sm.tick(Ok(2400 + k % 2)).event {
-            return match e {
-                Event::Loaded { model, fit } => Ok((model, fit)),
-                other => Err(format!("{other:?}")),
-            };
+            match e {
+                Event::Map(m) => map = Some(m),
+                Event::Loaded { model, fit } => {
+                    return Ok((model, map.ok_or("no MAP line before LOADED")?, fit))
+                }
+                other => return Err(format!("{other:?}")),
+            }
         }
     }
     Err("no event".into())
+}
+
+/// The free-run predictions of the linear model `(theta, phi, d, c)` from the duty and of the
+/// record's Hammerstein model (`map` to flow, then `dynamics`) on the same duty steps, from
+/// the same measured start; their largest difference, slm.
+fn largest_difference(linear: &ArxModel<f64>, map: &InputMap, dynamics: &ArxModel<f32>) -> f64 {
+    let u = duty_steps(2_000, 77);
+    let y = simulate_arx(
+        linear.theta(),
+        linear.phi(),
+        linear.structure().d.into(),
+        &u,
+        0.0,
+        1,
+    );
+    let mut a = Evaluation::new(*linear);
+    let mut b = Evaluation::new(*dynamics);
+    let mut worst = 0.0f64;
+    for (&u, &y) in u.iter().zip(&y) {
+        let y = y + linear.intercept() / (1.0 - linear.theta().iter().sum::<f64>());
+        let v = f32::from(map.at((u * 10_000.0).round() as u16)) / 120.0;
+        let (pa, pb) = (a.push(u, y), b.push(v, y as f32));
+        if let (Some(pa), Some(pb)) = (pa, pb) {
+            worst = worst.max((pa.1 - f64::from(pb.1)).abs());
+        }
+    }
+    worst
 }
 
 #[test]
@@ -163,10 +197,11 @@ fn files_hold_the_json_model_at_the_boards_addresses() {
     assert!(out.status.success(), "{stderr}");
     let json: Value = serde_json::from_slice(&out.stdout).unwrap();
 
-    // The raw record decodes (the firmware's decoder) to the JSON's model.
+    // The raw record decodes (the firmware's decoder) to the JSON's model: its θ, its φ over
+    // the static gain, no intercept left; the map the model's steady flow.
     let record = fs::read(&bin).unwrap();
     assert_eq!(record.len(), RECORD_LEN);
-    let (model, fit) = persist::decode(&record).unwrap();
+    let (model, map, fit) = persist::decode(&record).unwrap();
     let st = model.structure();
     let js = &json["structure"];
     assert_eq!(
@@ -186,21 +221,39 @@ fn files_hold_the_json_model_at_the_boards_addresses() {
             .collect()
     };
     let (theta, phi) = (list("theta"), list("phi"));
+    let c = json["offset"].as_f64().unwrap();
     assert_eq!(model.theta().len(), theta.len());
     assert_eq!(model.phi().len(), phi.len());
-    for (g, w) in model
-        .theta()
-        .iter()
-        .zip(&theta)
-        .chain(model.phi().iter().zip(&phi))
-    {
+    for (g, w) in model.theta().iter().zip(&theta) {
         assert!(f32_close(*g, *w), "{g} vs {w}");
     }
+    let a1 = 1.0 - theta.iter().sum::<f64>();
+    let gain = phi.iter().sum::<f64>() / a1;
+    for (g, w) in model.phi().iter().zip(&phi) {
+        // φ and the gain rounded to f32 before the division: a few roundings.
+        assert!(
+            (f64::from(*g) - w / gain).abs() <= 1e-6 * (w / gain).abs() + 1e-12,
+            "{g} vs {w}"
+        );
+    }
     assert_eq!(model.offset(), ridge_core::Offset::Intercept);
-    assert!(f32_close(
-        model.intercept(),
-        json["offset"].as_f64().unwrap()
-    ));
+    assert_eq!(model.intercept(), 0.0);
+    let r = &DEFAULT_CONFIG.records;
+    assert_eq!((map.first(), map.step()), (r.map_first, r.map_step));
+    for (k, &v) in map.knots().iter().enumerate() {
+        let u = f64::from(r.map_first + k as u16 * r.map_step) / 10_000.0;
+        let want = ((gain * u + c / a1) * 120.0).round();
+        assert!(
+            (f64::from(v) - want).abs() <= 1.0,
+            "knot {k}: {v} vs {want}"
+        );
+    }
+    // The same model: its predictions from the duty and the record's from the map's flow
+    // agree to the map's rounding (half a count, 0.004 slm, through the dynamics' gain 1).
+    let linear =
+        ridge_core::ArxModel::new(&theta, &phi, st.d, ridge_core::Offset::Intercept, c).unwrap();
+    let worst = largest_difference(&linear, &map, &model);
+    assert!(worst < 0.02, "largest difference {worst} slm");
     let val_fit = json["validation"]["fit_free_run"].as_f64().unwrap();
     assert!(f32_close(fit, val_fit), "{fit} vs {val_fit}");
     assert!(stderr.contains("validation free-run"), "{stderr}");
@@ -272,14 +325,16 @@ fn files_hold_the_json_model_at_the_boards_addresses() {
     assert!(store[RECORD_LEN + 12..].iter().all(|&b| b == 0xFF));
 
     // The firmware's boot path loads it.
-    let (loaded, loaded_fit) = boot(&record).unwrap();
+    let (loaded, loaded_map, loaded_fit) = boot(&record).unwrap();
     assert_eq!(loaded, model);
+    assert_eq!(loaded_map, map);
     assert_eq!(loaded_fit.to_bits(), fit.to_bits());
 }
 
 /// The firmware's own boot accepts an EEPROM image of a known model (the plant above, with
 /// its intercept `c = offset · (1 − Σθ)`), read back from an erased 4 KB EEPROM written by
-/// the image.
+/// the image: the plant's dynamics over its static gain (50 slm per unit duty) after its
+/// steady flow, `50 u + 2` slm.
 #[test]
 fn firmware_boot_accepts_an_image_of_a_known_model() {
     let c = OFFSET * (1.0 - THETA.iter().sum::<f64>());
@@ -291,24 +346,30 @@ fn firmware_boot_accepts_an_image_of_a_known_model() {
         c,
     )
     .unwrap();
-    let record = ridge_id::export::encode_record(&model, 91.25, "validation").unwrap();
+    let record = ridge_id::export::encode_record(&model, None, 91.25, "validation").unwrap();
     let hex = ridge_id::export::eeprom_image(&record);
     let ee = eeprom_after(&hex);
     let base = usize::from(EEPROM_BASE);
     let store: [u8; STORE_LEN] = ee[base..base + STORE_LEN].try_into().unwrap();
     let plan = slots::plan(&store);
-    let (loaded, fit) = boot(slots::record(&store, &plan).expect("a record")).unwrap();
+    let (loaded, map, fit) = boot(slots::record(&store, &plan).expect("a record")).unwrap();
     let st = loaded.structure();
     assert_eq!((st.p, st.q, st.d), (2, 2, 3));
-    for (g, w) in loaded
-        .theta()
-        .iter()
-        .zip(&THETA)
-        .chain(loaded.phi().iter().zip(&PHI))
-    {
+    for (g, w) in loaded.theta().iter().zip(&THETA) {
         assert!(f32_close(*g, *w));
     }
-    assert!(f32_close(loaded.intercept(), c));
+    for (g, w) in loaded.phi().iter().zip(&PHI) {
+        assert!((f64::from(*g) - w / 50.0).abs() < 1e-7, "{g} vs {w}/50");
+    }
+    assert_eq!(loaded.intercept(), 0.0);
+    for (k, &v) in map.knots().iter().enumerate() {
+        let u = f64::from(map.first() + k as u16 * map.step()) / 10_000.0;
+        assert_eq!(
+            f64::from(v),
+            ((50.0 * u + OFFSET) * 120.0).round(),
+            "knot {k}"
+        );
+    }
     assert_eq!(fit, 91.25);
 }
 
@@ -360,8 +421,8 @@ fn too_large_orders_are_refused_and_nothing_is_written() {
 fn a_model_the_firmware_would_reject_at_boot_is_refused() {
     let d = dir("boot-checks");
     let est = d.join("est.csv");
-    // The duty in percent: the static gain is 0.5 slm per percent, outside 20..=2000 slm per
-    // unit duty.
+    // The duty in percent: the flow rises by 0.5 slm per percent, as if by 0.5 slm per unit
+    // duty: a map outside the firmware's 20..=2000.
     log(&est, 3000, 4, 100.0);
     let hex = d.join("m.hex");
     let out = identify(&[
@@ -374,33 +435,49 @@ fn a_model_the_firmware_would_reject_at_boot_is_refused() {
     ]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("static gain"), "{stderr}");
+    assert!(
+        stderr.contains("slm per unit duty") && stderr.contains("outside"),
+        "{stderr}"
+    );
     assert!(outputs(&d).is_empty());
 
     // Library level: a fit below the firmware's 70 %, an unstable model, a coefficient beyond
-    // f32.
+    // f32, a model whose flow falls with the duty; a given map goes with the model as it is.
     let m = |theta: &[f64], phi: &[f64]| {
         ridge_core_host::ArxModel::new(theta, phi, 0, ridge_core_host::Offset::None, 0.0).unwrap()
     };
     use ridge_id::export::{encode_record, ExportError};
-    let good = m(&[0.9], &[5.0]);
-    assert!(encode_record(&good, 70.0, "validation").is_ok());
+    let good = m(&[0.9], &[10.0]);
+    assert!(encode_record(&good, None, 70.0, "validation").is_ok());
     assert!(matches!(
-        encode_record(&good, 69.9, "validation"),
+        encode_record(&good, None, 69.9, "validation"),
         Err(ExportError::Fit { .. })
     ));
     assert!(matches!(
-        encode_record(&good, f64::NAN, "validation"),
+        encode_record(&good, None, f64::NAN, "validation"),
         Err(ExportError::NonFinite { .. })
     ));
     assert!(matches!(
-        encode_record(&m(&[1.01], &[5.0]), 90.0, "validation"),
+        encode_record(&m(&[1.01], &[5.0]), None, 90.0, "validation"),
         Err(ExportError::Model(_))
     ));
     assert!(matches!(
-        encode_record(&m(&[0.9], &[1e39]), 90.0, "validation"),
+        encode_record(&m(&[0.9], &[1e39]), None, 90.0, "validation"),
         Err(ExportError::NonFinite { .. })
     ));
+    assert!(matches!(
+        encode_record(&m(&[0.9], &[-10.0]), None, 90.0, "validation"),
+        Err(ExportError::Model(_))
+    ));
+    let record = encode_record(&m(&[0.9], &[10.0]), None, 90.0, "validation").unwrap();
+    let (_, map, _) = persist::decode(&record).unwrap();
+    let dynamics = m(&[0.8], &[0.2]);
+    let with_map = encode_record(&dynamics, Some(map), 90.0, "validation").unwrap();
+    let (d, back, _) = persist::decode(&with_map).unwrap();
+    assert_eq!(
+        (d.theta(), d.phi(), back),
+        (&[0.8f32][..], &[0.2f32][..], map)
+    );
 }
 
 #[test]

@@ -19,8 +19,9 @@ use crate::firmware::{self, Sizes};
 use crate::transcript::Line;
 use harness_kit::{samples, validation};
 use pump_sim::{LungParams, PumpParams, Sfm3300Params};
+use ridge_core::InputMap;
 use ridge_pump_firmware::excitation::Record;
-use ridge_pump_firmware::lines::{IdLine, ParsedLine};
+use ridge_pump_firmware::lines::{IdLine, MapLine, ParsedLine};
 use ridge_pump_firmware::pump::duty_to_counts;
 
 /// Timer TOP + 1 of the board's pump PWM (OC4A, 20 kHz): `max_duty_cycle()`.
@@ -79,6 +80,9 @@ pub struct Outcome {
     pub bench: Bench,
     /// The `ID` line's model (the last one).
     pub id: Option<IdLine>,
+    /// The static map of that model (the last `MAP` line before it; without an `ID` line the
+    /// last `MAP` line, e.g. a loaded model's).
+    pub map: Option<InputMap>,
     /// The `ACCEPT` line, if any.
     pub accept: Option<ParsedLine>,
     /// `REJECT` lines.
@@ -178,6 +182,13 @@ pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
         .collect();
     let id_idx = parsed.iter().rev().find(|(_, r)| r.keyword == "ID");
     let id = id_idx.and_then(|(i, _)| IdLine::parse(&bench.lines[*i].text).ok());
+    let map_before = id_idx.map_or(bench.lines.len(), |(i, _)| *i);
+    let map = bench.lines[..map_before]
+        .iter()
+        .rev()
+        .find(|l| l.text.starts_with("MAP "))
+        .and_then(|l| MapLine::parse(&l.text).ok())
+        .map(|m| m.map);
     let accept = parsed
         .iter()
         .find(|(_, r)| r.keyword == "ACCEPT")
@@ -266,6 +277,7 @@ pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
     Outcome {
         bench,
         id,
+        map,
         accept,
         rejects,
         faults,
@@ -359,36 +371,41 @@ fn timing(
     }
 }
 
-/// Rebuilds the record announced by line `idx` (`EXCITE <name> n=.. u0=.. y0=..` /
-/// `VALIDATE <name> n=..`) from the frames served and the PWM log
+/// Rebuilds the record announced by line `idx` (`EXCITE flow-steps n=.. u0=.. y0=..` /
+/// `VALIDATE flow-steps n=..`) from the frames served and the PWM log
 /// (`harness_kit::samples::rebuild`, the duty checked in the timer's counts).
 pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
-    let text = &bench.lines.get(idx)?.text;
+    let lines: Vec<(u64, &str)> = bench
+        .lines
+        .iter()
+        .zip(&bench.line_starts)
+        .map(|(l, &start)| (start, l.text.as_str()))
+        .collect();
     let frames = bench.sensor.borrow().served();
     let counts_at = |c: u64| {
         bench
             .duty_at(c)
             .map_or(0, |d| if d.connected { u32::from(d.ocr) + 1 } else { 0 })
     };
-    samples::rebuild(text, bench.line_starts[idx], &frames, |c, g| {
-        counts_at(c) == pwm_counts(g)
-    })
+    samples::rebuild(&lines, idx, &frames, |c, g| counts_at(c) == pwm_counts(g))
 }
 
 /// A fresh validation signal on the host with the loop's timing
 /// (`harness_kit::validation::fresh_record`), the duty as the board's timer makes it
 /// ([`pwm_counts`] of [`PWM_MAX`]).
+#[allow(clippy::too_many_arguments)]
 pub fn fresh_record(
     pump: &PumpParams,
     lung: Option<&LungParams>,
     sensor: &Sfm3300Params,
     seed: u64,
     record: Record,
+    map: Option<InputMap>,
     base: u16,
     latency: usize,
 ) -> Samples {
     let frac = |d: u16| pwm_counts(d) as f64 / f64::from(PWM_MAX);
-    validation::fresh_record(pump, lung, sensor, seed, record, base, latency, frac)
+    validation::fresh_record(pump, lung, sensor, seed, record, map, base, latency, frac)
 }
 
 /// Median sub-steps between a read and the PWM change that follows it in the same tick, over

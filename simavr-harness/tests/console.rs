@@ -33,7 +33,7 @@ use pump_sim::sfm3300::raw_to_flow;
 use pump_sim::{Blower, Outlet, PlantArgs, Sfm3300Params};
 use ridge_id::capture::{classify, Kind};
 use ridge_id::cli::{Cli, Command};
-use ridge_pump_firmware::lines::IdLine;
+use ridge_pump_firmware::lines::{IdLine, MapLine};
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use ridge_pump_firmware::slots::{self, SLOT_LEN, STORE_LEN};
@@ -99,7 +99,7 @@ fn transcript(b: &Bench) -> String {
 
 /// An answer to a console command (not a log row, not a periodic report).
 fn is_answer(text: &str) -> bool {
-    ["OK ", "ERR ", "STATUS ", "MODEL ", "RST "]
+    ["OK ", "ERR ", "STATUS ", "MODEL ", "MAP ", "RST "]
         .iter()
         .any(|k| text.starts_with(k))
         || text == ridge_pump_firmware::console::LOG_HEADER
@@ -342,7 +342,7 @@ fn start(b: &mut Bench) {
 fn commands_on_the_running_pump() {
     let wall = Instant::now();
     let ((at, slot), record) = stored_model();
-    let (model, fit) = persist::decode(&record).expect("the record decodes");
+    let (model, map, fit) = persist::decode(&record).expect("the record decodes");
     let mut b = bench(vec![(at, slot)]);
     let ocr = watch_ocr(&mut b);
     let end = b.run_until(4.0, |l| l.text.starts_with("TRACK"));
@@ -616,7 +616,8 @@ fn commands_on_the_running_pump() {
         reboot.lines
     );
 
-    // MODEL: the model in use, the stored record's, in the LOADED line's fields; then RST.
+    // MODEL: the model in use, the stored record's, in the LOADED line's fields; then its
+    // map (the record's), then RST.
     let (_, i) = command(&mut b, "MODEL");
     b.run_for(0.1);
     let m = b.lines[i].parsed();
@@ -649,6 +650,17 @@ fn commands_on_the_running_pump() {
         );
     }
     assert!((m.num("fit").unwrap() - f64::from(fit)).abs() <= 0.05 + 1e-9);
+    let map_line = b
+        .lines
+        .get(i + 1)
+        .map(|l| l.text.clone())
+        .unwrap_or_default();
+    assert_eq!(
+        MapLine::parse(&map_line).map(|l| l.map),
+        Ok(map),
+        "MODEL's MAP line:\n{}",
+        transcript(&b)
+    );
     // The controller, one polynomial per line: R monic, and the static gain of the loop from
     // setpoint to flow is one only if T(1) = S(1) (integral action, R(1) = 0).
     let poly = |k: usize, name: &str| {
@@ -657,7 +669,7 @@ fn commands_on_the_running_pump() {
         l.list(name)
             .unwrap_or_else(|| panic!("no {name}=:\n{}", transcript(&b)))
     };
-    let (r, s, t) = (poly(1, "r"), poly(2, "s"), poly(3, "t"));
+    let (r, s, t) = (poly(2, "r"), poly(3, "s"), poly(4, "t"));
     assert_eq!(r.first().copied(), Some(1.0));
     let sum = |v: &[f64]| v.iter().sum::<f64>();
     assert!(sum(&r).abs() < 1e-5, "R(1) = {}", sum(&r));
@@ -668,16 +680,16 @@ fn commands_on_the_running_pump() {
         sum(&t)
     );
 
-    // REID: a new identification starts (settle 2 s at the base duty, then EXCITE).
+    // REID: a new identification starts (settle 1.5 s at the base duty, then SCAN).
     let (reid, i) = command(&mut b, "REID");
     assert_eq!(b.lines[i].text, "OK reid");
     let reid_end = b.sent(reid).end.unwrap();
-    let end = b.run_until(b.time_s() + 2.5, |l| l.text.starts_with("EXCITE"));
+    let end = b.run_until(b.time_s() + 2.5, |l| l.text.starts_with("SCAN"));
     assert!(matches!(end, RunEnd::Line(_)), "{}", transcript(&b));
     let settle = counts_at(&b, b.machine.cycle() - TICK_CYCLES);
     assert_eq!(settle, pwm_counts(DEFAULT_CONFIG.base_duty), "settle duty");
     figures.push(format!(
-        "REID: EXCITE {:.3} s after the line",
+        "REID: SCAN {:.3} s after the line",
         (b.line_starts[b.lines.len() - 1] - reid_end) as f64 / 16e6
     ));
 
@@ -762,7 +774,11 @@ fn identification_on_the_log_matches_ridge_id() {
         .into_iter()
         .filter(|r| r.phase == "excite")
         .collect();
-    assert_eq!(excite.len(), 3000, "excite rows");
+    assert_eq!(
+        excite.len(),
+        usize::from(DEFAULT_CONFIG.records.samples),
+        "excite rows"
+    );
     let j0 = check_rows(b, &excite).unwrap_or_else(|e| panic!("excite rows: {e}"));
     let control = b.ticks()[j0..]
         .iter()

@@ -27,12 +27,15 @@
 //!    simavr's EEPROM at those addresses before reset.
 //!
 //! Truths: the JSON report of the same run (structure, `theta`, `phi`, `offset` as the
-//! intercept, the validation fit), the firmware's documented line format (`LOADED`: six
-//! decimals for coefficients, one for the fit, rounded from the stored `f32`; so a printed
-//! value lies within half a unit of its last digit plus one `f32` rounding, 2⁻²⁴ relative, of
-//! the JSON's `f64`), the Intel HEX format (checksum = two's complement of the byte sum), the
-//! record layout documented in `firmware/src/persist.rs` (magic `RPMD`, `φ` at 33, CRC-32 of
-//! IEEE 802.3 over bytes 0..65, computed here by its own code), the documented controller
+//! intercept, the validation fit) through the export's documented form (`ridge_id::export`:
+//! the map is the model's steady flow `K u + c / A(1)` at the firmware's knots, the dynamics
+//! `θ`, `φ / K` with no intercept left, `K = Σφ / (1 − Σθ)`), the firmware's documented line
+//! format (`LOADED`: six decimals for coefficients, one for the fit, rounded from the stored
+//! `f32`; so a printed value lies within half a unit of its last digit plus a few `f32`
+//! roundings of the JSON's `f64`; `MAP`: the knots' counts as slm with 3 decimals), the Intel
+//! HEX format (checksum = two's complement of the byte sum), the record layout documented in
+//! `firmware/src/persist.rs` (magic `RPMD`, `φ` at 33, CRC-32 of IEEE 802.3 over bytes 0..101,
+//! computed here by its own code), the documented controller
 //! settings (`ControlConfig`: duty 15..95 %, at most 5 % per tick, base duty 30 %), and the
 //! plant for the tracking tolerance: the true flow of the simulated blower (not the firmware's
 //! readings) must settle on each demo level within the sensor's own error — its noise σ =
@@ -46,10 +49,10 @@
 //! and the Intel HEX checksum of its line fixed up — a valid file whose record fails its CRC
 //! — and the same image with the sign of every `φ` flipped and the record's CRC recomputed — a
 //! whole record of a model whose flow falls with the duty. Both must be refused at boot
-//! (`STORED-REJECTED crc`, `STORED-REJECTED gain=…` with the negated static gain of the JSON's
-//! model), followed by a new identification (`EXCITE`), with no `LOADED`, no `CTRL`, no run
-//! mode and every duty on the pin, to the end of the run, one the firmware drives without a
-//! model: 0, the base duty or a level of its excitation record.
+//! (`STORED-REJECTED crc`, `STORED-REJECTED gain=-1.000`: the dynamics' static gain, 1 after
+//! the export, negated), followed by a new identification (`SCAN`), with no `LOADED`, no
+//! `CTRL`, no run mode and every duty on the pin, to the end of the run, one the firmware
+//! drives without a model: 0, the base duty or a duty of its scan's ramps.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -61,6 +64,7 @@ use pump_sim::baseline::metrics::step_metrics;
 use pump_sim::{PumpParams, Sfm3300Params, TS_S};
 use ridge_id::cli::{Cli, Command};
 use ridge_pump_firmware::excitation::Record;
+use ridge_pump_firmware::lines::MapLine;
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use ridge_pump_firmware::setpoint::{DEMO_HOLD_TICKS, DEMO_STEPS};
 use ridge_pump_firmware::units::DUTY_FULL_SCALE;
@@ -91,12 +95,12 @@ const fn demo_steps_ticks() -> i64 {
 }
 /// Run-mode ticks to cover: the demo's hold and its steps, and one `TRACK` window more.
 const RUN_TICKS: i64 = DEMO_HOLD_TICKS as i64 + demo_steps_ticks() + 100;
-/// Simulated time limit of the loading boot, s (settle 2 s, design, then [`RUN_TICKS`]).
+/// Simulated time limit of the loading boot, s (settle 1.5 s, design, then [`RUN_TICKS`]).
 const LOAD_LIMIT_S: f64 = 16.0;
-/// Simulated time limit before the `EXCITE` of a refused record, s (settle 2 s).
+/// Simulated time limit before the `SCAN` of a refused record, s (settle 1.5 s).
 const REFUSE_LIMIT_S: f64 = 5.0;
-/// Simulated time run past `EXCITE` in a refused boot, s.
-const AFTER_EXCITE_S: f64 = 1.0;
+/// Simulated time run past `SCAN` in a refused boot, s.
+const AFTER_SCAN_S: f64 = 1.0;
 /// The overshoot target, percent of the step (3.6..5.7 % measured here).
 const OVERSHOOT_MAX: f64 = 10.0;
 
@@ -105,7 +109,7 @@ const PHI_AT: usize = 33;
 /// Offset of `θ₁` in the record, bytes.
 const THETA_AT: usize = 9;
 /// Offset of the CRC-32 (of bytes `0..CRC_AT`) in the record.
-const CRC_AT: usize = 65;
+const CRC_AT: usize = 101;
 /// Length of the record: the CRC is its last 4 bytes.
 const RECORD_LEN: usize = CRC_AT + 4;
 /// The record's magic.
@@ -348,6 +352,18 @@ struct JsonModel {
     fit: f64,
 }
 
+impl JsonModel {
+    /// The static gain `K = Σφ / (1 − Σθ)`, slm per unit duty.
+    fn gain(&self) -> f64 {
+        self.phi.iter().sum::<f64>() / (1.0 - self.theta.iter().sum::<f64>())
+    }
+
+    /// The steady flow at the duty fraction `u`: `K u + c / (1 − Σθ)`, slm.
+    fn steady(&self, u: f64) -> f64 {
+        self.gain() * u + self.c / (1.0 - self.theta.iter().sum::<f64>())
+    }
+}
+
 fn json_model(j: &Value) -> JsonModel {
     let int = |k: &str| {
         j["structure"][k]
@@ -413,11 +429,25 @@ fn same_duty(fraction: f64, duty: u16) -> bool {
     (fraction - f64::from(duty) / f64::from(DUTY_FULL_SCALE)).abs() <= 0.5 / f64::from(PWM_MAX)
 }
 
-/// The duties the firmware drives without a model: off, the base duty, and every level of
-/// its excitation record.
+/// The duties the firmware drives without a model before its first record: off, the base
+/// duty, and the duties of its scan's ramps (`Records`: from the base duty up to the top,
+/// down to the bottom, back up, each leg moving the scan rate a tick and ending on its bound).
 fn modelless_duties() -> Vec<u16> {
-    let mut d: Vec<u16> = DEFAULT_CONFIG.excitation.generator().collect();
-    d.extend([0, DEFAULT_CONFIG.base_duty]);
+    let (cfg, r) = (&DEFAULT_CONFIG, &DEFAULT_CONFIG.records);
+    let mut d = vec![0, cfg.base_duty];
+    let mut u = cfg.base_duty;
+    while u < r.scan_high {
+        u = (u + r.scan_rate).min(r.scan_high);
+        d.push(u);
+    }
+    while u > r.scan_low {
+        u = u.saturating_sub(r.scan_rate).max(r.scan_low);
+        d.push(u);
+    }
+    while u < cfg.base_duty {
+        u = (u + r.scan_rate).min(cfg.base_duty);
+        d.push(u);
+    }
     d.sort_unstable();
     d.dedup();
     d
@@ -442,7 +472,7 @@ fn a_ridge_id_record_is_loaded_and_the_pump_tracks_on_it() {
     let end = b.run_until(LOAD_LIMIT_S, |l| {
         let p = l.parsed();
         (l.text.starts_with("TRACK") && p.int("tick").is_some_and(|n| n >= RUN_TICKS))
-            || l.text.starts_with("EXCITE")
+            || l.text.starts_with("SCAN")
             || l.text.starts_with("FAULT")
     });
     let (sim_s, wall_s) = (b.time_s(), t0.elapsed().as_secs_f64());
@@ -456,6 +486,7 @@ fn a_ridge_id_record_is_loaded_and_the_pump_tracks_on_it() {
     // Loaded, not identified.
     for kw in [
         "STORED-REJECTED",
+        "SCAN",
         "EXCITE",
         "ID",
         "VALIDATE",
@@ -489,16 +520,36 @@ fn a_ridge_id_record_is_loaded_and_the_pump_tracks_on_it() {
         );
         (got - want).abs()
     };
+    // The dynamics: θ as identified, φ over the static gain (a few f32 roundings more than
+    // the printed digit), no intercept left.
+    let phi: Vec<f64> = m.phi.iter().map(|f| f / m.gain()).collect();
     let mut coef_worst = 0.0f64;
-    for (key, want) in [("theta", &m.theta), ("phi", &m.phi)] {
+    for (key, want) in [("theta", &m.theta), ("phi", &phi)] {
         let printed: Vec<&str> = line.get(key).expect(key).split(',').collect();
         assert_eq!(printed.len(), want.len(), "{key}: {printed:?} vs {want:?}");
         for (k, (s, w)) in printed.iter().zip(want.iter()).enumerate() {
             coef_worst = coef_worst.max(check(&format!("{key}[{k}]"), s, *w));
         }
     }
-    let c_diff = check("c", line.get("c").expect("c="), m.c);
+    let c_diff = check("c", line.get("c").expect("c="), 0.0);
     check("fit", line.get("fit").expect("fit="), m.fit);
+    // The map, on the MAP line before LOADED: the model's steady flow at the firmware's knots,
+    // to the 1/120 slm the map holds.
+    let map_at = first(&b, "MAP").unwrap_or_else(|| panic!("no MAP line:\n{log}"));
+    assert!(map_at < loaded[0], "{log}");
+    let map = MapLine::parse(&b.lines[map_at].text)
+        .unwrap_or_else(|e| panic!("{e}:\n{log}"))
+        .map;
+    let r = &DEFAULT_CONFIG.records;
+    assert_eq!((map.first(), map.step()), (r.map_first, r.map_step));
+    for (k, &v) in map.knots().iter().enumerate() {
+        let u = f64::from(r.map_first + k as u16 * r.map_step) / f64::from(DUTY_FULL_SCALE);
+        let want = (m.steady(u) * 120.0).round();
+        assert!(
+            (f64::from(v) - want).abs() <= 1.0,
+            "knot {k}: {v} vs {want}\n{log}"
+        );
+    }
 
     // The controller, after LOADED.
     let ctrl = first(&b, "CTRL").unwrap_or_else(|| panic!("no CTRL line:\n{log}"));
@@ -611,18 +662,18 @@ fn a_ridge_id_record_is_loaded_and_the_pump_tracks_on_it() {
     );
 }
 
-/// Boots with `image`, runs to the `EXCITE` of a new identification and [`AFTER_EXCITE_S`]
-/// past it; checks the refusal (`STORED-REJECTED <reason…>` before `EXCITE`, no `LOADED`, no
+/// Boots with `image`, runs to the `SCAN` of a new identification and [`AFTER_SCAN_S`] past
+/// it; checks the refusal (`STORED-REJECTED <reason…>` before `SCAN`, no `LOADED`, no
 /// controller, no run mode, only duties driven without a model). Returns the reason's text.
 fn refused(image: &BTreeMap<u32, u8>, what: &str) -> String {
     let t0 = Instant::now();
     let mut b = bench(image);
     let end = b.run_until(REFUSE_LIMIT_S, |l| {
-        l.text.starts_with("EXCITE") || l.text.starts_with("LOADED") || l.text.starts_with("FAULT")
+        l.text.starts_with("SCAN") || l.text.starts_with("LOADED") || l.text.starts_with("FAULT")
     });
     if let RunEnd::Line(i) = end {
-        if b.lines[i].text.starts_with("EXCITE") {
-            b.run_for(AFTER_EXCITE_S);
+        if b.lines[i].text.starts_with("SCAN") {
+            b.run_for(AFTER_SCAN_S);
         }
     }
     let log = transcript(&b);
@@ -632,9 +683,8 @@ fn refused(image: &BTreeMap<u32, u8>, what: &str) -> String {
     );
     let rejected =
         first(&b, "STORED-REJECTED").unwrap_or_else(|| panic!("{what}: not refused:\n{log}"));
-    let excite =
-        first(&b, "EXCITE").unwrap_or_else(|| panic!("{what}: no new identification:\n{log}"));
-    assert!(rejected < excite, "{what}:\n{log}");
+    let scan = first(&b, "SCAN").unwrap_or_else(|| panic!("{what}: no new identification:\n{log}"));
+    assert!(rejected < scan, "{what}:\n{log}");
     for kw in ["LOADED", "CTRL", "TRACK", "FAULT"] {
         assert!(first(&b, kw).is_none(), "{what}: a {kw} line:\n{log}");
     }
@@ -648,9 +698,9 @@ fn refused(image: &BTreeMap<u32, u8>, what: &str) -> String {
         );
     }
     println!(
-        "{what}: `{}`, EXCITE at {:.2} s; simavr {:.2} s simulated in {:.1} s wall",
+        "{what}: `{}`, SCAN at {:.2} s; simavr {:.2} s simulated in {:.1} s wall",
         b.lines[rejected].text,
-        b.lines[excite].cycle as f64 / 16e6,
+        b.lines[scan].cycle as f64 / 16e6,
         b.time_s(),
         t0.elapsed().as_secs_f64()
     );
@@ -702,8 +752,8 @@ fn a_record_damaged_in_the_hex_is_refused_and_the_pump_identifies_anew() {
 }
 
 /// A whole record (CRC recomputed) of the model with every `φ` negated: the flow would fall
-/// with the duty. The firmware's model check refuses it for its static gain, which is the
-/// JSON model's `Σφ / (1 − Σθ)`, negated.
+/// with the map's. The firmware's model check refuses it for its static gain, the dynamics'
+/// `Σφ / (1 − Σθ)` after the export (1), negated.
 #[test]
 fn a_whole_record_of_an_implausible_model_is_refused() {
     let id = identified();
@@ -734,7 +784,9 @@ fn a_whole_record_of_an_implausible_model_is_refused() {
         .unwrap_or_else(|| panic!("not refused for its gain: {reason}"))
         .parse()
         .expect("a number");
-    let want = -m.phi.iter().sum::<f64>() / (1.0 - m.theta.iter().sum::<f64>());
+    let want =
+        -m.phi.iter().map(|f| f / m.gain()).sum::<f64>() / (1.0 - m.theta.iter().sum::<f64>());
+    assert!((want + 1.0).abs() < 1e-12, "{want}");
     // Printed with 3 decimals from the firmware's f32 arithmetic (a few roundings of a sum
     // of at most 12 terms of this size).
     assert!(

@@ -3,11 +3,11 @@
 //! incremental nightly avr-none build per test process); a failed build fails the tests.
 //!
 //! Budgets checked: tick control work (ISR → sensor read → statistics → PWM written) < 1.6 ms
-//! (25 600 cycles), every whole tick (with report lines, verdict, persistence) within its
-//! 10 ms period and no overruns, search < 10 s, flash < 64 KB, static RAM + stack < 6 KB; the
-//! identified model's free-run fit on a fresh validation signal ≥ [`MIN_FRESH_FIT`] %; the
-//! firmware's result equal to ridge-core's on the host from the same samples (same structure,
-//! coefficients within [`COEF_TOL`]).
+//! (25 600 cycles), every whole tick (with report lines, verdicts, persistence) within its
+//! 10 ms period and no overruns, search < 10 s, `ACCEPT` within [`ACCEPT_BUDGET_S`] of
+//! power-up, flash < 96 KB, static RAM + stack < 6 KB; the identified model's free-run fit on a
+//! fresh validation signal ≥ [`MIN_FRESH_FIT`] %; the firmware's result equal to ridge-core's
+//! on the host from the same samples (same structure, coefficients within [`COEF_TOL`]).
 //!
 //! Flow control (`tracks_*`): after `ACCEPT` the image designs its controller (≤ 100 ms) and
 //! runs the demo program (steps, then breaths) on the default, small and sluggish blowers with
@@ -39,16 +39,33 @@ const FLASH_BUDGET: u32 = 96 * 1024;
 /// Static RAM + stack budget, bytes.
 const RAM_BUDGET: u32 = 6 * 1024;
 /// Smallest free-run fit (%) of the identified model on a fresh host-side validation signal
-/// ([`FRESH_RECORD`], new noise seed, the loop's timing). The firmware's own acceptance threshold on its
-/// validation record is 70 %.
-const MIN_FRESH_FIT: f64 = 70.0;
-/// Excitation preset of the fresh validation signal: one the firmware neither estimates nor
-/// validates on.
+/// ([`FRESH_RECORD`], new noise seed, the loop's timing): issue 31's target on the open outlet
+/// (the model before it reached 92.3 % on the default blower). The firmware's own acceptance
+/// threshold on its validation record is 70 %.
+const MIN_FRESH_FIT: f64 = 92.0;
+/// Excitation preset of the fresh validation signal: ramps over 25..85 %, a record the
+/// firmware neither estimates nor validates on (its records are random steps).
 const FRESH_RECORD: Record = Record::BRamp;
+/// Issue 31's readiness target: the `ACCEPT` line within this long of power-up, s.
+const ACCEPT_BUDGET_S: f64 = 20.0;
 /// Largest coefficient difference between the firmware (f32 on the AVR) and ridge-core on the
 /// host (f64) from the same samples, relative to max(1, |coefficient|). README: f32 vs f64 on
 /// exact statistics differ by ≤ 1.4e-5 relative.
 const COEF_TOL: f64 = 1e-4;
+
+/// The default blower's steady flow (`pump_sim`) at the firmware's knots: a model's map for
+/// records written here.
+fn default_blower_map() -> ridge_core::InputMap {
+    let r = Config::default().records;
+    let pump = PumpParams::default();
+    let mut knots = [0i16; ridge_core::MAP_KNOTS];
+    for (k, v) in knots.iter_mut().enumerate() {
+        let duty = f64::from(r.map_first + k as u16 * r.map_step) / 10_000.0;
+        // Strictly increasing through the dead zone (the firmware's map is).
+        *v = (pump.steady_state_flow(duty) * 120.0).round() as i16 + k as i16;
+    }
+    ridge_core::InputMap::new(r.map_first, r.map_step, knots).expect("map")
+}
 
 fn elf() -> std::path::PathBuf {
     firmware::ensure_elf().unwrap_or_else(|e| panic!("cannot build the ATmega2560 firmware: {e}"))
@@ -59,6 +76,9 @@ fn session(pump: PumpParams, seed: u64) -> Outcome {
     cfg.bench.pump = pump;
     cfg.bench.seed = seed;
     cfg.max_s = 200.0;
+    // Past the design, which starts 0.5 s after `PERSIST` (its blocking ticks are then known,
+    // and its stack is on the STACK line as in the SRAM paint).
+    cfg.linger_s = 1.0;
     session::run(&cfg).expect("simavr session")
 }
 
@@ -75,10 +95,6 @@ fn transcript(o: &Outcome) -> String {
 fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
     let firmware_config = Config::default();
     let mut bad = Vec::new();
-    assert!(
-        FRESH_RECORD != firmware_config.excitation && FRESH_RECORD != firmware_config.validation,
-        "the fresh validation signal must be a record the firmware did not see"
-    );
     if let Some(h) = o.bench.halted() {
         bad.push(format!("core halted: {h:?}"));
     }
@@ -88,8 +104,13 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
             o.bench.machine.resets().len()
         ));
     }
-    if o.accept.is_none() {
-        bad.push("no ACCEPT line".into());
+    match o.bench.find_lines("ACCEPT").next() {
+        None => bad.push("no ACCEPT line".into()),
+        Some((_, l)) if budgets && l.cycle as f64 / 16e6 > ACCEPT_BUDGET_S => bad.push(format!(
+            "ACCEPT at {:.2} s > {ACCEPT_BUDGET_S} s after power-up",
+            l.cycle as f64 / 16e6
+        )),
+        Some(_) => {}
     }
     if !o.faults.is_empty() {
         bad.push(format!("FAULT lines: {:?}", o.faults));
@@ -180,13 +201,12 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
     match &o.estimation {
         None => bad.push("estimation record could not be rebuilt from the served frames".into()),
         Some(est) => {
-            assert_eq!(est.len(), 3000);
-            // The preset named on the EXCITE line, read back through `Record`'s name table, is
-            // the firmware's configured one (and the duties matched its generator).
-            if est.record != Some(firmware_config.excitation) {
+            // The duties matched the generator rebuilt from the MAP and SCAN lines.
+            assert_eq!(est.len(), usize::from(firmware_config.records.samples));
+            if est.map != o.map {
                 bad.push(format!(
-                    "estimation record {:?}, the firmware is configured with {:?}",
-                    est.record, firmware_config.excitation
+                    "the record's map {:?} is not the model's {:?}",
+                    est.map, o.map
                 ));
             }
             if est.y0_frames != Some(est.y0) {
@@ -211,10 +231,9 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
         }
     }
     match &o.validation {
-        Some(val) if val.record != Some(firmware_config.validation) => bad.push(format!(
-            "validation record {:?}, the firmware is configured with {:?}",
-            val.record, firmware_config.validation
-        )),
+        Some(val) if val.len() != usize::from(firmware_config.records.validation) => {
+            bad.push(format!("validation record of {} samples", val.len()))
+        }
         Some(_) => {}
         None => bad.push("validation record could not be rebuilt from the served frames".into()),
     }
@@ -232,6 +251,7 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
                 &cfg.sensor,
                 cfg.seed + 1000,
                 FRESH_RECORD,
+                o.map,
                 3_000,
                 lat,
             );
@@ -258,6 +278,7 @@ fn replay(o: &Outcome) -> String {
     let mut sid = SelfIdentification::new(&DEFAULT_CONFIG, None);
     for (_, raw) in frames {
         sid.tick(Ok(raw_to_counts(raw)));
+        sid.judge();
         if sid.needs_search() {
             return match sid.search(|| {}) {
                 Some(Event::Identified { model, .. }) => {
@@ -323,7 +344,7 @@ fn default_pump_identifies_within_budgets_and_persists() {
         bench.run_until(3.0, |l| {
             l.text.starts_with("LOADED")
                 || l.text.starts_with("STORED-REJECTED")
-                || l.text.starts_with("EXCITE")
+                || l.text.starts_with("SCAN")
         });
         bench
     };
@@ -427,7 +448,7 @@ fn fault_case(actions: &[(f64, Action)], within_s: f64, expect: &str) {
     assert_stopped(&bench, idx, expect);
 }
 
-/// Fault injection starts at 5 s: the firmware is in the excitation record (after 2 s settle).
+/// Fault injection starts at 5 s: the firmware is in the scan (after the 1.5 s settle).
 const AT: f64 = 5.0;
 
 #[test]
@@ -468,27 +489,29 @@ fn fault_flow_out_of_range_stops_pump() {
 
 #[test]
 fn fault_stalled_pump_stops_pump() {
-    fault_case(&[(AT, Action::Stall(true))], 30.0, "stall");
+    // After the settle phase a lost flow is the no-flow check's (less than a quarter of the
+    // settled flow scaled to the duty, 1 s): `FAULT noflow`.
+    fault_case(&[(AT, Action::Stall(true))], 30.0, "noflow");
 }
 
 #[test]
 fn fault_stuck_reading_at_zero_flow_stops_pump() {
-    // A frozen zero-flow reading while the pump is driven looks like a stall.
+    // A frozen zero-flow reading while the pump is driven looks like a lost flow.
     fault_case(
         &[(AT, Action::Sensor(Fault::Stuck(flow_to_raw(0.0))))],
         30.0,
-        "stall",
+        "noflow",
     );
 }
 
-/// During the blocking structure search (from the end of the 30 s record at 32.03 s to
-/// ~32.85 s) the state machine does not tick, but the firmware still reads the sensor at the
+/// During the blocking structure search (from the end of the 7 s estimation record at
+/// 12.94 s to ~13.65 s) the state machine does not tick, but the firmware still reads the sensor at the
 /// tick boundaries its progress calls see and runs the fault checks: a sensor that dies in the
 /// middle of the search stops the pump within the fault limit (5 ticks) plus the longest gap
 /// between those reads, not only when the search is over.
 #[test]
 fn fault_sensor_absent_during_the_search_stops_pump_before_it_ends() {
-    const DIES: f64 = 32.2;
+    const DIES: f64 = 13.05;
     let (bench, idx) = inject(&[(DIES, Action::Sensor(Fault::Absent))], 4.0);
     let texts: Vec<&str> = bench.lines.iter().map(|l| l.text.as_str()).collect();
     let idx = idx.unwrap_or_else(|| panic!("no FAULT line: {texts:?}"));
@@ -503,7 +526,10 @@ fn fault_sensor_absent_during_the_search_stops_pump_before_it_ends() {
         .position(|t| t.starts_with("ID "))
         .unwrap_or_else(|| panic!("no ID line: {texts:?}"));
     let dies = (DIES * 16e6) as u64;
-    assert!(bench.line_starts[id] > dies + 16_000_000 / 2, "{texts:?}");
+    assert!(
+        bench.line_starts[id] > dies + 16_000_000 * 2 / 5,
+        "{texts:?}"
+    );
     // The pump stopped long before: 5 failed reads and at most ~0.15 s without a read.
     let off = bench
         .duty_log
@@ -752,8 +778,8 @@ fn a_save_cut_at_any_point_keeps_the_other_slot() {
     use ridge_pump_firmware::persist::{self, RECORD_LEN};
     use ridge_pump_firmware::slots::{self, SLOT_LEN, STORE_LEN, UNWRITTEN};
 
-    let model = ArxModel::new(&[0.9f32], &[12.0], 3, Offset::Intercept, -1.5).expect("model");
-    let a = persist::encode(&model, 50.0);
+    let model = ArxModel::new(&[0.9f32], &[0.1], 3, Offset::Intercept, 0.0).expect("model");
+    let a = persist::encode(&model, &default_blower_map(), 50.0);
     let (a_at, a_bytes) =
         slots::slot_bytes(&a, &slots::plan(&[0xFF; STORE_LEN])).expect("slot bytes");
     let mut cfg = BenchConfig::new(elf());
@@ -839,14 +865,14 @@ fn a_save_cut_at_any_point_keeps_the_other_slot() {
 
 /// EEPROM through simavr: a record written with the firmware's own encoder into its slot
 /// (the one a blank EEPROM's first save goes to) is loaded at boot (`LOADED`, no identification); the same record with one byte
-/// flipped is rejected (`STORED-REJECTED`) and the firmware identifies anew (`EXCITE`).
+/// flipped is rejected (`STORED-REJECTED`) and the firmware identifies anew (`SCAN`).
 #[test]
 fn persisted_record_is_loaded_and_a_corrupted_one_rejected() {
     use ridge_core::{ArxModel, Offset};
     use ridge_pump_firmware::{persist, slots};
 
-    let model = ArxModel::new(&[0.9f32], &[12.0], 3, Offset::Intercept, -1.5).expect("model");
-    let record = persist::encode(&model, 88.5);
+    let model = ArxModel::new(&[0.9f32], &[0.1], 3, Offset::Intercept, 0.0).expect("model");
+    let record = persist::encode(&model, &default_blower_map(), 88.5);
     let plan = slots::plan(&[0xFF; slots::STORE_LEN]);
     let boot = |bytes: &[u8]| {
         let (at, slot) = slots::slot_bytes(bytes, &plan).expect("slot");
@@ -854,7 +880,7 @@ fn persisted_record_is_loaded_and_a_corrupted_one_rejected() {
         cfg.eeprom = vec![(at, slot.to_vec())];
         let mut bench = Bench::new(cfg).expect("bench");
         bench.run_until(4.0, |l| {
-            l.text.starts_with("LOADED") || l.text.starts_with("EXCITE")
+            l.text.starts_with("LOADED") || l.text.starts_with("SCAN")
         });
         bench
             .lines
@@ -870,7 +896,7 @@ fn persisted_record_is_loaded_and_a_corrupted_one_rejected() {
     assert!(
         !intact
             .iter()
-            .any(|l| l.starts_with("EXCITE") || l.starts_with("STORED-REJECTED")),
+            .any(|l| l.starts_with("SCAN") || l.starts_with("STORED-REJECTED")),
         "{intact:?}"
     );
     for byte in [0, record.len() / 2, record.len() - 1] {
@@ -886,7 +912,7 @@ fn persisted_record_is_loaded_and_a_corrupted_one_rejected() {
             "byte {byte} flipped: loaded anyway: {lines:?}"
         );
         assert!(
-            lines.iter().any(|l| l.starts_with("EXCITE")),
+            lines.iter().any(|l| l.starts_with("SCAN")),
             "byte {byte} flipped: no new identification: {lines:?}"
         );
     }

@@ -86,7 +86,12 @@ pub fn render(out: &Outcome, cfg: &SessionConfig, opts: &Options) -> (String, bo
     report::run_summary(&mut s, bench.time_s(), out.wall_s, &extra, &notes);
     let mut ok = misses.is_empty() && m.faults.is_empty();
 
-    ok &= report::model(&mut s, out.id.as_ref(), out.estimation.as_ref());
+    ok &= report::model(
+        &mut s,
+        out.map.as_ref(),
+        out.id.as_ref(),
+        out.estimation.as_ref(),
+    );
 
     let model = out.id.as_ref().and_then(|id| id.model.arx().ok());
     let fresh = model.as_ref().map(|_| {
@@ -101,6 +106,7 @@ pub fn render(out: &Outcome, cfg: &SessionConfig, opts: &Options) -> (String, bo
             &cfg.bench.sensor,
             cfg.bench.seed.wrapping_add(1000),
             FRESH_RECORD,
+            out.map,
             3_000,
             latency,
             period,

@@ -12,8 +12,9 @@ use std::time::Instant;
 use harness_kit::samples::{self, Samples};
 use harness_kit::validation;
 use pump_sim::{LungParams, PumpParams, Sfm3300Params};
+use ridge_core::InputMap;
 use ridge_pump_firmware::excitation::Record;
-use ridge_pump_firmware::lines::{IdLine, ParsedLine};
+use ridge_pump_firmware::lines::{IdLine, MapLine, ParsedLine};
 use ridge_pump_firmware::pump::duty_to_counts;
 
 use crate::bench::{Bench, BenchConfig, RunEnd};
@@ -68,6 +69,9 @@ pub struct Outcome {
     pub bench: Bench,
     /// The last `ID` line's model.
     pub id: Option<IdLine>,
+    /// The static map of that model (the last `MAP` line before it; without an `ID` line the
+    /// last `MAP` line, e.g. a loaded model's).
+    pub map: Option<InputMap>,
     /// The `ACCEPT` line.
     pub accept: Option<ParsedLine>,
     /// `REJECT` lines.
@@ -174,6 +178,13 @@ pub fn analyse(bench: Bench, wall_s: f64) -> Outcome {
         Some(j) => parsed[..j].iter().rposition(|r| r.keyword == "EXCITE"),
         None => parsed.iter().position(|r| r.keyword == "EXCITE"),
     };
+    let map_before = id_idx.unwrap_or(bench.lines.len());
+    let map = bench.lines[..map_before]
+        .iter()
+        .rev()
+        .find(|l| l.keyword() == "MAP")
+        .and_then(|l| MapLine::parse(&l.text).ok())
+        .map(|m| m.map);
     let estimation = excite.and_then(|i| rebuild(&bench, i));
     let validate = id_idx.and_then(|j| {
         parsed
@@ -187,6 +198,7 @@ pub fn analyse(bench: Bench, wall_s: f64) -> Outcome {
     Outcome {
         bench,
         id,
+        map,
         accept,
         rejects,
         faults,
@@ -295,9 +307,13 @@ pub fn duty_counts(duty: u16, period: u32) -> u32 {
 /// Rebuilds the record announced by line `idx` (`EXCITE` / `VALIDATE`) from the frames served
 /// and the duty log (`harness_kit::samples::rebuild`, the duty checked in TIM3 counts).
 pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
-    let line = bench.lines.get(idx)?;
+    let lines: Vec<(u64, &str)> = bench
+        .lines
+        .iter()
+        .map(|l| (l.start, l.text.as_str()))
+        .collect();
     let frames = bench.sensor.borrow().served();
-    samples::rebuild(&line.text, line.start, &frames, |at, g| {
+    samples::rebuild(&lines, idx, &frames, |at, g| {
         bench
             .duty_at(at)
             .is_some_and(|d| d.ccr == duty_counts(g, d.period))
@@ -336,12 +352,13 @@ pub fn fresh_record(
     sensor: &Sfm3300Params,
     seed: u64,
     record: Record,
+    map: Option<InputMap>,
     base: u16,
     latency: usize,
     period: u32,
 ) -> Samples {
     let frac = |d: u16| f64::from(duty_counts(d, period)) / f64::from(period.max(1));
-    validation::fresh_record(pump, lung, sensor, seed, record, base, latency, frac)
+    validation::fresh_record(pump, lung, sensor, seed, record, map, base, latency, frac)
 }
 
 /// Median plant sub-steps (0.5 ms) between a read of `samples` and the PWM change that

@@ -35,7 +35,8 @@ const TICK_BUDGET: u64 = 10_000;
 const DESIGN_BUDGET_S: f64 = 0.1;
 /// Smallest free-run fit (%) of the identified model on a fresh host-side validation signal.
 const MIN_FRESH_FIT: f64 = 70.0;
-/// The fresh validation signal: a record the firmware neither estimates nor validates on.
+/// The fresh validation signal: a record the firmware neither estimates nor validates on (its
+/// own records are random flow steps, `flow-steps`).
 const FRESH_RECORD: Record = Record::BRamp;
 /// Largest coefficient difference between the firmware (f32) and ridge-core on the host (f64)
 /// from the same samples, relative to max(1, |coefficient|).
@@ -57,7 +58,6 @@ fn assert_clean(what: &str, o: &Outcome, bad: Vec<String>) {
 /// Checks of one identification session; returns the list of failures.
 fn check_identification(o: &Outcome) -> Vec<String> {
     let config = Config::default();
-    assert!(FRESH_RECORD != config.excitation && FRESH_RECORD != config.validation);
     let mut bad = Vec::new();
     let m = &o.bench.machine;
     if m.resets.len() != 1 || !m.faults.is_empty() {
@@ -83,11 +83,12 @@ fn check_identification(o: &Outcome) -> Vec<String> {
         bad.push("estimation record not rebuilt from the served frames".into());
         return bad;
     };
-    if est.len() != 3000 || est.record != Some(config.excitation) {
+    if est.len() != usize::from(config.records.samples) || est.map != o.map {
         bad.push(format!(
-            "estimation record {:?} of {}",
-            est.record,
-            est.len()
+            "estimation record of {} samples, map {:?} (the model's {:?})",
+            est.len(),
+            est.map,
+            o.map
         ));
     }
     match host_search(est) {
@@ -110,6 +111,7 @@ fn check_identification(o: &Outcome) -> Vec<String> {
                 &cfg.sensor,
                 cfg.seed + 1000,
                 FRESH_RECORD,
+                o.map,
                 config.base_duty,
                 session::write_latency(&o.bench, est),
                 period,

@@ -31,8 +31,7 @@ use ridge_id::cli::{Cli, Command};
 use ridge_pump_firmware::flash_store::{
     self, slot_bytes, PROGRAMMED_LEN, SECTOR_LEN, SLOTS, SLOT_LEN,
 };
-use ridge_pump_firmware::lines::IdLine;
-use ridge_pump_firmware::lines::ParsedLine;
+use ridge_pump_firmware::lines::{IdLine, MapLine, ParsedLine};
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use stm32_harness::bench::{ps, secs, Bench, BenchConfig, RunEnd, FRAME_PS};
@@ -78,7 +77,7 @@ fn bench(flash: Vec<u8>) -> Bench {
 
 /// An answer to a console command (not a log row, not a periodic report).
 fn is_answer(text: &str) -> bool {
-    ["OK ", "ERR ", "STATUS ", "MODEL ", "RST "]
+    ["OK ", "ERR ", "STATUS ", "MODEL ", "MAP ", "RST "]
         .iter()
         .any(|k| text.starts_with(k))
         || text == ridge_pump_firmware::console::LOG_HEADER
@@ -308,7 +307,7 @@ fn start(b: &mut Bench) {
 fn commands_on_the_running_pump() {
     let wall = std::time::Instant::now();
     let record = stored_model();
-    let (model, fit) = persist::decode(&record).expect("the record decodes");
+    let (model, map, fit) = persist::decode(&record).expect("the record decodes");
     let mut b = bench(flash_with(&store_with(&record)));
     let end = b
         .run_until(4.0, |l| l.text.starts_with("TRACK"))
@@ -521,7 +520,7 @@ fn commands_on_the_running_pump() {
         "STOP latency {early} / {late} ps"
     );
 
-    // FORGET: the forgotten record (69 × 0xFF) in the store's next slot with the next
+    // FORGET: the forgotten record (105 × 0xFF) in the store's next slot with the next
     // sequence number; a reboot with that flash has no record.
     let before = b.store();
     let (_, i) = command(&mut b, "FORGET");
@@ -553,7 +552,8 @@ fn commands_on_the_running_pump() {
         Some("BOOT board=stm32f411 reset=14 record=none")
     );
 
-    // MODEL: the model in use, the stored record's, in the LOADED line's fields; then RST.
+    // MODEL: the model in use, the stored record's, in the LOADED line's fields; then its
+    // map (the record's), then RST.
     let (_, i) = command(&mut b, "MODEL");
     b.run_for(0.1).expect("run");
     let m = b.lines[i].parsed();
@@ -583,6 +583,17 @@ fn commands_on_the_running_pump() {
         );
     }
     assert!((m.num("fit").unwrap() - f64::from(fit)).abs() <= 0.05 + 1e-9);
+    let map_line = b
+        .lines
+        .get(i + 1)
+        .map(|l| l.text.clone())
+        .unwrap_or_default();
+    assert_eq!(
+        MapLine::parse(&map_line).map(|l| l.map),
+        Ok(map),
+        "MODEL's MAP line:\n{}",
+        transcript(&b)
+    );
     // The controller, one polynomial per line: R monic, and the loop's static gain from
     // setpoint to flow is one only if T(1) = S(1) (integral action, R(1) = 0).
     let poly = |k: usize, name: &str| {
@@ -591,7 +602,7 @@ fn commands_on_the_running_pump() {
         l.list(name)
             .unwrap_or_else(|| panic!("no {name}=:\n{}", transcript(&b)))
     };
-    let (r, s, t) = (poly(1, "r"), poly(2, "s"), poly(3, "t"));
+    let (r, s, t) = (poly(2, "r"), poly(3, "s"), poly(4, "t"));
     assert_eq!(r.first().copied(), Some(1.0));
     let sum = |v: &[f64]| v.iter().sum::<f64>();
     assert!(sum(&r).abs() < 1e-5, "R(1) = {}", sum(&r));
@@ -602,11 +613,11 @@ fn commands_on_the_running_pump() {
         sum(&t)
     );
 
-    // REID: a new identification starts (settle 2 s at the base duty, then EXCITE).
+    // REID: a new identification starts (settle 1.5 s at the base duty, then SCAN).
     let (reid_end, i) = command(&mut b, "REID");
     assert_eq!(b.lines[i].text, "OK reid");
     let end = b
-        .run_until(b.time_s() + 2.5, |l| l.text.starts_with("EXCITE"))
+        .run_until(b.time_s() + 2.0, |l| l.text.starts_with("SCAN"))
         .expect("run");
     assert!(matches!(end, RunEnd::Line(_)), "{}", transcript(&b));
     let (ccr, period) = counts_at(&b, b.machine.now() - TICK);
@@ -616,7 +627,7 @@ fn commands_on_the_running_pump() {
         "settle duty"
     );
     figures.push(format!(
-        "REID: EXCITE {:.3} s after the line",
+        "REID: SCAN {:.3} s after the line",
         secs(b.lines[b.lines.len() - 1].start - reid_end)
     ));
 
@@ -697,7 +708,11 @@ fn identification_on_the_log_matches_ridge_id() {
         .into_iter()
         .filter(|r| r.phase == "excite")
         .collect();
-    assert_eq!(excite.len(), 3000, "excite rows");
+    assert_eq!(
+        excite.len(),
+        usize::from(DEFAULT_CONFIG.records.samples),
+        "excite rows"
+    );
     let j0 = check_rows(b, &excite).unwrap_or_else(|e| panic!("excite rows: {e}"));
     let control = b.machine.core().ticks.ticks[j0..]
         .iter()

@@ -19,8 +19,8 @@ use ridge_pump_firmware::selfid::Config;
 use stm32_harness::bench::{ps, secs, Action, Bench, BenchConfig, RunEnd};
 use stm32_harness::sensor::Fault;
 
-/// Fault injection starts at 5 s: the firmware is in the excitation record (after the 2 s
-/// settle).
+/// Fault injection starts at 5 s: the firmware is in the scan (after the 1.5 s settle), as in
+/// the ATmega2560's tests.
 const AT: f64 = 5.0;
 /// The image's I2C clock (`I2C_HZ` in firmware/src/bin/stm32f411.rs).
 const I2C_HZ: u32 = 100_000;
@@ -153,16 +153,18 @@ fn fault_frozen_sensor_stops_pump() {
 
 #[test]
 fn fault_stalled_pump_stops_pump() {
-    fault_case(&[(AT, Action::Stall(true))], 30.0, "stall");
+    // After the settle phase a lost flow is the no-flow check's (less than a quarter of the
+    // settled flow scaled to the duty, 1 s): `FAULT noflow`.
+    fault_case(&[(AT, Action::Stall(true))], 30.0, "noflow");
 }
 
 #[test]
 fn fault_stuck_reading_at_zero_flow_stops_pump() {
-    // A frozen zero-flow reading while the pump is driven looks like a stall.
+    // A frozen zero-flow reading while the pump is driven looks like a lost flow.
     fault_case(
         &[(AT, Action::Sensor(Fault::Stuck(flow_to_raw(0.0))))],
         30.0,
-        "stall",
+        "noflow",
     );
 }
 

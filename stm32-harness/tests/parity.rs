@@ -15,7 +15,7 @@ mod common;
 
 use common::{assert_stopped, elf, run_to, texts, transcript, TICK};
 use ridge_pump_firmware::resets::{Resets, CLEAN_TICKS};
-use ridge_pump_firmware::selfid::Config;
+use ridge_pump_firmware::selfid::{Config, DEFAULT_CONFIG};
 use stm32_harness::bench::{ps, secs, Action, Bench, BenchConfig, RunEnd};
 use stm32_harness::bus::{BusEvent, Lines, SdaHold};
 use stm32_harness::periph::rcc::ResetCause;
@@ -57,12 +57,16 @@ fn watchdog_resets_restart_safely_and_a_reset_loop_keeps_the_pump_off() {
         .find(|s| s.name.contains("App$LT$") && s.name.contains("$GT$6search17h"))
         .cloned()
         .expect("App::search in the ELF's symbols");
-    // Into the search: the excitation record (30 s) completes, then the search runs over a
-    // few ticks. Step 1 ms at a time until `App::search` is on the call stack.
+    // Into the search: the estimation record (`records.samples` ticks) completes, then the
+    // search runs over a few ticks. Step 1 ms at a time until `App::search` is on the call
+    // stack.
     run_to(&mut b, 10.0, "EXCITE");
     let excite = b.lines.last().expect("EXCITE").start;
-    b.run_until(stm32_harness::bench::secs(excite) + 29.99, |_| false)
-        .expect("run");
+    let record_s = f64::from(DEFAULT_CONFIG.records.samples) * 0.01;
+    b.run_until(stm32_harness::bench::secs(excite) + record_s - 0.01, |_| {
+        false
+    })
+    .expect("run");
     let mut in_search = false;
     for _ in 0..100 {
         b.run_for(0.001).expect("run");
@@ -209,8 +213,8 @@ fn a_clean_minute_clears_the_reset_count() {
     assert!(b.machine.now() > ps(clean_s));
 }
 
-/// Fault injection starts at 5 s: the firmware is in the excitation record (after the 2 s
-/// settle), as in the ATmega2560's tests.
+/// Fault injection starts at 5 s: the firmware is in the scan (after the 1.5 s settle), as in
+/// the ATmega2560's tests.
 const AT: f64 = 5.0;
 /// Standard-mode I2C clock phases (NXP UM10204, Table 10): SCL low ≥ 4.7 µs ...
 const I2C_LOW_MIN: Time = 4_700_000;

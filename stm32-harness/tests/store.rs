@@ -15,7 +15,7 @@
 mod common;
 
 use common::{elf, run_to, texts, transcript};
-use ridge_core::{ArxModel, Offset};
+use ridge_core::{ArxModel, InputMap, Offset};
 use ridge_pump_firmware::flash_store::{
     self, slot_bytes, At, PROGRAMMED_LEN, RUN_SAVES, SECTORS, SECTOR_LEN, SLOTS, SLOT_LEN,
 };
@@ -31,13 +31,16 @@ use stm32_harness::transcript::Line;
 /// Offset of θ₁ in a record, and of the first φ and of the CRC (`firmware/src/persist.rs`).
 const THETA_AT: usize = 9;
 const PHI_AT: usize = 33;
-const CRC_AT: usize = 65;
+const CRC_AT: usize = 101;
 
-/// The known model of the stored records: θ 0.9, φ 12, d 3, c −1.5 (static gain 120 slm per
-/// unit duty), fit `fit`.
+/// The known model of the stored records: a blower-like map on the firmware's grid (15 % +
+/// k · 5.33 % duty → 6.3 + 10.8 k slm, ~200 slm per unit duty) and dynamics from the map's
+/// flow θ 0.9, φ 0.1, d 3, c −0.2 (static gain 1 slm/slm), fit `fit`.
 fn known(fit: f32) -> [u8; RECORD_LEN] {
-    let model = ArxModel::new(&[0.9f32], &[12.0], 3, Offset::Intercept, -1.5).expect("model");
-    persist::encode(&model, fit)
+    let model = ArxModel::new(&[0.9f32], &[0.1], 3, Offset::Intercept, -0.2).expect("model");
+    let knots = core::array::from_fn(|k| 759 + 1_300 * k as i16);
+    let map = InputMap::new(1_500, 533, knots).expect("map");
+    persist::encode(&model, &map, fit)
 }
 
 /// The freshly flashed image's memory (as `cargo flash-f411` leaves it).
@@ -74,10 +77,7 @@ fn boot(mem: Vec<u8>, limit_s: f64) -> Bench {
     cfg.flash = Some(mem);
     let mut b = Bench::new(cfg).expect("bench");
     b.run_until(limit_s, |l| {
-        matches!(
-            l.keyword(),
-            "LOADED" | "STORED-REJECTED" | "EXCITE" | "FAULT"
-        )
+        matches!(l.keyword(), "LOADED" | "STORED-REJECTED" | "SCAN" | "FAULT")
     })
     .expect("run");
     b
@@ -92,7 +92,7 @@ fn loaded(b: &Bench) -> Option<PrintedModel> {
 
 /// The model a record holds, as a LOADED line prints it (6 decimals).
 fn printed(record: &[u8]) -> PrintedModel {
-    let (m, _) = persist::decode(record).expect("a whole record");
+    let (m, _, _) = persist::decode(record).expect("a whole record");
     let r6 = |v: f32| (f64::from(v) * 1e6).round() / 1e6;
     let s = m.structure();
     PrintedModel {
@@ -132,7 +132,7 @@ fn the_record_is_written_loaded_after_a_reset_and_checked() {
     let plan = flash_store::plan([&store[0], &store[1]]);
     assert_eq!(plan.load, Some(At { sector: 0, slot: 0 }), "{plan:?}");
     let rec = flash_store::record([&store[0], &store[1]], &plan).expect("a record");
-    let (model, fit) = persist::decode(rec).expect("the saved record decodes");
+    let (model, _, fit) = persist::decode(rec).expect("the saved record decodes");
     for (a, b) in model
         .theta()
         .iter()
@@ -154,28 +154,29 @@ fn the_record_is_written_loaded_after_a_reset_and_checked() {
     let model = loaded(&b).expect("model on LOADED");
     assert!(same_model(&model, &id), "{model:?} vs {id:?}");
     assert!(
-        b.find("EXCITE").next().is_none(),
+        b.find("SCAN").next().is_none(),
         "no identification with a stored model"
     );
     assert!(b.find("CTRL").next().is_some(), "{}", transcript(&b));
 }
 
-/// Runs a boot that must refuse its record: `STORED-REJECTED <reason>` before `EXCITE`, no
-/// `LOADED`, no controller, no run mode. Returns the refusal's text.
+/// Runs a boot that must refuse its record: `STORED-REJECTED <reason>` before `SCAN` (the
+/// identification's first line), no `LOADED`, no controller, no run mode. Returns the
+/// refusal's text.
 fn refused(mem: Vec<u8>, what: &str) -> String {
     let mut b = boot(mem, 5.0);
     if b.lines
         .last()
         .is_some_and(|l| l.keyword() == "STORED-REJECTED")
     {
-        run_to(&mut b, 5.0, "EXCITE");
+        run_to(&mut b, 5.0, "SCAN");
     }
     let log = transcript(&b);
     let first = |kw: &str| b.lines.iter().position(|l| l.keyword() == kw);
     let rejected =
         first("STORED-REJECTED").unwrap_or_else(|| panic!("{what}: not refused:\n{log}"));
-    let excite = first("EXCITE").unwrap_or_else(|| panic!("{what}: no identification:\n{log}"));
-    assert!(rejected < excite, "{what}:\n{log}");
+    let scan = first("SCAN").unwrap_or_else(|| panic!("{what}: no identification:\n{log}"));
+    assert!(rejected < scan, "{what}:\n{log}");
     for kw in ["LOADED", "CTRL", "TRACK", "FAULT"] {
         assert!(first(kw).is_none(), "{what}: a {kw} line:\n{log}");
     }
@@ -185,7 +186,7 @@ fn refused(mem: Vec<u8>, what: &str) -> String {
 /// The boot checks: a record of the known model in the store's first slot is loaded
 /// (`LOADED p=1 q=1 d=3`, no identification); the same with one byte flipped (at its start,
 /// middle and end) is refused and the pump identifies anew; a whole record (CRC recomputed) of
-/// the model with φ negated is refused for its static gain, `−Σφ / (1 − Σθ)` = −120; the
+/// the model with φ negated is refused for its static gain, `−Σφ / (1 − Σθ)` = −1; the
 /// store `ridge-id identify --stm32-store` writes is loaded.
 #[test]
 fn a_stored_record_is_loaded_and_a_damaged_or_implausible_one_refused() {
@@ -203,7 +204,7 @@ fn a_stored_record_is_loaded_and_a_damaged_or_implausible_one_refused() {
     assert!(
         !b.lines
             .iter()
-            .any(|l| matches!(l.keyword(), "EXCITE" | "STORED-REJECTED")),
+            .any(|l| matches!(l.keyword(), "SCAN" | "STORED-REJECTED")),
         "{log}"
     );
 
@@ -229,7 +230,7 @@ fn a_stored_record_is_loaded_and_a_damaged_or_implausible_one_refused() {
         .unwrap_or_else(|| panic!("not refused for its gain: {reason}"))
         .parse()
         .expect("a number");
-    assert!((gain + 12.0 / (1.0 - 0.9)).abs() < 1e-3, "gain {gain}");
+    assert!((gain + 0.1 / (1.0 - 0.9)).abs() < 1e-3, "gain {gain}");
 
     let file = ridge_id::export::stm32_store(&rec);
     let at = (ridge_id::export::STM32_STORE_ADDRESS - BASE) as usize;
@@ -280,9 +281,9 @@ fn reid_and_save(mem: Vec<u8>, cut: Option<usize>) -> Bench {
 }
 
 /// The power cut at every program access of a save (a loop over the cut point): A stored, the
-/// pump identifies B and saves it (81 program accesses into the slot after A's). The flash a
+/// pump identifies B and saves it (117 program accesses into the slot after A's). The flash a
 /// cut after `k` accesses leaves is A's store and the first `k` accesses; booted from it, the
-/// pump loads A for every `k` < 81 and B at 81: never a record it refuses, never none. The
+/// pump loads A for every `k` < 117 and B at 117: never a record it refuses, never none. The
 /// bench's own power cut at three points leaves exactly that flash and that boot.
 #[test]
 fn a_power_cut_at_every_program_access_of_a_save_keeps_a_record() {

@@ -1,8 +1,9 @@
 //! The 100 Hz main loop shared by both boards: wait for the tick, pet the watchdog, read the
 //! SFM3300 (I2C in the main loop, never in an interrupt), step the self-identification state
-//! machine ([`crate::selfid`]), apply its duty to the pump, print its events,
-//! persist its record when an event asks for it, and — after the PWM write — judge the
-//! validation record and run the structure search or the controller design when they are due.
+//! machine ([`crate::selfid`]), apply its duty to the pump, finish the tick's work, print its
+//! events, persist its record when an event asks for it, and — after the PWM write — judge the
+//! scan's map or the validation record and run the structure search or the controller design
+//! when they are due.
 //!
 //! | file | concern |
 //! |---|---|
@@ -180,8 +181,9 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
         }
     }
 
-    /// Scores the complete validation record (after the tick's PWM write, so that it does not
-    /// delay it), stops the pump at once if that latched a fault, and reports the outcome.
+    /// Makes the scan's map or scores the complete validation record (after the tick's PWM
+    /// write, so that it does not delay it), stops the pump at once if that latched a fault,
+    /// and reports the outcome.
     #[inline(never)]
     fn judge(&mut self, board: &mut impl Board) {
         if let Some(event) = self.sid.judge() {
@@ -213,6 +215,9 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
             self.pump.stop().ok();
             uwriteln!(self.out, "PUMP error").ok();
         }
+        // The tick's work that does not set its duty (run mode: the controller's memory, the
+        // monitor, the tracking), after the PWM write.
+        self.sid.after_write(&mut event);
         if let Some(event) = &event {
             self.report(board, event);
         }

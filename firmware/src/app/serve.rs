@@ -15,6 +15,7 @@
 use super::{App, Board};
 use crate::command::{Command, CommandError, Line};
 use crate::console::{ModelLine, Poly, RstLine, Status, LOG_HEADER};
+use crate::event::Event;
 use crate::persist::RECORD_LEN;
 use crate::selfid::{Settings, State};
 use embedded_hal::i2c::I2c;
@@ -34,6 +35,8 @@ pub const ANSWER_ROOM: usize = 200;
 pub struct Console {
     /// The line being received.
     pub(super) line: Line,
+    /// `MODEL` was answered and its `MAP` line waits for room in the transmit queue.
+    pub(super) map_due: bool,
     /// `MODEL` was answered and this `RST` line (if a controller is in use then), and those of
     /// the polynomials after it, wait for room in the transmit queue.
     pub(super) rst_due: Option<Poly>,
@@ -51,6 +54,7 @@ impl Console {
     pub const fn new() -> Self {
         Console {
             line: Line::new(),
+            map_due: false,
             rst_due: None,
             clock: 0,
             log: false,
@@ -71,15 +75,22 @@ impl Console {
 }
 
 impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
-    /// Answers the console, once the transmit queue has [`ANSWER_ROOM`] bytes free: the `RST`
-    /// line of a `MODEL` answered before, else the command of the line the wait completed,
-    /// executed at once.
+    /// Answers the console, once the transmit queue has [`ANSWER_ROOM`] bytes free: the `MAP`
+    /// or `RST` line of a `MODEL` answered before, else the command of the line the wait
+    /// completed, executed at once.
     #[inline(never)]
     pub(super) fn serve(&mut self, board: &mut impl Board) {
         if board.console().is_none() || board.tx_room() < ANSWER_ROOM {
             return;
         }
         if let Some(c) = board.console() {
+            if c.map_due {
+                c.map_due = false;
+                if let Some(map) = self.sid.map() {
+                    uwriteln!(self.out, "{}", Event::Map(*map)).ok();
+                }
+                return;
+            }
             if let Some(poly) = c.rst_due {
                 c.rst_due = poly.next();
                 if let Some(ctrl) = self.sid.controller() {
@@ -101,7 +112,8 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
         self.pump.stop().ok();
     }
 
-    /// Executes a console command and answers it (one line, `MODEL` two in run mode).
+    /// Executes a console command and answers it (one line; `MODEL` is followed by its `MAP`
+    /// line and in run mode the `RST` lines, one per pass).
     fn execute(&mut self, board: &mut impl Board, command: Result<Command, CommandError>) {
         let answer = match command {
             Err(e) => Err(e),
@@ -152,6 +164,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
                 };
                 uwriteln!(self.out, "{}", model).ok();
                 if let Some(c) = board.console() {
+                    c.map_due = true;
                     c.rst_due = Some(Poly::R);
                 }
                 return;

@@ -283,8 +283,8 @@ fn set_watchdog(watchdog: &mut IndependentWatchdog, ms: u32) {
 /// The record store ([`ridge_pump_firmware::flash_store`]): a log of slots over flash sectors
 /// 6 and 7 (0x0804_0000 and 0x0806_0000, 128 KB each), so that a power cut at any program
 /// access of a save, or during the erase that makes room, leaves the previous record
-/// loadable. A save programs 81 bytes (~16 µs each, the CPU stalled meanwhile). An erase
-/// (making room when the sector in use fills up, 1 365 saves) stalls the CPU for ~2 s (up to
+/// loadable. A save programs 117 bytes (~16 µs each, the CPU stalled meanwhile). An erase
+/// (making room when the sector in use fills up, 1 024 saves) stalls the CPU for ~2 s (up to
 /// 4 s): no sensor reads, the PWM holding its duty. So it is done only at boot, before the pump
 /// is driven ([`prepare`](Self::prepare), [`flash_store::boot_erase`]); a save that would need
 /// one while running is refused. The watchdog's timeout is raised for an erase
@@ -355,7 +355,7 @@ impl FlashStore {
         flash_store::record(sectors, &plan).and_then(|r| r.try_into().ok())
     }
 
-    /// Saves `record` ([`RECORD_LEN`] bytes, or all `0xFF` to forget), blocking: ~1.3 ms of
+    /// Saves `record` ([`RECORD_LEN`] bytes, or all `0xFF` to forget), blocking: ~1.9 ms of
     /// programming. A save that needs a sector erased first (the run made more than
     /// [`flash_store::RUN_SAVES`] saves) is refused: it fails, and the next boot makes the
     /// room ([`prepare`](Self::prepare)). A record equal to the one loaded now (or

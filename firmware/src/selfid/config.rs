@@ -1,9 +1,11 @@
 //! [`Config`]: the settings of the self-identification state machine and their defaults.
 
 use ridge_core::control::{Limits, ModelLimits, Spec};
-use ridge_core::Search;
+use ridge_core::{Grid, Offset, OrderRange, Search};
 
-use crate::excitation::Record;
+use crate::excitation::FlowShape;
+#[cfg(doc)]
+use crate::excitation::FlowSteps;
 use crate::monitor::MonitorConfig;
 use crate::setpoint::Program;
 use crate::tracking::TrackingConfig;
@@ -23,15 +25,22 @@ pub const LOSS_SHIFT: u32 = 2;
 pub struct Config {
     /// Duty while settling, searching and between attempts (default 3000 = 30 %).
     pub base_duty: u16,
-    /// Ticks at the base duty before a record or before run mode (default 200 = 2 s).
+    /// Ticks at the base duty before an identification attempt or before run mode (default
+    /// 150 = 1.5 s). The first settle phase after the pump stood still also measures the
+    /// plant's lag from its start-up (see [`Records::lag_max`]).
     pub settle_ticks: u16,
-    /// Estimation record (default A-Multistep, 3000 samples).
-    pub excitation: Record,
-    /// Validation record (default B-Multistep, 3000 samples).
-    pub validation: Record,
-    /// Structure search on the deviations from the operating point. Default: ridge-core's
-    /// `Search::default()` (Ridge-M γ = 1000, β = 0.01, 200 iterates, delay-free AIC with
-    /// α = 12, the 252-candidate grid, exact pruning, no offset).
+    /// The identification's records: the scan that measures the static map, the estimation
+    /// and the validation records (see [`Records`]).
+    pub records: Records,
+    /// Structure search on the estimation record (the map's flow `v` in, the measured flow
+    /// out, deviations from the operating point). Default: ridge-core's `Search::DEFAULT`
+    /// (Ridge-M γ = 1000, β = 0.01, 200 iterates, delay-free AIC with α = 12, exact pruning)
+    /// with an intercept (it takes up what the map's flow at the operating point and the
+    /// settled flow leave between them) on the grid p 1..=5, q 1..=6, d 0..=6 (210
+    /// candidates). Why not p = 6: on 7 s records an ARX(6, ·) model now and then takes a
+    /// large θ₆ (~0.25), a ring of poles at the controller design's keep radius 0.8, which
+    /// the design refuses (`FAULT control slow-poles`): 3 of 180 simulated identifications
+    /// (9 blower/outlet presets × 20 noise seeds), none of 540 with p ≤ 5, the same fits.
     /// [`ridge_core::Criterion::Validation`] is not supported here.
     pub search: Search<f32>,
     /// Smallest accepted free-run fit on the validation record, percent (default 70).
@@ -117,9 +126,15 @@ pub struct ControlConfig {
     /// Largest duty change per tick, 1/10 000 (default 500 = 5 % per 10 ms).
     pub duty_step: u16,
     /// What a model must satisfy before a controller is designed from it (default: poles
-    /// within 0.995, static gain 20..2000 slm per unit duty; the simulated blowers have
-    /// 150..250).
+    /// within 0.995, static gain from the map's flow to the measured flow 0.5..2 slm/slm:
+    /// the map is the steady flow, so the dynamics' gain is about 1; 0.97..1.03 measured on
+    /// the simulated blowers and lungs).
     pub model: ModelLimits<f32>,
+    /// Lowest and highest mean slope of a model's map over the records' duty range
+    /// ([`Records::low`]..[`Records::high`]), slm per unit duty: a stored record whose map
+    /// lies outside is refused at boot (default 20..2000, the old limits of a model's static
+    /// gain from the duty; the simulated blowers and lungs have 85..260).
+    pub map_slope: [f32; 2],
     /// What run mode tracks (default [`Program::Demo`]).
     pub program: Program,
     /// Tracking figures and alarm.
@@ -167,12 +182,123 @@ impl ControlConfig {
         duty_step: 500,
         model: ModelLimits {
             stable_radius: 0.995,
-            gain_min: 20.0,
-            gain_max: 2_000.0,
+            gain_min: 0.5,
+            gain_max: 2.0,
         },
+        map_slope: [20.0, 2_000.0],
         program: Program::Demo,
         tracking: TrackingConfig::DEFAULT,
     };
+}
+
+/// The identification's records (duties in 1/10 000 of full scale, flows in SFM3300 counts,
+/// times in ticks of 10 ms; docs/identification.md says why these and measures them).
+///
+/// 1. **Lag**: the first settle phase after the pump stood still starts it from rest; its
+///    start-up gives the lag `L` (ticks): the mean residence time `N − Σy / y0` of the flow
+///    over the settle phase, at least the first responding tick + 1, at most
+///    [`lag_max`](Self::lag_max) ([`lag_default`](Self::lag_default) until measured).
+/// 2. **Scan**: from the base duty up to [`scan_high`](Self::scan_high), down to
+///    [`scan_low`](Self::scan_low) and up to the base duty again at
+///    [`scan_rate`](Self::scan_rate) per tick; each reading is credited to the duty `L`
+///    ticks before it, rising or falling, and the map is the mean of the two sides at each
+///    knot of the grid [`map_first`](Self::map_first) + k · [`map_step`](Self::map_step)
+///    (`ridge_core::MapScan`). Then [`lead_in`](Self::lead_in) × `L` ticks at the base duty,
+///    so that the estimation record starts from the settled operating point.
+/// 3. **Estimation record**: [`samples`](Self::samples) ticks of random steps
+///    (`ridge_core::excitation::RandomSteps`) whose levels are uniform in the map's flow
+///    between its flow at [`low`](Self::low) (at least [`min_flow`](Self::min_flow)) and at
+///    [`high`](Self::high), each driven at the map's inverse, held [`hold_min`](Self::hold_min)
+///    to [`hold_max`](Self::hold_max) × `max(L, lag_floor)` ticks.
+/// 4. **Validation record**: [`validation`](Self::validation) ticks of the same kind with
+///    another seed, after the search.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Records {
+    /// Lowest duty of the scan (default 1500 = 15 %: above every blower's stop duty, 12..14 %).
+    pub scan_low: u16,
+    /// Highest duty of the scan (default 9500 = 95 %, the controller's highest duty).
+    pub scan_high: u16,
+    /// Duty change per scan tick (default 40 = 0.4 % a tick, 40 %/s: 4.0 s for the default
+    /// scan).
+    pub scan_rate: u16,
+    /// Duty of the map's first knot (default 1500 = 15 %).
+    pub map_first: u16,
+    /// Duty between the map's knots (default 533: the 16 knots span 15..94.95 %).
+    pub map_step: u16,
+    /// Lowest duty of the records' levels (default 2000 = 20 %).
+    pub low: u16,
+    /// Highest duty of the records' levels (default 8500 = 85 %).
+    pub high: u16,
+    /// Lowest flow of the records' levels, counts (default 240 = 2 slm: with a lung the
+    /// lowest duties give almost no flow).
+    pub min_flow: i16,
+    /// Shortest hold of a level, in lags (default 2).
+    pub hold_min: u8,
+    /// Longest hold of a level, in lags (default 5).
+    pub hold_max: u8,
+    /// The smallest lag the holds are measured in, ticks (default 25: with a lung the
+    /// start-up overshoots and its residence time says nothing; the lung's own time
+    /// constants are 0.1..0.5 s).
+    pub lag_floor: u8,
+    /// The lag before one was measured (default 25 ticks).
+    pub lag_default: u8,
+    /// The largest lag taken from a start-up (default 60 ticks).
+    pub lag_max: u8,
+    /// Ticks at the base duty after the scan, in lags (default 2).
+    pub lead_in: u8,
+    /// Samples of the estimation record (default 700 = 7 s).
+    pub samples: u16,
+    /// Samples of the validation record (default 300 = 3 s).
+    pub validation: u16,
+    /// Seed of the estimation record's generator; the validation record's is its
+    /// complement (default 0x2F1B).
+    pub seed: u16,
+}
+
+impl Records {
+    /// The shape of a record of `samples` ticks with generator seed `seed` after a scan that
+    /// measured the lag `lag` (ticks): the estimation record has `self.samples` and
+    /// `self.seed`, the validation record `self.validation` and `!self.seed`. Host tools
+    /// rebuild the device's records with it ([`FlowSteps::new`] on the `MAP` line's map).
+    pub fn shape(&self, lag: u8, samples: u16, seed: u16) -> FlowShape {
+        let unit = u16::from(lag.max(self.lag_floor));
+        FlowShape {
+            low: self.low,
+            high: self.high,
+            min_flow: self.min_flow,
+            hold_min: unit.saturating_mul(u16::from(self.hold_min)).max(1),
+            hold_max: unit.saturating_mul(u16::from(self.hold_max)).max(1),
+            len: u32::from(samples),
+            seed,
+        }
+    }
+
+    /// The defaults (see each field).
+    pub const DEFAULT: Records = Records {
+        scan_low: 1_500,
+        scan_high: 9_500,
+        scan_rate: 40,
+        map_first: 1_500,
+        map_step: 533,
+        low: 2_000,
+        high: 8_500,
+        min_flow: 240,
+        hold_min: 2,
+        hold_max: 5,
+        lag_floor: 25,
+        lag_default: 25,
+        lag_max: 60,
+        lead_in: 2,
+        samples: 700,
+        validation: 300,
+        seed: 0x2F1B,
+    };
+}
+
+impl Default for Records {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
 }
 
 impl Default for Config {
@@ -220,10 +346,16 @@ impl Config {
     /// The defaults (see each field).
     pub const DEFAULT: Config = Config {
         base_duty: 3_000,
-        settle_ticks: 200,
-        excitation: Record::AMultistep,
-        validation: Record::BMultistep,
-        search: Search::DEFAULT,
+        settle_ticks: 150,
+        records: Records::DEFAULT,
+        search: Search {
+            grid: Grid {
+                p: OrderRange::new(1, 5),
+                ..Grid::PAPER
+            },
+            offset: Offset::Intercept,
+            ..Search::DEFAULT
+        },
         min_fit: 70.0,
         min_response: 1.0,
         max_gaps: 10,

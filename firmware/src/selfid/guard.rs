@@ -38,10 +38,12 @@ pub struct Guard {
     loss: u16,
     /// The expected flow, if known.
     expect: Option<Expect>,
+    /// The flow expected at the next check only (run mode, [`Guard::expect_flow`]).
+    given: Option<i16>,
 }
 
-/// The flow a healthy pump gives at a duty `u`
-/// (1/10 000): `flow + slope · (u − duty) / 256` counts, for `u ≥ duty` only unless `below`.
+/// The flow a healthy pump gives at a duty `u ≥ duty` (1/10 000), from the settled operating
+/// point: `flow + slope · (u − duty) / 256` counts; nothing below `duty`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Expect {
     /// Reference duty (the operating point's), 1/10 000.
@@ -50,12 +52,7 @@ struct Expect {
     flow: i16,
     /// Counts per 1/10 000 duty, times 256.
     slope: i16,
-    /// Whether the law holds below the reference duty too (a model's static gain).
-    below: bool,
 }
-
-/// SFM3300 counts per 1/10 000 duty per (slm per unit duty), times 256: `120 / 10 000 · 256`.
-const SLOPE_Q8_PER_GAIN: f32 = 3.072;
 
 impl Guard {
     /// The checks of `cfg`, counters at zero, no flow expected yet.
@@ -75,6 +72,7 @@ impl Guard {
             repeats: 0,
             loss: 0,
             expect: None,
+            given: None,
         }
     }
 
@@ -91,45 +89,37 @@ impl Guard {
                 duty,
                 flow,
                 slope: slope as i16,
-                below: false,
             })
         };
         self.loss = 0;
     }
 
-    /// From now on expects the model's steady state through the operating point at every duty:
-    /// `flow + gain · (u − duty)` (counts, `gain` the static gain in slm per unit duty, the
-    /// operating point as last given to
-    /// [`expect_operating_point`](Self::expect_operating_point)). A gain whose slope in
-    /// counts per duty step rounds to nothing or saturates (not positive, below 0.17 or
-    /// above 10 666 slm per unit duty, NaN, ±∞) leaves the expectation as it was.
-    pub fn expect_model(&mut self, gain: f32) {
-        if let Some(e) = &mut self.expect {
-            // `as` saturates and maps NaN to 0: a gain that is not positive gives ≤ 0, an
-            // infinite or too large one i16::MAX; both are refused (integer compares: no
-            // float comparison calls on the ATmega2560).
-            let slope = (gain * SLOPE_Q8_PER_GAIN + 0.5) as i16;
-            if slope > 0 && slope < i16::MAX {
-                e.slope = slope;
-                e.below = true;
-            }
-        }
-        self.loss = 0;
+    /// Expects `flow` (counts) at the next check only, whatever its duty, instead of the
+    /// operating point's law: run mode gives the model's steady state at the duty it has just
+    /// written, every tick after the PWM write (so that the check itself costs no map
+    /// evaluation). Outside run mode nobody gives it, and the law holds again from the check
+    /// after.
+    pub fn expect_flow(&mut self, flow: i16) {
+        self.given = Some(flow);
     }
 
-    /// The flow expected at the duty `applied` (1/10 000), counts: `None` where nothing is
-    /// expected (see [`expect_operating_point`](Self::expect_operating_point) and
-    /// [`expect_model`](Self::expect_model)). Saturates at the `i16` range.
+    /// The flow expected at the duty `applied` (1/10 000) by the next check, counts: the
+    /// given one ([`expect_flow`](Self::expect_flow)), or the operating point's law
+    /// ([`expect_operating_point`](Self::expect_operating_point)); `None` where nothing is
+    /// expected. Saturates at the `i16` range.
     pub fn expected(&self, applied: u16) -> Option<i16> {
-        let e = self.expect?;
+        if let Some(flow) = self.given {
+            return Some(flow);
+        }
+        let Expect { duty, flow, slope } = self.expect?;
         let u = applied.min(DUTY_FULL_SCALE);
-        if u < e.duty && !e.below {
+        if u < duty {
             return None;
         }
         // |slope · du| ≤ 32 767 · 10 000 < 2³¹.
-        let du = i32::from(u) - i32::from(e.duty);
-        let y = i32::from(e.flow) + ((i32::from(e.slope) * du) >> 8);
-        Some(y.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16)
+        let du = i32::from(u) - i32::from(duty);
+        let y = i32::from(flow) + ((i32::from(slope) * du) >> 8);
+        Some(y.min(i32::from(i16::MAX)) as i16)
     }
 
     /// Takes over the counters of `watched`, a copy of this guard that checked the tick
@@ -152,6 +142,8 @@ impl Guard {
         applied: u16,
         flow: Result<i16, SensorFault>,
     ) -> Result<Option<i16>, FaultReason> {
+        // Given for this check only, whatever its outcome.
+        let given = self.given.take();
         let c = match flow {
             Ok(c) => {
                 self.errors = 0;
@@ -193,7 +185,8 @@ impl Guard {
             self.repeats = 0;
         }
         self.last = c;
-        if let Some(expected) = self.expected(applied).filter(|_| self.loss_ticks > 0) {
+        let expected = given.or_else(|| self.expected(applied));
+        if let Some(expected) = expected.filter(|_| self.loss_ticks > 0) {
             let part = expected >> LOSS_SHIFT;
             if part >= self.stall_flow {
                 if c < part {

@@ -1,38 +1,54 @@
 //! The power-up self-identification state machine: hardware-agnostic and pure.
 //!
-//! The board glue reads the SFM3300 every 10 ms, calls [`SelfIdentification::tick`] with the
-//! reading, applies the returned duty to the pump at once, and reports the returned event (one
-//! line, see [`crate::event`]). When [`SelfIdentification::needs_search`] is true it runs the
-//! structure search from its main loop: either [`SelfIdentification::search`] (blocking, no
-//! ticks meanwhile: the PWM keeps the base duty) or, to keep ticking from the timer interrupt
-//! while the search runs, [`SelfIdentification::take_search`] →
+//! The board glue reads the SFM3300 every 10 ms, calls [`SelfIdentification::tick_into`] with
+//! the reading, applies the returned duty to the pump at once, then calls
+//! [`SelfIdentification::after_write`] and reports the event (one line, see [`crate::event`]);
+//! [`SelfIdentification::tick`] is the two in one. When [`SelfIdentification::needs_search`] is
+//! true it runs the structure search from its main loop: either [`SelfIdentification::search`]
+//! (blocking, no ticks meanwhile: the PWM keeps the base duty) or, to keep ticking from the
+//! timer interrupt while the search runs, [`SelfIdentification::take_search`] →
 //! [`SearchJob::run`] → [`SelfIdentification::finish_search`]. When
 //! [`SelfIdentification::needs_design`] is true it runs [`SelfIdentification::design`] the same
-//! blocking way (tens of milliseconds). When
-//! [`SelfIdentification::needs_judgement`] is true (the validation record is complete) it calls
-//! [`SelfIdentification::judge`] after the tick's PWM write, applies [`SelfIdentification::duty`]
-//! if that is 0 (a latched fault), and reports the event. Both are kept out of `tick`, which
-//! therefore costs about the same every time (a sensor read, one statistics update).
+//! blocking way (tens of milliseconds). When [`SelfIdentification::needs_judgement`] is true
+//! (the scan's readings or the validation record are complete) it calls
+//! [`SelfIdentification::judge`] after the tick's PWM write, applies
+//! [`SelfIdentification::duty`] if that is 0 (a latched fault), and reports the event. All of
+//! them are kept out of `tick_into`, which therefore costs about the same every time (a sensor
+//! read, one statistics update; in run mode the controller and the map's inverse).
+//!
+//! # The model
+//! Hammerstein: the static map `v = g(u)` from duty to flow (slm; the flow the blower settles
+//! at, `ridge_core::InputMap`, 16 knots), then the ARX dynamics of the paper from `v` to the
+//! measured flow, with an intercept. The map carries the blower's nonlinearity (dead zone, fan
+//! curve, a lung's back pressure), so that one linear model holds over the whole flow range;
+//! the structure search, Ridge-M and the controller design are the linear ones, on `v`
+//! (docs/identification.md).
 //!
 //! # States
 //! ```text
-//! WaitSensor ─first good reading─▶ Settle ─┬─(valid stored model)──────────────▶ Design (LOADED) ─▶ Run (CTRL)
-//!                                          └▶ Excite ─▶ Search ─▶ Validate ─┬─▶ Settle (ACCEPT, persist) ─▶ Design ─▶ Run (CTRL)
-//!                        ▲                                     │           │
-//!                        └──────── REJECT (attempt < attempts) ┴───────────┘
+//! WaitSensor ─first good reading─▶ Settle ─┬─(valid stored model: MAP)─────────────────▶ Design (LOADED) ─▶ Run (CTRL)
+//!                                          └▶ Scan (SCAN, MAP) ─▶ Excite ─▶ Search ─▶ Validate ─┬─▶ Settle (ACCEPT, persist) ─▶ Design ─▶ Run (CTRL)
+//!                        ▲                                                 │           │
+//!                        └──────────────────── REJECT (attempt < attempts) ┴───────────┘
 //! any state ─sensor errors / flow out of range / stall / all attempts rejected
 //!            / controller refused (Design) ─▶ Fault (duty 0, latched)
 //! ```
 //! - **WaitSensor**: duty 0 until the first good reading.
 //! - **Settle**: [`Config::base_duty`] for [`Config::settle_ticks`]. The rounded mean flow of
 //!   the last [`SETTLE_MEAN_TICKS`] ticks is the operating point `y0` (counts), with
-//!   `u0` = the base duty.
-//! - **Excite**: the [`Config::excitation`] record; every tick feeds the exact integer
-//!   statistics with `IntGram::push(u − u0, y − y0)`, `u` the duty (1/10 000) applied during
-//!   the interval that ends with the reading `y` (counts `raw − 32768`, 1/120 slm).
-//! - **Search**: base duty until the search is done (ridge-core `Search<f32>` on
-//!   `Gram::normal::<f32>(units::SCALE)`, [`Config::search`]); the model of the
-//!   deviations is turned into the absolute model with an intercept ([`absolute_model`]).
+//!   `u0` = the base duty. A settle phase that starts the pump from rest also measures its lag
+//!   (see [`Records`]).
+//! - **Scan**: ramps over the duty range ([`Records`]); each reading is credited to the duty
+//!   one lag before it, and the map is the mean of the rising and the falling readings at each
+//!   knot ([`SelfIdentification::judge`] computes it, `MAP`); then a lead-in at the base duty.
+//! - **Excite**: the estimation record ([`crate::excitation::FlowSteps`]: random steps uniform
+//!   in the map's flow); every tick feeds the exact integer statistics with
+//!   `IntGram::push(v − v0, y − y0)`, `v` the map's flow at the duty applied during the
+//!   interval that ends with the reading `y` (both counts of 1/120 slm), `v0` the map's flow at
+//!   the base duty.
+//! - **Search**: base duty until the search is done (ridge-core `Search<f32>` on the
+//!   statistics in slm, [`Config::search`]); the model of the deviations is turned into the
+//!   absolute model ([`absolute_model`]).
 //!
 //! ## Why deviations from the operating point
 //! The statistics assume zero history before the record (paper, Algorithm 1), but the pump
@@ -40,39 +56,43 @@
 //! regression would see zero past flows while the flow is ~20 slm: on a noise-free linear
 //! plant those few rows dominate the residual sum of squares (20² slm² each against
 //! quantisation noise of 2·10⁻⁵ slm² per sample) and bias every estimate. With deviations
-//! from the settled operating point the zero history is what the plant really had, so the
-//! records are exactly the ARX regression of eq. (6), and ridge-core's default search
-//! (no offset) applies as is; the operating point becomes the intercept of the stored model.
-//! - **Validate**: the [`Config::validation`] record, scored with a streaming
-//!   [`Evaluation<f32>`] in physical units (seeded with the first `m` measured samples); a model with
-//!   a free-run fit below [`Config::min_fit`] is rejected by [`SelfIdentification::judge`]
-//!   (base duty from the end of the record until then).
+//! from the settled operating point the zero history is what the plant really had (the scan's
+//! lead-in settles it there), so the records are exactly the ARX regression of eq. (6); the
+//! operating point goes into the intercept of the stored model.
+//! - **Validate**: the validation record (the same kind, another seed), scored with a
+//!   streaming [`Evaluation<f32>`] in physical units (seeded with the first `m` measured
+//!   samples); a model with a free-run fit below [`Config::min_fit`] is rejected by
+//!   [`SelfIdentification::judge`] (base duty from the end of the record until then).
 //! - **Design** (after a settle phase at the base duty, so that control starts from the settled
 //!   operating point): base duty until [`SelfIdentification::design`] has checked the model
 //!   (stable, static gain of the expected sign and size; see [`ControlConfig::model`]),
-//!   designed the flow controller (`ridge_core::control`: pole placement with an integrator,
-//!   slowed down and retried while its checks fail) and accepted it ([`Event::Control`]). A
-//!   refused model or design latches [`FaultReason::Control`]: the pump stops (duty 0)
-//!   rather than run without a checked controller.
+//!   designed the flow controller on the dynamics (`ridge_core::control`: pole placement with
+//!   an integrator, slowed down and retried while its checks fail) and accepted it
+//!   ([`Event::Control`]). A refused model or design latches [`FaultReason::Control`]: the pump
+//!   stops (duty 0) rather than run without a checked controller.
 //! - **Run**: the controller tracks [`ControlConfig::program`] (setpoints from
-//!   [`crate::setpoint`]) within the duty limits and rate limit, starting bumplessly from the
-//!   base duty and the current flow; the one-step residual monitor ([`crate::monitor`]) and
-//!   the tracking figures and alarm ([`crate::tracking`]) report once a second.
+//!   [`crate::setpoint`]); its output, a flow, goes through the map's inverse to the duty
+//!   within the duty limits and rate limit, starting bumplessly from the base duty and the
+//!   current flow; the one-step residual monitor ([`crate::monitor`]) and the tracking figures
+//!   and alarm ([`crate::tracking`]) report once a second.
 //! - **Fault**: duty 0 from the tick that detected it on, for ever (until a new
 //!   [`SelfIdentification::new`]).
 //!
 //! Sensor errors shorter than [`Config::sensor_fault_limit`] are bridged: during a record the
-//! previous reading is used (counted as a gap, at most [`Config::max_gaps`] per record), in run
-//! mode the tick is not scored.
+//! previous reading is used (counted as a gap, at most [`Config::max_gaps`] per record; the
+//! scan credits nothing for it), in run mode the tick is not scored.
 //!
 //! | file | what |
 //! |---|---|
 //! | `mod.rs` | the machine: phases, [`SelfIdentification::tick`], validation, run mode, faults |
-//! | `config.rs` | [`Config`] and its defaults |
+//! | `config.rs` | [`Config`], [`Records`] and their defaults |
 //! | `guard.rs` | [`Guard`]: the fault checks of every tick |
 //! | `operator.rs` | the operator's commands: stop, start, the setpoint program |
+//! | `scan.rs` | the lag from the start-up, the scan's ramps and the map's accumulators |
 //! | `recording.rs` | the estimation record's statistics around the operating point, and [`absolute_model`] |
 //! | `search.rs` | the structure search: blocking, or as a [`SearchJob`] while ticks go on |
+//! | `design.rs` | the controller design and the start of run mode |
+//! | `run.rs` | run mode: controller, map inverse, monitor, tracking |
 
 mod config;
 mod design;
@@ -80,35 +100,69 @@ mod guard;
 mod operator;
 mod recording;
 mod run;
+mod scan;
 mod search;
 
-pub use config::{Config, ControlConfig, Defaults, Settings, DEFAULT_CONFIG, LOSS_SHIFT};
+pub use config::{Config, ControlConfig, Defaults, Records, Settings, DEFAULT_CONFIG, LOSS_SHIFT};
 pub use design::{REFERENCE_POLE, SLOWDOWN};
 pub use guard::Guard;
 pub use recording::{absolute_model, SETTLE_MEAN_TICKS};
 pub use run::preview_ticks;
+pub use scan::RESPONSE_COUNTS;
 pub use search::{SearchJob, SearchOutcome};
 
-use core::mem::discriminant;
-
-use ridge_core::excitation::Excitation;
-use ridge_core::{ArxModel, Evaluation, IntGram, Normal, Real};
+use ridge_core::{ArxModel, Evaluation, InputMap, IntGram, Normal, Real};
 
 use crate::event::{Event, FaultReason, RejectReason, SensorFault, StoredReason};
+use crate::excitation::FlowSteps;
 use crate::persist::{self, RECORD_LEN};
 use crate::setpoint::Program;
-use crate::units::{FRACTION_PER_DUTY, SLM_PER_COUNT};
+use crate::units::SLM_PER_COUNT;
 
 use recording::Recording;
 use run::RunMode;
+use scan::{Scan, Startup};
+
+/// The checks a stored record must pass before its model is used (at boot; `ridge-id`'s
+/// export runs them too): it decodes ([`persist::decode`]), its dynamics pass the model checks
+/// an identified model must pass ([`ControlConfig::model`]), its map rises by a plausible slope
+/// over the records' duty range ([`ControlConfig::map_slope`]), and its fit is at least
+/// [`Config::min_fit`]. Returns the model, its map and its fit.
+///
+/// Errors: the first check failed, as the `STORED-REJECTED` line reports it.
+pub fn check_stored(
+    bytes: &[u8],
+    config: &Config,
+) -> Result<(ArxModel<f32>, InputMap, f32), StoredReason> {
+    let (m, map, fit) = persist::decode(bytes).map_err(StoredReason::Record)?;
+    ridge_core::control::check_model(&m, &config.control.model).map_err(StoredReason::Model)?;
+    let r = &config.records;
+    // slm per unit duty: counts / 120 over duty / 10 000.
+    let rise = f32::from(map.at(r.high)) - f32::from(map.at(r.low));
+    let slope = rise * SLM_PER_COUNT / (f32::from(r.high.saturating_sub(r.low).max(1)) * 1e-4);
+    let [lo, hi] = config.control.map_slope;
+    // Written so that NaN fails.
+    if !(slope >= lo && slope <= hi) {
+        return Err(StoredReason::MapSlope { slope });
+    }
+    if !Real::is_finite(fit) || fit < config.min_fit {
+        return Err(StoredReason::Fit {
+            fit,
+            min: config.min_fit,
+        });
+    }
+    Ok((m, map, fit))
+}
 
 /// The externally visible state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum State {
     /// Waiting for the first good sensor reading (duty 0).
     WaitSensor,
-    /// Holding the base duty before a record or run mode.
+    /// Holding the base duty before an identification attempt or run mode.
     Settle,
+    /// Scanning the duty range for the static map (and the lead-in at the base duty).
+    Scan,
     /// Running the estimation record.
     Excite,
     /// Waiting for (or running) the structure search, at the base duty.
@@ -127,11 +181,12 @@ pub enum State {
 
 impl State {
     /// Lower-case name used in `STATUS` lines and the log's `phase` column: `wait`, `settle`,
-    /// `excite`, `search`, `validate`, `design`, `run`, `stopped`, `fault`.
+    /// `scan`, `excite`, `search`, `validate`, `design`, `run`, `stopped`, `fault`.
     pub const fn name(self) -> &'static str {
         match self {
             State::WaitSensor => "wait",
             State::Settle => "settle",
+            State::Scan => "scan",
             State::Excite => "excite",
             State::Search => "search",
             State::Validate => "validate",
@@ -175,29 +230,51 @@ enum Phase {
         /// Sum and count of the good readings of the last [`SETTLE_MEAN_TICKS`] ticks.
         sum: i32,
         n: u8,
+        /// The lag measurement, when the phase started the pump from rest.
+        startup: Option<Startup>,
     },
+    /// The ramps over the duty range and the lead-in; `u0`, `y0`: the operating point.
+    Scan {
+        scan: Scan,
+        u0: u16,
+        y0: i16,
+        gaps: u16,
+    },
+    /// The estimation record, prepared by [`SelfIdentification::judge`] with the scan's map
+    /// while the scan's lead-in goes on: `lead` ticks of it are left (their last one applies
+    /// `start`, the record's first duty).
     Excite {
-        gen: Excitation,
+        lead: u16,
+        start: u16,
+        gen: FlowSteps,
         rec: Recording,
+        /// The map's flow at the duty applied during the interval that ends with the next
+        /// reading, counts.
+        v: i16,
     },
     SearchReady {
         rec: Recording,
     },
     Searching,
     /// The blocking search's normal equations, built from the record in its place
-    /// ([`SelfIdentification::prepare_search`]), and the record's operating point.
+    /// ([`SelfIdentification::prepare_search`]), the record's map and operating point (the
+    /// map's flow and the measured flow, counts).
     SearchNormal {
         normal: Normal<f32>,
-        u0: u16,
+        map: InputMap,
+        v0: i16,
         y0: i16,
     },
     /// [`SelfIdentification::prepare_search`] refused the record (reported by
-    /// [`SelfIdentification::run_search`]).
-    SearchRefused(RejectReason),
+    /// [`SelfIdentification::run_search`]); the record's map.
+    SearchRefused(RejectReason, InputMap),
     Validate {
-        gen: Excitation,
+        gen: FlowSteps,
         eval: Evaluation<f32>,
         model: ArxModel<f32>,
+        map: InputMap,
+        /// The map's flow at the applied duty, as in [`Phase::Excite`].
+        v: i16,
         gaps: u16,
         started: bool,
         /// The record is complete: waiting for [`SelfIdentification::judge`].
@@ -206,6 +283,7 @@ enum Phase {
     /// The model (accepted or loaded) waits for its controller design.
     Design {
         model: ArxModel<f32>,
+        map: InputMap,
     },
     Run(RunMode),
     /// Stopped by the operator.
@@ -219,6 +297,7 @@ fn settle(left: u16, then: Then) -> Phase {
         then,
         sum: 0,
         n: 0,
+        startup: None,
     }
 }
 
@@ -241,8 +320,12 @@ pub struct SelfIdentification<S: Settings = &'static Config> {
     attempt: u8,
     /// Bumped whenever a search result would be stale.
     generation: u8,
+    /// The model in use: its dynamics and its map (both or neither).
     model: Option<ArxModel<f32>>,
+    map: Option<InputMap>,
     fit: f32,
+    /// The plant's lag measured at the last start from rest, ticks.
+    lag: Option<u8>,
     stored_error: Option<StoredReason>,
     fault: Option<FaultReason>,
     fault_announced: bool,
@@ -263,29 +346,18 @@ impl<S: Settings> SelfIdentification<S> {
     /// A state machine with settings `settings` (a `&'static Config`, or [`Defaults`]). `stored` is the persisted record read from
     /// EEPROM/flash (see [`crate::persist`]) or `None`. A valid record skips identification:
     /// after settling, the controller is designed for that model ([`Event::Loaded`]) and the
-    /// pump runs. A record that is invalid, or valid but with a model that fails the checks an
-    /// identified model must pass (stable, static gain of the right sign and size, fit at
-    /// least [`Config::min_fit`]), is reported once ([`Event::StoredRejected`], on the first
-    /// tick) and a new model is identified.
+    /// pump runs. A record that fails [`check_stored`] (invalid, or a model that fails the
+    /// checks an identified model must pass, an implausible map, a fit below
+    /// [`Config::min_fit`]) is reported once ([`Event::StoredRejected`], on the first tick)
+    /// and a new model is identified.
     #[inline(never)]
     pub fn new(settings: S, stored: Option<&[u8]>) -> Self {
         let config = settings.config();
-        let checked = stored.map(|bytes| {
-            let (m, fit) = persist::decode(bytes).map_err(StoredReason::Record)?;
-            ridge_core::control::check_model(&m, &config.control.model)
-                .map_err(StoredReason::Model)?;
-            if !Real::is_finite(fit) || fit < config.min_fit {
-                return Err(StoredReason::Fit {
-                    fit,
-                    min: config.min_fit,
-                });
-            }
-            Ok((m, fit))
-        });
-        let (model, fit, stored_error) = match checked {
-            Some(Ok((m, fit))) => (Some(m), fit, None),
-            Some(Err(e)) => (None, 0.0, Some(e)),
-            None => (None, 0.0, None),
+        let checked = stored.map(|bytes| check_stored(bytes, config));
+        let (model, map, fit, stored_error) = match checked {
+            Some(Ok((m, map, fit))) => (Some(m), Some(map), fit, None),
+            Some(Err(e)) => (None, None, 0.0, Some(e)),
+            None => (None, None, 0.0, None),
         };
         SelfIdentification {
             settings,
@@ -296,7 +368,9 @@ impl<S: Settings> SelfIdentification<S> {
             attempt: 0,
             generation: 0,
             model,
+            map,
             fit,
+            lag: None,
             stored_error,
             fault: None,
             fault_announced: false,
@@ -308,18 +382,55 @@ impl<S: Settings> SelfIdentification<S> {
 
     /// Called once per 10 ms tick with the sensor result of this tick (counts = raw − 32768,
     /// 1/120 slm). Returns the duty to apply now (1/10 000 of full scale, 0 = stop) and at most
-    /// one event to report.
+    /// one event to report: [`tick_into`](Self::tick_into) and
+    /// [`after_write`](Self::after_write) in one.
     ///
     /// Faults take effect in the same tick: the returned duty is 0 and stays 0.
     pub fn tick(&mut self, flow: Result<i16, SensorFault>) -> Tick {
         let mut event = None;
         let duty = self.tick_into(flow, &mut event);
+        self.after_write(&mut event);
         Tick { duty, event }
     }
 
-    /// [`tick`](Self::tick) with the event written into `event` (which must be empty), the
-    /// duty returned: the board loop's form. A returned [`Tick`] is a 76-byte copy, ~600
-    /// cycles of the ATmega2560's control tick, paid in every tick.
+    /// The work of a tick that does not set its duty, for after the PWM write
+    /// ([`tick_into`](Self::tick_into) must come first, in the same tick): in run mode the
+    /// controller's memory of the applied duty (the map's flow there), the monitor, the
+    /// tracking figures and the flow the next tick's fault checks expect. Puts at most one
+    /// event into `event` when it is empty (the monitor's or the tracking's).
+    pub fn after_write(&mut self, event: &mut Option<Event>) {
+        if event.is_some() {
+            // The tick's own event goes first; run mode's windows come at their next tick.
+            if let Phase::Run(run) = &mut self.phase {
+                let mut later = None;
+                let expected = run.after_write(self.duty, &mut later);
+                self.guard.expect_flow(expected);
+                self.run_event(later.as_ref());
+            }
+            return;
+        }
+        if let Phase::Run(run) = &mut self.phase {
+            let expected = run.after_write(self.duty, event);
+            self.guard.expect_flow(expected);
+            self.run_event(event.as_ref());
+        }
+    }
+
+    /// A drift from the monitor: the flag, and a new identification when it asks for one
+    /// (from the next tick on, which then holds the base duty).
+    fn run_event(&mut self, event: Option<&Event>) {
+        if let Some(Event::Drift { reidentify, .. }) = event {
+            self.drift = true;
+            if *reidentify {
+                self.request_reidentification();
+            }
+        }
+    }
+
+    /// The part of [`tick`](Self::tick) that sets the tick's duty, with its event written into
+    /// `event` (which must be empty), the duty returned: the board loop's form, which applies
+    /// the duty and then calls [`after_write`](Self::after_write). A returned [`Tick`] is a
+    /// 76-byte copy, ~600 cycles of the ATmega2560's control tick, paid in every tick.
     pub fn tick_into(&mut self, flow: Result<i16, SensorFault>, event: &mut Option<Event>) -> u16 {
         let applied = self.duty;
         if matches!(self.phase, Phase::Fault) {
@@ -373,29 +484,87 @@ impl<S: Settings> SelfIdentification<S> {
         Event::Fault(reason)
     }
 
-    /// `true` once the validation record is complete: the board should call
-    /// [`judge`](Self::judge) from its main loop (after the tick's PWM write). Until then the
-    /// ticks hold the base duty.
+    /// `true` once the scan's readings or the validation record are complete: the board
+    /// should call [`judge`](Self::judge) from its main loop (after the tick's PWM write).
+    /// Until then the ticks hold the base duty.
     pub fn needs_judgement(&self) -> bool {
-        matches!(self.phase, Phase::Validate { complete: true, .. })
+        match &self.phase {
+            Phase::Validate { complete, .. } => *complete,
+            Phase::Scan { scan, .. } => scan.complete,
+            _ => false,
+        }
     }
 
-    /// Scores the complete validation record and accepts the model (the controller design
-    /// follows, see [`design`](Self::design); [`Event::Accepted`], whose
-    /// [`persist`](Event::persist) asks for [`persist_bytes`](Self::persist_bytes) to be
-    /// stored) or rejects it ([`Event::Rejected`]; after the last attempt the fault is latched
-    /// and [`duty`](Self::duty) is 0 at once). `None` when no judgement is due.
+    /// The verdicts too costly for the tick:
+    /// - the scan's map ([`Event::Map`]; a scan that gives none is rejected,
+    ///   [`Event::Rejected`]);
+    /// - the validation record's score: the model is accepted (the controller design follows,
+    ///   see [`design`](Self::design); [`Event::Accepted`], whose [`persist`](Event::persist)
+    ///   asks for [`persist_bytes`](Self::persist_bytes) to be stored) or rejected
+    ///   ([`Event::Rejected`]).
     ///
-    /// Kept out of [`tick`](Self::tick) because it costs about 1 ms on the ATmega2560 (three
-    /// square roots, divisions, moving the model into run mode), which would push that tick's
-    /// PWM write past its 1.6 ms budget.
+    /// After the last attempt a rejection latches the fault and [`duty`](Self::duty) is 0 at
+    /// once. `None` when no judgement is due.
+    ///
+    /// Kept out of [`tick`](Self::tick) because each costs one to two milliseconds on the
+    /// ATmega2560 (the map: a division per knot; the score: three square roots, divisions,
+    /// moving the model into run mode), which would push that tick's PWM write past its
+    /// 1.6 ms budget.
     // Out of line: smaller ATmega2560 image (measured by trying each function).
     #[inline(never)]
     pub fn judge(&mut self) -> Option<Event> {
-        if self.needs_judgement() {
-            Some(self.end_validation())
-        } else {
-            None
+        if !self.needs_judgement() {
+            return None;
+        }
+        if let Phase::Scan { .. } = self.phase {
+            return self.end_scan();
+        }
+        Some(self.end_validation())
+    }
+
+    /// The scan's readings are complete: its map in one pass, then in the next the estimation
+    /// record prepared on it, to start at the end of the lead-in, and the map's line
+    /// ([`Event::Map`]); or the rejection. The map's divisions, the record's first level and
+    /// the line's 16 numbers are worked out here, after a PWM write, not in a tick, and in two
+    /// passes: together they took 8.9 ms of the ATmega2560's 10 ms tick.
+    // Out of line: smaller ATmega2560 image (measured by trying each function).
+    #[inline(never)]
+    fn end_scan(&mut self) -> Option<Event> {
+        let r = &self.settings.config().records;
+        let Phase::Scan { scan, u0, y0, .. } = &mut self.phase else {
+            return None;
+        };
+        let Some(map) = scan.map() else {
+            return match scan.finish()? {
+                Ok(_) => None,
+                Err(e) => Some(self.reject(RejectReason::Map(e))),
+            };
+        };
+        // The lead-in duties still to apply, and the tick that applies the record's first.
+        let lead = scan.len(r).saturating_sub(scan.next).saturating_add(1);
+        let (lag, u0, y0) = (scan.lag, *u0, *y0);
+        let Some((gen, (start, v))) = self
+            .record(&map, lag, r.samples, r.seed)
+            .and_then(|mut gen| gen.next_step().map(|first| (gen, first)))
+        else {
+            return Some(self.reject(RejectReason::NotExcited { rms: 0.0 }));
+        };
+        self.phase = Phase::Excite {
+            lead,
+            start,
+            gen,
+            rec: Recording::new(map, map.at(u0), y0),
+            v,
+        };
+        Some(Event::Map(map))
+    }
+
+    /// The operating point's flow of the record in progress (counts), 0 outside one.
+    fn y0(&self) -> i16 {
+        match &self.phase {
+            Phase::Excite { rec, .. } | Phase::SearchReady { rec } => rec.y0,
+            Phase::Scan { y0, .. } => *y0,
+            _ => 0,
         }
     }
 
@@ -404,11 +573,12 @@ impl<S: Settings> SelfIdentification<S> {
         match self.phase {
             Phase::Wait => State::WaitSensor,
             Phase::Settle { .. } => State::Settle,
+            Phase::Scan { .. } | Phase::Excite { lead: 1.., .. } => State::Scan,
             Phase::Excite { .. } => State::Excite,
             Phase::SearchReady { .. }
             | Phase::Searching
             | Phase::SearchNormal { .. }
-            | Phase::SearchRefused(_) => State::Search,
+            | Phase::SearchRefused(..) => State::Search,
             Phase::Validate { .. } => State::Validate,
             Phase::Design { .. } => State::Design,
             Phase::Run(_) => State::Run,
@@ -417,10 +587,20 @@ impl<S: Settings> SelfIdentification<S> {
         }
     }
 
-    /// The model in use: loaded from the stored record or accepted by validation (physical
-    /// units: flow in slm, duty as a fraction 0..1).
+    /// The dynamics of the model in use, loaded from the stored record or accepted by
+    /// validation (physical units: the map's flow in slm in, the measured flow in slm out).
     pub fn model(&self) -> Option<&ArxModel<f32>> {
         self.model.as_ref()
+    }
+
+    /// The static map of the model in use, from duty (1/10 000) to flow (counts).
+    pub fn map(&self) -> Option<&InputMap> {
+        self.map.as_ref()
+    }
+
+    /// The plant's lag measured at the last start from rest, ticks (`None` before).
+    pub fn lag(&self) -> Option<u8> {
+        self.lag
     }
 
     /// The validation free-run fit of [`model`](Self::model), percent.
@@ -431,10 +611,13 @@ impl<S: Settings> SelfIdentification<S> {
     /// The record to persist for [`model`](Self::model) (write it when an event says
     /// [`Event::persist`]).
     pub fn persist_bytes(&self) -> Option<[u8; RECORD_LEN]> {
-        self.model.as_ref().map(|m| persist::encode(m, self.fit))
+        match (&self.model, &self.map) {
+            (Some(m), Some(map)) => Some(persist::encode(m, map, self.fit)),
+            _ => None,
+        }
     }
 
-    /// Starts a new identification (settle, excite, search, validate) from the next tick.
+    /// Starts a new identification (settle, scan, excite, search, validate) from the next tick.
     /// Ignored in the fault and the stopped state. The current model (and the drift flag) stay until a new
     /// model is accepted.
     pub fn request_reidentification(&mut self) {
@@ -552,18 +735,12 @@ impl<S: Settings> SelfIdentification<S> {
     }
 
     /// The phase logic of one tick (faults already checked); its event into `event`. Run mode
-    /// writes its event in place ([`RunMode::step`](run::RunMode::step)); the other phases
-    /// return theirs from [`advance_other`](Self::advance_other).
+    /// writes no event here (its events come after the PWM write,
+    /// [`after_write`](Self::after_write)); the other phases return theirs from
+    /// [`advance_other`](Self::advance_other).
     fn advance(&mut self, applied: u16, reading: Option<i16>, event: &mut Option<Event>) {
         if let Phase::Run(run) = &mut self.phase {
-            self.duty = run.step(applied, reading, self.last_counts, event);
-            if let Some(Event::Drift { reidentify, .. }) = event {
-                self.drift = true;
-                if *reidentify {
-                    self.request_reidentification();
-                    self.duty = self.settings.config().base_duty;
-                }
-            }
+            self.duty = run.control(applied, reading, self.last_counts);
             return;
         }
         // Moved only when there is one (a 74-byte copy, ~550 cycles on the ATmega2560).
@@ -575,56 +752,99 @@ impl<S: Settings> SelfIdentification<S> {
     /// [`advance`](Self::advance) in every phase but run mode.
     fn advance_other(&mut self, applied: u16, reading: Option<i16>) -> Option<Event> {
         let y = reading.unwrap_or(self.last_counts);
+        let cfg = self.settings.config();
         match &mut self.phase {
             Phase::Wait => {
                 reading?;
-                let then = if self.model.is_some() && !self.identify {
-                    Then::Load
-                } else {
-                    Then::Excite
-                };
-                self.phase = settle(self.settings.config().settle_ticks, then);
-                self.duty = self.settings.config().base_duty;
-                self.settle_step(reading)
+                let load = self.model.is_some() && !self.identify;
+                let then = if load { Then::Load } else { Then::Excite };
+                self.phase = settle(cfg.settle_ticks, then);
+                if let Phase::Settle { startup, .. } = &mut self.phase {
+                    // The pump stood still: its start-up gives the lag.
+                    *startup = (applied == 0).then(Startup::new);
+                }
+                self.duty = cfg.base_duty;
+                let event = self.settle_step(applied, reading);
+                // The stored model's map is reported before it is loaded.
+                match (load, self.map) {
+                    (true, Some(map)) => Some(Event::Map(map)),
+                    _ => event,
+                }
             }
-            Phase::Settle { .. } => self.settle_step(reading),
-            Phase::Excite { gen, rec } => {
+            Phase::Settle { .. } => self.settle_step(applied, reading),
+            Phase::Scan { scan, u0, gaps, .. } => {
+                if reading.is_none() {
+                    *gaps = gaps.saturating_add(1);
+                    if *gaps > cfg.max_gaps {
+                        let gaps = *gaps;
+                        return Some(self.reject(RejectReason::SensorGaps { gaps }));
+                    }
+                }
+                scan.credit(&cfg.records, reading);
+                let (duty, _) = scan.duty(&cfg.records, scan.next).unwrap_or((*u0, true));
+                // Past the lead-in the base duty holds until `judge` has made the map.
+                scan.next = scan.next.saturating_add(1);
+                self.duty = duty;
+                None
+            }
+            Phase::Excite { lead: 1.., .. } => {
+                let Phase::Excite { lead, start, .. } = &mut self.phase else {
+                    return None;
+                };
+                *lead -= 1;
+                if *lead > 0 {
+                    self.duty = cfg.base_duty;
+                    return None;
+                }
+                self.duty = *start;
+                let (samples, u0, y0) = match &self.phase {
+                    Phase::Excite { gen, .. } => (gen.len_samples(), cfg.base_duty, self.y0()),
+                    _ => return None,
+                };
+                Some(Event::Excite {
+                    samples,
+                    u0,
+                    y0,
+                    attempt: self.attempt,
+                    attempts: cfg.attempts.max(1),
+                })
+            }
+            Phase::Excite { gen, rec, v, .. } => {
                 if reading.is_none() {
                     rec.gaps = rec.gaps.saturating_add(1);
-                    if rec.gaps > self.settings.config().max_gaps {
+                    if rec.gaps > cfg.max_gaps {
                         let gaps = rec.gaps;
                         return Some(self.reject(RejectReason::SensorGaps { gaps }));
                     }
                 }
-                let du = i32::from(applied) - i32::from(rec.u0);
+                let dv = i32::from(*v) - i32::from(rec.v0);
                 let dy = i32::from(y) - i32::from(rec.y0);
-                if let Err(e) = rec.gram.push(du, dy) {
+                if let Err(e) = rec.gram.push(dv, dy) {
                     return Some(self.reject(RejectReason::Search(e)));
                 }
                 let y64 = i64::from(y);
                 rec.sum_y = rec.sum_y.saturating_add(y64);
                 rec.sum_y2 = rec.sum_y2.saturating_add(y64 * y64);
-                match next_level(gen, self.settings.config()) {
-                    Some(d) => {
-                        self.duty = d;
-                        None
+                match gen.next_step() {
+                    Some((duty, next)) => {
+                        self.duty = duty;
+                        *v = next;
                     }
-                    None => {
-                        self.end_excitation();
-                        None
-                    }
+                    None => self.end_excitation(),
                 }
+                None
             }
             Phase::SearchReady { .. }
             | Phase::Searching
             | Phase::SearchNormal { .. }
-            | Phase::SearchRefused(_) => {
-                self.duty = self.settings.config().base_duty;
+            | Phase::SearchRefused(..) => {
+                self.duty = cfg.base_duty;
                 None
             }
             Phase::Validate {
                 gen,
                 eval,
+                v,
                 gaps,
                 started,
                 complete,
@@ -632,52 +852,49 @@ impl<S: Settings> SelfIdentification<S> {
             } => {
                 if *complete {
                     // Waiting for `judge`: hold the base duty, score nothing.
-                    self.duty = self.settings.config().base_duty;
+                    self.duty = cfg.base_duty;
                     return None;
                 }
                 if !*started {
                     *started = true;
-                    let record = self.settings.config().validation;
                     let samples = gen.len_samples();
-                    return match next_level(gen, self.settings.config()) {
-                        Some(d) => {
-                            self.duty = d;
-                            Some(Event::Validate { record, samples })
+                    return match gen.next_step() {
+                        Some((duty, next)) => {
+                            self.duty = duty;
+                            *v = next;
+                            Some(Event::Validate { samples })
                         }
                         None => {
                             *complete = true;
-                            self.duty = self.settings.config().base_duty;
-                            Some(Event::Validate { record, samples })
+                            self.duty = cfg.base_duty;
+                            Some(Event::Validate { samples })
                         }
                     };
                 }
                 if reading.is_none() {
                     *gaps = gaps.saturating_add(1);
-                    if *gaps > self.settings.config().max_gaps {
+                    if *gaps > cfg.max_gaps {
                         let gaps = *gaps;
                         return Some(self.reject(RejectReason::SensorGaps { gaps }));
                     }
                 }
-                eval.push(
-                    f32::from(applied) * FRACTION_PER_DUTY,
-                    f32::from(y) * SLM_PER_COUNT,
-                );
-                match next_level(gen, self.settings.config()) {
-                    Some(d) => {
-                        self.duty = d;
-                        None
+                eval.push(f32::from(*v) * SLM_PER_COUNT, f32::from(y) * SLM_PER_COUNT);
+                match gen.next_step() {
+                    Some((duty, next)) => {
+                        self.duty = duty;
+                        *v = next;
                     }
                     None => {
                         // Scoring (square roots, the model's move into run mode) is left to
                         // `judge`, outside the tick, so that the tick stays short.
                         *complete = true;
-                        self.duty = self.settings.config().base_duty;
-                        None
+                        self.duty = cfg.base_duty;
                     }
                 }
+                None
             }
             Phase::Design { .. } => {
-                self.duty = self.settings.config().base_duty;
+                self.duty = cfg.base_duty;
                 None
             }
             // Run mode is `advance`'s; here it would stop the pump like the others.
@@ -688,12 +905,47 @@ impl<S: Settings> SelfIdentification<S> {
         }
     }
 
-    /// One settle tick: base duty; at the end, run mode or the excitation.
-    fn settle_step(&mut self, reading: Option<i16>) -> Option<Event> {
-        let Phase::Settle { left, then, sum, n } = &mut self.phase else {
+    /// A record of random steps uniform in `map`'s flow (the settings' [`Records::shape`]).
+    /// `None` when the map's flows leave no range for the levels.
+    fn record(&self, map: &InputMap, lag: u8, samples: u16, seed: u16) -> Option<FlowSteps> {
+        let r = &self.settings.config().records;
+        FlowSteps::new(map, &r.shape(lag, samples, seed))
+    }
+
+    /// The validation phase for `model` on `map`: a record like the estimation record, with
+    /// the complement of its seed. `None` when the map's flows leave no range for the levels.
+    fn validation(&self, model: ArxModel<f32>, map: InputMap) -> Option<Phase> {
+        let r = &self.settings.config().records;
+        let lag = self.lag.unwrap_or(r.lag_default);
+        Some(Phase::Validate {
+            gen: self.record(&map, lag, r.validation, !r.seed)?,
+            eval: Evaluation::new(model),
+            model,
+            map,
+            v: 0,
+            gaps: 0,
+            started: false,
+            complete: false,
+        })
+    }
+
+    /// One settle tick: base duty; at the end, run mode or the scan.
+    fn settle_step(&mut self, applied: u16, reading: Option<i16>) -> Option<Event> {
+        let cfg = self.settings.config();
+        let Phase::Settle {
+            left,
+            then,
+            sum,
+            n,
+            startup,
+        } = &mut self.phase
+        else {
             return None;
         };
-        self.duty = self.settings.config().base_duty;
+        self.duty = cfg.base_duty;
+        if let (Some(st), Some(c), true) = (startup.as_mut(), reading, applied != 0) {
+            st.push(c);
+        }
         if *left <= SETTLE_MEAN_TICKS && reading.is_some() {
             *sum = sum.saturating_add(i32::from(self.last_counts));
             *n = n.saturating_add(1);
@@ -710,50 +962,47 @@ impl<S: Settings> SelfIdentification<S> {
         } else {
             self.last_counts
         };
-        let u0 = self.settings.config().base_duty;
+        if let Some(lag) = startup.and_then(|st| st.lag(y0, cfg.records.lag_max)) {
+            self.lag = Some(lag);
+        }
+        let u0 = cfg.base_duty;
         // The operating point is what the no-flow check expects from now on.
         self.guard.expect_operating_point(u0, y0);
-        match (*then, self.model) {
-            (Then::Load, Some(model)) => {
-                self.phase = Phase::Design { model };
-                self.duty = self.settings.config().base_duty;
+        match (*then, self.model, self.map) {
+            (Then::Load, Some(model), Some(map)) => {
+                self.phase = Phase::Design { model, map };
                 Some(Event::Loaded {
                     model,
                     fit: self.fit,
                 })
             }
-            (Then::Design, Some(model)) => {
-                self.phase = Phase::Design { model };
-                self.duty = self.settings.config().base_duty;
+            (Then::Design, Some(model), Some(map)) => {
+                self.phase = Phase::Design { model, map };
                 None
             }
             _ => {
                 self.attempt = self.attempt.saturating_add(1);
-                let mut gen = self.settings.config().excitation.generator();
-                let samples = gen.len_samples();
-                match next_level(&mut gen, self.settings.config()) {
-                    Some(d) => {
-                        self.phase = Phase::Excite {
-                            gen,
-                            rec: Recording::new(u0, y0),
-                        };
-                        self.duty = d;
-                        Some(Event::Excite {
-                            record: self.settings.config().excitation,
-                            samples,
-                            u0,
-                            y0,
-                            attempt: self.attempt,
-                            attempts: self.settings.config().attempts.max(1),
-                        })
-                    }
-                    None => {
-                        self.phase = Phase::SearchReady {
-                            rec: Recording::new(u0, y0),
-                        };
-                        None
-                    }
+                let lag = self.lag.unwrap_or(cfg.records.lag_default);
+                let mut scan = Scan::new(&cfg.records, u0, lag);
+                let samples = scan.len(&cfg.records);
+                if let Some((duty, _)) = scan.duty(&cfg.records, 0) {
+                    scan.next = 1;
+                    self.duty = duty;
                 }
+                self.phase = Phase::Scan {
+                    scan,
+                    u0,
+                    y0,
+                    gaps: 0,
+                };
+                Some(Event::Scan {
+                    samples,
+                    lag,
+                    u0,
+                    y0,
+                    attempt: self.attempt,
+                    attempts: cfg.attempts.max(1),
+                })
             }
         }
     }
@@ -770,10 +1019,13 @@ impl<S: Settings> SelfIdentification<S> {
     // Out of line: smaller ATmega2560 image (measured by trying each function).
     #[inline(never)]
     fn end_validation(&mut self) -> Event {
-        let Phase::Validate { eval, model, .. } = &self.phase else {
+        let Phase::Validate {
+            eval, model, map, ..
+        } = &self.phase
+        else {
             return self.reject(RejectReason::NonFinite);
         };
-        let model = *model;
+        let (model, map) = (*model, *map);
         let (free, one) = match (eval.free_run(), eval.one_step()) {
             (Some(f), Some(o))
                 if Real::is_finite(f.fit) && Real::is_finite(f.rmse) && Real::is_finite(o.rmse) =>
@@ -789,6 +1041,7 @@ impl<S: Settings> SelfIdentification<S> {
             });
         }
         self.model = Some(model);
+        self.map = Some(map);
         self.fit = free.fit;
         self.drift = false;
         // Settle at the base duty, then design: control starts from the settled operating point.
@@ -800,24 +1053,5 @@ impl<S: Settings> SelfIdentification<S> {
             one_step: one.rmse,
             samples: free.n,
         }
-    }
-}
-
-/// The next duty of `gen`, a generator of one of `cfg`'s two records, or `None` at its end.
-///
-/// The match arms of the generator kinds neither record uses are cut: with compile-time
-/// settings ([`Defaults`]: multistep records only) the compiler then drops the ramp and PRBS
-/// generators from the image (ATmega2560: −970 B). A generator of a cut kind cannot be built
-/// here (both records come from `cfg`); it would read as a finished record.
-fn next_level(gen: &mut Excitation, cfg: &Config) -> Option<u16> {
-    // The record → generator mapping is `Record::generator`'s: compare the kinds it gives.
-    let kind = discriminant(&*gen);
-    let used = kind == discriminant(&cfg.excitation.generator())
-        || kind == discriminant(&cfg.validation.generator());
-    match gen {
-        Excitation::Multistep(g) if used => g.next_duty(),
-        Excitation::Ramp(g) if used => g.next_duty(),
-        Excitation::Prbs(g) if used => g.next_duty(),
-        _ => None,
     }
 }

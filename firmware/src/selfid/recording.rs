@@ -1,17 +1,20 @@
 //! The estimation record's statistics (exact integers, deviations from the operating point)
 //! and the conversion of the model identified on them to absolute units.
 
-use ridge_core::{ArxModel, IntGram, Offset, Real};
+use ridge_core::{ArxModel, InputMap, IntGram, Offset, Real};
 
-use crate::units::{SCALE, SLM_PER_COUNT};
+use crate::units::{MODEL_SCALE, SLM_PER_COUNT};
 
 /// Statistics of one estimation record.
 #[derive(Debug, Clone)]
 pub(super) struct Recording {
-    /// Operating point: the base duty (1/10 000) and the mean settled flow (counts).
-    pub(super) u0: u16,
+    /// The static map the record's inputs go through.
+    pub(super) map: InputMap,
+    /// Operating point: the map's flow at the base duty and the mean settled flow (counts).
+    pub(super) v0: i16,
     pub(super) y0: i16,
-    /// Exact statistics of the deviations `(u − u0, y − y0)`.
+    /// Exact statistics of the deviations `(v − v0, y − y0)`, `v` the map's flow at the
+    /// applied duty.
     pub(super) gram: IntGram,
     /// `Σ y` and `Σ y²` of the flow counts, for the excitation check.
     pub(super) sum_y: i64,
@@ -20,9 +23,10 @@ pub(super) struct Recording {
 }
 
 impl Recording {
-    pub(super) fn new(u0: u16, y0: i16) -> Self {
+    pub(super) fn new(map: InputMap, v0: i16, y0: i16) -> Self {
         Recording {
-            u0,
+            map,
+            v0,
             y0,
             gram: IntGram::new(),
             sum_y: 0,
@@ -66,16 +70,15 @@ impl Recording {
 /// Settle ticks (at the end of the settle phase) whose mean flow is the operating point.
 pub const SETTLE_MEAN_TICKS: u16 = 50;
 
-/// Converts a model identified on deviations from the operating point `(u0, y0)` (duty
-/// 1/10 000, flow counts) into the absolute model with an intercept (physical units):
-/// `c = c_dev + y0 (1 − Σθ) − u0 Σφ` (slm, with `y0` in slm and `u0` as a fraction).
-/// Generic so that host tools check the device's `f32` result with the same conversion in
-/// `f64`.
+/// Converts a model identified on deviations from the operating point `(v0, y0)` (the map's
+/// flow and the measured flow, counts) into the absolute model with an intercept (slm):
+/// `c = c_dev + y0 (1 − Σθ) − v0 Σφ` (`v0`, `y0` in slm). Generic so that host tools check the
+/// device's `f32` result with the same conversion in `f64`.
 ///
 /// Errors: [`ridge_core::Error::NonFinite`] for non-finite coefficients.
 pub fn absolute_model<T: Real>(
     dev: &ArxModel<T>,
-    u0: u16,
+    v0: i16,
     y0: i16,
 ) -> Result<ArxModel<T>, ridge_core::Error> {
     let mut sum_theta = T::ZERO;
@@ -86,9 +89,9 @@ pub fn absolute_model<T: Real>(
     for f in dev.phi() {
         sum_phi += *f;
     }
-    let c = dev.intercept()
-        + T::from_i64(i64::from(y0)) * T::from_f64(SCALE.y) * (T::ONE - sum_theta)
-        - T::from_u32(u32::from(u0)) * T::from_f64(SCALE.u) * sum_phi;
+    let slm = T::from_f64(MODEL_SCALE.y);
+    let c = dev.intercept() + T::from_i64(i64::from(y0)) * slm * (T::ONE - sum_theta)
+        - T::from_i64(i64::from(v0)) * slm * sum_phi;
     ArxModel::new(
         dev.theta(),
         dev.phi(),

@@ -1,14 +1,26 @@
-//! Run mode: the flow controller tracking the setpoint program, with the model monitor and the
-//! tracking figures.
+//! Run mode: the flow controller tracking the setpoint program through the static map, with the
+//! model monitor and the tracking figures.
+//!
+//! The model is Hammerstein (see [`crate::selfid`]): the map `v = g(u)` from duty to flow, then
+//! the ARX dynamics from `v` to the measured flow. The controller is designed on the dynamics,
+//! so its output is a flow `v` (slm); the duty is the map's inverse at `v` within the duty
+//! limits and the rate limit ([`MapTable::inverse`]: segment compares and one fixed-point
+//! product, no division), and the controller's memory gets the map's flow at the duty actually
+//! applied (its anti-windup follows what the pump did).
+//!
+//! A tick is split at the PWM write, so that only what sets this tick's duty delays it:
+//! [`RunMode::control`] (setpoint, controller output, inverse, limits) before, and
+//! [`RunMode::after_write`] (the map's flow at the written duty for the controller, the monitor,
+//! the tracking figures, the flow the fault checks expect next) after.
 
-use ridge_core::control::{Controller, Design};
-use ridge_core::ArxModel;
+use ridge_core::control::{Controller, Design, Limits};
+use ridge_core::{ArxModel, MapTable};
 
 use crate::event::Event;
 use crate::monitor::Monitor;
 use crate::setpoint::{Program, Setpoint};
 use crate::tracking::Tracking;
-use crate::units::{DUTY_FULL_SCALE, FRACTION_PER_DUTY, SLM_PER_COUNT};
+use crate::units::{DUTY_FULL_SCALE, FLOW_SCALE, SLM_PER_COUNT};
 
 use super::Config;
 
@@ -17,65 +29,127 @@ use super::Config;
 pub(super) struct RunMode {
     monitor: Monitor,
     ctrl: Controller<f32>,
+    /// The static map, prepared for the tick.
+    table: MapTable,
     setpoint: Setpoint,
     tracking: Tracking,
     /// The setpoint of the interval in progress (for the tracking figures), slm.
     current: f32,
+    /// The setpoint of the interval the written duty starts (`current` after the write), slm.
+    next: f32,
     /// Ticks the controller sees the program ahead of time: the mean delay of the designed
     /// setpoint response ([`Design::mean_delay`]), so that the flow follows the program in time.
     preview: u8,
+    /// Duty limits, 1/10 000: lowest, highest, largest change per tick.
+    duty_min: u16,
+    duty_max: u16,
+    duty_step: u16,
+    /// The duty applied during the interval that ended with the tick's reading, and that
+    /// reading (counts; `None` after a sensor error): for [`after_write`](Self::after_write).
+    applied: u16,
+    reading: Option<i16>,
+    /// The map's flow at `applied`, slm (the model's input for that interval).
+    v: f32,
+    /// The model's steady state through the map: flow = `gain · g(u) + offset` (counts).
+    gain: f32,
+    offset: f32,
 }
 
 impl RunMode {
-    /// Run mode with `design` for `model`, tracking `program`, starting bumplessly from the
-    /// duty `applied` and the reading `counts`.
+    /// Run mode with `design` for `model` on the map `table`, tracking `program`, starting
+    /// bumplessly from the duty `applied` and the reading `counts`; `gain` is the model's
+    /// static gain.
     #[inline(never)]
     pub(super) fn new(
         cfg: &Config,
         model: ArxModel<f32>,
+        table: MapTable,
         design: &Design<f32>,
         program: Program,
         applied: u16,
         counts: i16,
     ) -> Self {
         let c = &cfg.control;
-        let mut ctrl = Controller::new(design.rst, c.limits());
+        let slm = |duty: u16| f32::from(table.at(duty)) * SLM_PER_COUNT;
+        let duty_max = c.duty_max.min(DUTY_FULL_SCALE);
+        // The controller's limits in its own unit, the map's flow: the duty limits through the
+        // map (it is increasing). The rate limit is the duty's, applied after the inverse.
+        let limits = Limits {
+            min: slm(c.duty_min),
+            max: slm(duty_max),
+            max_step: f32::MAX,
+        };
+        let mut ctrl = Controller::new(design.rst, limits);
         let y0 = f32::from(counts) * SLM_PER_COUNT;
-        ctrl.start(f32::from(applied) * FRACTION_PER_DUTY, y0);
+        let v = slm(applied);
+        ctrl.start(v, y0);
+        let mut sum_theta = 0.0;
+        for t in model.theta() {
+            sum_theta += *t;
+        }
+        let gain = model.static_gain();
         RunMode {
             monitor: Monitor::new(model, cfg.monitor),
             ctrl,
+            table,
             setpoint: Setpoint::new(program, y0),
             // Half a window out of step with the monitor's lines.
             tracking: Tracking::new(c.tracking, c.tracking.window / 2),
             current: y0,
+            next: y0,
             preview: preview_ticks(design.mean_delay(&model)),
+            duty_min: c.duty_min,
+            duty_max,
+            duty_step: c.duty_step,
+            applied,
+            reading: None,
+            v,
+            gain,
+            offset: model.intercept() / (1.0 - sum_theta) * f32::from(FLOW_SCALE),
         }
     }
 
-    /// One tick: the duty `applied` during the interval that ended with `reading` (counts;
-    /// `None` after a sensor error, `last` is then the held reading). Returns the duty for the
-    /// next interval; puts at most one event into `event`, which must be empty (the
-    /// monitor's; the tracking's waits a tick when both fall on the same tick). Events are
-    /// written in place, not returned and moved: each move of a 74-byte event costs ~550
-    /// cycles of the ATmega2560's control tick.
-    pub(super) fn step(
-        &mut self,
-        applied: u16,
-        reading: Option<i16>,
-        last: i16,
-        event: &mut Option<Event>,
-    ) -> u16 {
+    /// The part of a tick before the PWM write: the duty `applied` during the interval that
+    /// ended with `reading` (counts; `None` after a sensor error, `last` is then the held
+    /// reading). Returns the duty for the next interval: the map's inverse at the controller's
+    /// output, within the duty limits and at most the rate limit from `applied` (`applied`
+    /// again when the output is not finite).
+    pub(super) fn control(&mut self, applied: u16, reading: Option<i16>, last: i16) -> u16 {
+        self.applied = applied;
+        self.reading = reading;
         let y = f32::from(reading.unwrap_or(last)) * SLM_PER_COUNT;
         let ahead = self.setpoint.ahead(u32::from(self.preview));
-        let r = self.setpoint.advance();
-        let u = self.ctrl.step(ahead, y);
-        let duty = (u * f32::from(DUTY_FULL_SCALE) + 0.5) as u16;
-        let measured = reading.map(|c| f32::from(c) * SLM_PER_COUNT);
-        self.monitor.step(applied, reading, event);
-        self.tracking.step(self.current, measured, applied, event);
-        self.current = r;
-        duty.min(DUTY_FULL_SCALE)
+        self.next = self.setpoint.advance();
+        let v = self.ctrl.output(ahead, y);
+        if !v.is_finite() {
+            return applied;
+        }
+        let lo = applied.saturating_sub(self.duty_step).max(self.duty_min);
+        let hi = applied.saturating_add(self.duty_step).min(self.duty_max);
+        // `as` saturates: a flow beyond the i16 counts lands on the duty limits.
+        let counts = (v * f32::from(FLOW_SCALE)) as i16;
+        // Not `clamp`: it panics when lo > hi (a start below the lowest duty's step).
+        self.table.inverse(counts).max(lo).min(hi)
+    }
+
+    /// The part of a tick after the PWM write of `written` (the duty [`control`](Self::control)
+    /// returned, or 0 after a fault): the controller's memory takes the map's flow at it, the
+    /// monitor and the tracking take the interval that ended. Puts at most one event into
+    /// `event`, which must be empty (the monitor's; the tracking's waits a tick when both fall
+    /// on the same tick). Returns the flow the fault checks expect at `written` (counts): the
+    /// model's steady state there.
+    pub(super) fn after_write(&mut self, written: u16, event: &mut Option<Event>) -> i16 {
+        let counts = self.table.at(written);
+        let v = f32::from(counts) * SLM_PER_COUNT;
+        self.ctrl.commit(v);
+        let measured = self.reading.map(|c| f32::from(c) * SLM_PER_COUNT);
+        self.monitor.step(self.applied, self.v, self.reading, event);
+        self.tracking
+            .step(self.current, measured, self.applied, event);
+        self.current = self.next;
+        self.v = v;
+        // `as` saturates (and maps NaN to 0).
+        (self.gain * f32::from(counts) + self.offset) as i16
     }
 
     /// Tracks `program` from now on, starting from the setpoint in progress.

@@ -3,13 +3,13 @@
 //! the ticks go on ([`SelfIdentification::take_search`] → [`SearchJob::run`] →
 //! [`SelfIdentification::finish_search`]).
 
-use ridge_core::{ArxModel, Evaluation, IntGram, Normal, Search};
+use ridge_core::{ArxModel, InputMap, IntGram, Normal, Search};
 
 use crate::event::{Event, RejectReason, SearchStats};
-use crate::units::SCALE;
 
 use super::recording::{absolute_model, Recording};
 use super::{Phase, SelfIdentification, Settings};
+use crate::units::MODEL_SCALE;
 
 /// A structure search taken out of the state machine ([`SelfIdentification::take_search`]),
 /// to run in the main loop while the timer interrupt keeps calling
@@ -26,6 +26,8 @@ pub struct SearchJob {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SearchOutcome {
     result: Result<(ArxModel<f32>, SearchStats), RejectReason>,
+    /// The record's static map (the model's input goes through it).
+    map: InputMap,
     generation: u8,
 }
 
@@ -53,6 +55,7 @@ impl SearchJob {
     pub fn run(&self, mut pet: impl FnMut()) -> SearchOutcome {
         SearchOutcome {
             result: evaluate(&self.rec, &self.search, self.min_response, &mut pet),
+            map: self.rec.map,
             generation: self.generation,
         }
     }
@@ -71,7 +74,7 @@ fn evaluate(
     let mut normal = Normal::<f32>::empty();
     normal_equations(rec, min_response, &mut normal)?;
     pet();
-    select(&normal, rec.u0, rec.y0, search, pet)
+    select(&normal, rec.v0, rec.y0, search, pet)
 }
 
 /// The excitation check (response RMS at least `min_response`) and the normal equations of
@@ -85,17 +88,19 @@ fn normal_equations(
     if rms < min_response || rms.is_nan() {
         return Err(RejectReason::NotExcited { rms });
     }
-    rec.gram.normal_into(&SCALE, normal).map_err(|e| match e {
-        ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
-        e => RejectReason::Search(e),
-    })
+    rec.gram
+        .normal_into(&MODEL_SCALE, normal)
+        .map_err(|e| match e {
+            ridge_core::Error::NotExcited => RejectReason::NotExcited { rms },
+            e => RejectReason::Search(e),
+        })
 }
 
-/// The pruned search on `normal` (deviations from the operating point `u0`, `y0`) and the
-/// conversion to the absolute model, petting the watchdog as it goes and after.
+/// The pruned search on `normal` (deviations from the operating point `v0`, `y0`, counts) and
+/// the conversion to the absolute model, petting the watchdog as it goes and after.
 fn select(
     normal: &Normal<f32>,
-    u0: u16,
+    v0: i16,
     y0: i16,
     search: &Search<f32>,
     pet: &mut impl FnMut(),
@@ -104,7 +109,7 @@ fn select(
         .run_with_progress(normal, None, pet)
         .map_err(RejectReason::Search)?;
     pet();
-    let model = absolute_model(&found.fit.model(), u0, y0).map_err(RejectReason::Search)?;
+    let model = absolute_model(&found.fit.model(), v0, y0).map_err(RejectReason::Search)?;
     Ok((
         model,
         SearchStats {
@@ -159,13 +164,14 @@ impl<S: Settings> SelfIdentification<S> {
         };
         self.phase = Phase::SearchNormal {
             normal: Normal::empty(),
-            u0: rec.u0,
+            map: rec.map,
+            v0: rec.v0,
             y0: rec.y0,
         };
         if let Phase::SearchNormal { normal, .. } = &mut self.phase {
             let min_response = self.settings.config().min_response;
             if let Err(reason) = normal_equations(&rec, min_response, normal) {
-                self.phase = Phase::SearchRefused(reason);
+                self.phase = Phase::SearchRefused(reason, rec.map);
             }
         }
     }
@@ -176,17 +182,24 @@ impl<S: Settings> SelfIdentification<S> {
     /// [`search`](Self::search) does. Returns [`search`](Self::search)'s event; `None` when
     /// nothing was prepared.
     pub fn run_search(&mut self, mut pet: impl FnMut()) -> Option<Event> {
-        let result = match &self.phase {
-            Phase::SearchNormal { normal, u0, y0 } => {
+        let (result, map) = match &self.phase {
+            Phase::SearchNormal {
+                normal,
+                map,
+                v0,
+                y0,
+            } => {
                 pet();
-                select(normal, *u0, *y0, &self.settings.config().search, &mut pet)
+                let search = &self.settings.config().search;
+                (select(normal, *v0, *y0, search, &mut pet), *map)
             }
-            Phase::SearchRefused(reason) => Err(*reason),
+            Phase::SearchRefused(reason, map) => (Err(*reason), *map),
             _ => return None,
         };
         self.phase = Phase::Searching;
         self.finish_search(SearchOutcome {
             result,
+            map,
             generation: self.generation,
         })
     }
@@ -220,17 +233,14 @@ impl<S: Settings> SelfIdentification<S> {
             return None;
         }
         match outcome.result {
-            Ok((model, stats)) => {
-                self.phase = Phase::Validate {
-                    gen: self.settings.config().validation.generator(),
-                    eval: Evaluation::new(model),
-                    model,
-                    gaps: 0,
-                    started: false,
-                    complete: false,
-                };
-                Some(Event::Identified { model, stats })
-            }
+            Ok((model, stats)) => match self.validation(model, outcome.map) {
+                Some(phase) => {
+                    self.phase = phase;
+                    Some(Event::Identified { model, stats })
+                }
+                // Not reached: the same map gave the estimation record its levels.
+                None => Some(self.reject(RejectReason::NotExcited { rms: 0.0 })),
+            },
             Err(reason) => Some(self.reject(reason)),
         }
     }

@@ -27,7 +27,7 @@
 //! interval `k`: the duty applied during it, the flow at its end and its setpoint.
 
 use ridge_core::control::{design_slower_on_failure, Design};
-use ridge_core::ArxModel;
+use ridge_core::{ArxModel, InputMap};
 use ridge_pump_firmware::event::{Event, LINE_MAX};
 use ridge_pump_firmware::selfid::{
     preview_ticks, Config, ControlConfig, SelfIdentification, State, SLOWDOWN,
@@ -198,6 +198,20 @@ pub fn regulation_preview(model: &ArxModel<f32>, config: &Config) -> u8 {
     firmware_design(model, &config.control).map_or(0, |d| preview_ticks(d.mean_delay(model)))
 }
 
+/// The FOPDT fit of the identified model linearised at the duty `duty` (1/10 000), the
+/// baselines' plant model in slm per duty fraction: the dynamics' fit ([`fit_model`], gain
+/// slm per slm of the map's flow) times the map's slope around `duty` (its segment's, slm
+/// per unit duty).
+pub fn linearised(model: &ArxModel<f32>, map: &InputMap, duty: u16) -> Option<Fopdt> {
+    let mut f = fit_model(model, TS_S)?;
+    let half = map.step() / 2;
+    let rise =
+        f64::from(map.at(duty.saturating_add(half))) - f64::from(map.at(duty.saturating_sub(half)));
+    let slope = rise / 120.0 / (f64::from(map.step()) / f64::from(DUTY_FULL_SCALE));
+    f.k *= slope;
+    Some(f)
+}
+
 /// The state at the switch-over to run mode.
 #[derive(Clone, Debug)]
 pub struct Switchover {
@@ -213,8 +227,10 @@ pub struct Switchover {
     /// the response time the plant-derived design targets, not the RST's deliberately slower
     /// 0.08 s reference, which would give the PIDs their setpoint late.
     pub baseline_preview: u8,
-    /// The identified model (slm per duty fraction).
+    /// The identified model's dynamics (from the map's flow, slm per slm).
     pub model: ArxModel<f32>,
+    /// The identified model's static map from duty (1/10 000) to flow (counts).
+    pub map: InputMap,
     /// The tick of the switch-over since power-up.
     pub tick: u32,
     /// Every event line up to the switch-over (`CTRL …` last).
@@ -334,9 +350,12 @@ pub fn identify_with(
         }
         match sm.state() {
             State::Run => {
-                let (Some(flow), Some(preview), Some(model)) =
-                    (sm.setpoint(), sm.preview(), sm.model().copied())
-                else {
+                let (Some(flow), Some(preview), Some(model), Some(map)) = (
+                    sm.setpoint(),
+                    sm.preview(),
+                    sm.model().copied(),
+                    sm.map().copied(),
+                ) else {
                     break;
                 };
                 let sw = Switchover {
@@ -345,6 +364,7 @@ pub fn identify_with(
                     preview,
                     baseline_preview: regulation_preview(&model, config),
                     model,
+                    map,
                     tick,
                     events,
                 };
@@ -472,7 +492,7 @@ pub fn run_identified(
     zn: &ZnTuning,
     (rig, sm, sw): (Rig, SelfIdentification, Switchover),
 ) -> Result<CaseRun, ExperimentError> {
-    let fopdt = fit_model(&sw.model, TS_S).ok_or(ExperimentError::Fopdt)?;
+    let fopdt = linearised(&sw.model, &sw.map, sw.duty).ok_or(ExperimentError::Fopdt)?;
     let simc = simc_pi(&fopdt, TS_S).ok_or(ExperimentError::Fopdt)?;
     let traces = run_all(&rig, &sm, &sw, zn.gains, simc.gains)?;
     let mut quiet = rig;

@@ -11,15 +11,17 @@
 //! method, not a controller that could run: the choice uses the true plant.
 //!
 //! The loop here is `ridge_core::control::Controller` itself, fed as the firmware's run mode
-//! feeds it (the reading in slm, the program `preview` ticks ahead, the duty rounded to
-//! 1/10 000); with [`Knobs::FIRMWARE`] its duties equal the firmware's run mode's (test
-//! `the_firmware_knobs_reproduce_the_firmwares_run` in `pump-sim/tests/baseline.rs`).
+//! feeds it (the reading in slm, the program `preview` ticks ahead, its output a flow turned
+//! into duty through the model's map within the duty limits and rate limit, the map's flow at
+//! that duty back into its memory); with [`Knobs::FIRMWARE`] its duties equal the firmware's
+//! run mode's (test `the_firmware_knobs_reproduce_the_firmwares_run` in
+//! `pump-sim/tests/baseline.rs`).
 
-use ridge_core::control::{design_slower_on_failure, Controller, Design};
+use ridge_core::control::{design_slower_on_failure, Controller, Design, Limits};
 use ridge_pump_firmware::selfid::{preview_ticks, ControlConfig, REFERENCE_POLE, SLOWDOWN};
 use ridge_pump_firmware::setpoint;
 use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FRACTION_PER_DUTY, SLM_PER_COUNT};
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, SLM_PER_COUNT};
 
 use super::experiment::{
     firmware_design, noise_free_sensor, run_loop, score, Scores, Switchover, Trace,
@@ -94,17 +96,38 @@ pub fn run_design(
 ) -> Option<(Trace, u8)> {
     let program = c.program;
     let preview = preview_ticks(design.mean_delay(&sw.model));
-    // The firmware's own duty limits; the start, the reading and the duty's rounding convert
-    // as its run mode does (a function for the rounding cost the ATmega2560 16 B).
-    let full = f32::from(DUTY_FULL_SCALE);
-    let mut ctrl = Controller::new(design.rst, c.limits());
-    ctrl.start(f32::from(sw.duty) * FRACTION_PER_DUTY, sw.flow);
+    // The firmware's own duty limits, through the map for the controller's; the start, the
+    // reading, the inverse and the map's flow convert as its run mode does
+    // (`firmware/src/selfid/run.rs`).
+    let table = sw.map.table();
+    let slm = |duty: u16| f32::from(table.at(duty)) * SLM_PER_COUNT;
+    let duty_max = c.duty_max.min(DUTY_FULL_SCALE);
+    let limits = Limits {
+        min: slm(c.duty_min),
+        max: slm(duty_max),
+        max_step: f32::MAX,
+    };
+    let mut ctrl = Controller::new(design.rst, limits);
+    ctrl.start(slm(sw.duty), sw.flow);
+    let mut applied = sw.duty;
     let trace = run_loop(rig, sw, program, |k, raw| {
         let ahead = setpoint::value(program, sw.flow, k.saturating_add(u32::from(preview)));
         // The firmware's conversion: the sensor word to counts, counts to slm in f32.
         let y = f32::from(raw_to_counts(raw)) * SLM_PER_COUNT;
-        let u = ctrl.step(ahead, y);
-        Ok(((u * full + 0.5) as u16).min(DUTY_FULL_SCALE))
+        let v = ctrl.output(ahead, y);
+        let duty = if v.is_finite() {
+            let lo = applied.saturating_sub(c.duty_step).max(c.duty_min);
+            let hi = applied.saturating_add(c.duty_step).min(duty_max);
+            table
+                .inverse((v * f32::from(FLOW_SCALE)) as i16)
+                .max(lo)
+                .min(hi)
+        } else {
+            applied
+        };
+        ctrl.commit(slm(duty));
+        applied = duty;
+        Ok(duty)
     })
     .ok()?;
     Some((trace, preview))

@@ -205,6 +205,9 @@ pub struct Controller<T: Real> {
     hs: u8,
     /// The reference model's output `r_m,t` (the setpoint itself without a reference model).
     rm: T,
+    /// What [`output`](Self::output) computed for [`commit`](Self::commit): `t₀ r'_{t+1}`
+    /// and the output `v_{t+1}` as the observer form records it (`u_t` when it was not finite).
+    pending: [T; 2],
 }
 
 impl<T: Real> Controller<T> {
@@ -228,6 +231,7 @@ impl<T: Real> Controller<T> {
             hu: 0,
             hs: 0,
             rm: T::ZERO,
+            pending: [T::ZERO; 2],
         }
     }
 
@@ -260,7 +264,30 @@ impl<T: Real> Controller<T> {
     /// One tick: takes the reading `y_t` and the setpoint `r_{t+1}` for the coming interval,
     /// returns `u_{t+1}` within the limits and the rate limit (a NaN result holds `u_t`). With
     /// a reference model ([`Rst::set_reference`]) the setpoint moves the model's output first.
+    ///
+    /// The same as [`output`](Self::output), the limits, then [`commit`](Self::commit) of the
+    /// limited value.
     pub fn step(&mut self, r_next: T, y: T) -> T {
+        let last = self.last();
+        let v = self.output(r_next, y);
+        let applied = if v.is_finite() {
+            let lo = max(self.limits.min, last - self.limits.max_step);
+            let hi = min(self.limits.max, last + self.limits.max_step);
+            min(max(v, lo), hi)
+        } else {
+            last
+        };
+        self.commit(applied);
+        applied
+    }
+
+    /// First half of a tick, for a caller that limits the output itself (e.g. in other units,
+    /// after a static map): takes the reading `y_t` and the setpoint `r_{t+1}`, returns the
+    /// controller's unlimited output `v_{t+1}` (NaN or ±∞ when it is not finite: apply `u_t`
+    /// again). [`commit`](Self::commit) must follow, with the input actually applied, before
+    /// the next `output`. The reference model holds while [`last`](Self::last) sits at the
+    /// limit the setpoint pulls it towards ([`Limits::min`], [`Limits::max`]).
+    pub fn output(&mut self, r_next: T, y: T) -> T {
         let c = &self.rst;
         // t₀ times the setpoint `T` sees, (r_m,t+1 − α r_m,t) / (1 − α) (r_{t+1} itself
         // without a reference model), as t₀ r_m,t+1 + t₀ α / (1 − α) · (r_m,t+1 − r_m,t).
@@ -292,24 +319,31 @@ impl<T: Real> Controller<T> {
         let ao = c.ao().get(1..).unwrap_or(&[]);
         let v = tr - ring_dot(c.s(), &self.y, hs) - ring_dot(ru, &self.u, hu)
             + ring_dot(ao, &self.z, hs_old);
-        let lo = max(self.limits.min, last - self.limits.max_step);
-        let hi = min(self.limits.max, last + self.limits.max_step);
-        let (v, applied) = if v.is_finite() {
-            (v, min(max(v, lo), hi))
+        let recorded = if v.is_finite() {
+            v
         } else {
             // A non-finite setpoint must not stay in the reference model's state.
             self.rm = y;
-            (last, last)
+            last
         };
-        let hu = ring_back(hu, R_LEN);
-        if let (Some(zz), Some(uu)) = (self.z.get_mut(hs), self.u.get_mut(hu)) {
+        // Below its capacity (7).
+        self.hs = hs as u8;
+        self.pending = [tr, recorded];
+        v
+    }
+
+    /// Second half of a tick after [`output`](Self::output): records `applied`, the input
+    /// actually applied for the coming interval (the output after the caller's limits; the
+    /// controller's state follows it, see the anti-windup above).
+    pub fn commit(&mut self, applied: T) {
+        let [tr, v] = self.pending;
+        let hu = ring_back(usize::from(self.hu), R_LEN);
+        if let (Some(zz), Some(uu)) = (self.z.get_mut(usize::from(self.hs)), self.u.get_mut(hu)) {
             *zz = tr - v;
             *uu = applied;
         }
-        // Both below their capacities (13 and 7).
+        // Below its capacity (13).
         self.hu = hu as u8;
-        self.hs = hs as u8;
-        applied
     }
 }
 

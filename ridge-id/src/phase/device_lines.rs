@@ -1,13 +1,15 @@
-//! The pump's report lines in a capture that `--phase` reads: `# EXCITE` (the record
-//! announced before an excitation segment, [`ExciteLine`]) and `# ID` (the model the pump
-//! identified on it, [`DeviceId`]). The firmware writes them (`firmware/src/event.rs`) and
-//! parses them (`firmware/src/lines.rs`, its one host-side parser); here they become
-//! ridge-id's records, in physical units and with the capture's line numbers.
+//! The pump's report lines in a capture that `--phase` reads: `# MAP` (the static map the
+//! attempt measured, [`DeviceMap`]), `# EXCITE` (the record announced before an excitation
+//! segment, [`ExciteLine`]) and `# ID` (the model the pump identified on it, [`DeviceId`]). The
+//! firmware writes them (`firmware/src/event.rs`) and parses them (`firmware/src/lines.rs`, its
+//! one host-side parser); here they become ridge-id's records, in physical units and with the
+//! capture's line numbers.
 
 use std::path::Path;
 
-use ridge_core::Offset;
+use ridge_core::{InputMap, Offset};
 use ridge_pump_firmware::lines;
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE};
 
 use crate::error::IdError;
 
@@ -16,7 +18,7 @@ use crate::error::IdError;
 pub struct ExciteLine {
     /// Line number of the comment.
     pub line: u64,
-    /// The excitation preset, e.g. `A-Multistep`.
+    /// The record's name, e.g. `flow-steps`.
     pub record: String,
     /// Samples announced (`n`).
     pub samples: u32,
@@ -28,8 +30,48 @@ pub struct ExciteLine {
     pub attempt: String,
 }
 
-/// The model the pump reported after a segment (its `# ID` line): the absolute model
-/// (duty as a fraction, flow in slm) with its intercept.
+/// The pump's `# MAP` line: the static map from duty to flow its model's input goes through
+/// (the pump identifies the dynamics from the map's flow to the measured flow).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DeviceMap {
+    /// Line number of the comment.
+    pub line: u64,
+    /// The map: duty in 1/10 000 to flow in counts of 1/120 slm, exactly as the pump holds it.
+    pub map: InputMap,
+}
+
+impl DeviceMap {
+    /// The map's flow (slm) at the duty fraction `u` as the log prints it (4 decimals: the
+    /// pump's whole 1/10 000), the pump's `InputMap::at`.
+    pub fn flow(&self, u: f64) -> f64 {
+        let duty = (u * f64::from(DUTY_FULL_SCALE))
+            .round()
+            .clamp(0.0, 65_535.0) as u16;
+        f64::from(self.map.at(duty)) / f64::from(FLOW_SCALE)
+    }
+}
+
+/// Parses the rest of a `MAP` comment: `first=15.00 step=5.33 flow=…` (the firmware's parser).
+pub(super) fn parse_map(rest: &str, name: &Path, line: u64) -> Result<DeviceMap, IdError> {
+    let parsed = lines::MapLine::parse(&format!("MAP {rest}")).map_err(|e| {
+        IdError::line(
+            name,
+            line,
+            format!(
+                "MAP line: {e} (expected `# MAP first=<duty %> step=<duty %> flow=<16 \
+                 increasing flows, slm>`)"
+            ),
+        )
+    })?;
+    Ok(DeviceMap {
+        line,
+        map: parsed.map,
+    })
+}
+
+/// The model the pump reported after a segment (its `# ID` line): the absolute model (the
+/// map's flow in slm in, or the duty as a fraction for a pump without a map; flow in slm out)
+/// with its intercept.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DeviceId {
     /// Line number of the comment.
@@ -44,7 +86,7 @@ pub struct DeviceId {
     pub offset: bool,
     /// Output coefficients θ_1..θ_p (6 decimals as printed).
     pub theta: Vec<f64>,
-    /// Input coefficients φ_0..φ_{q−1}, slm per unit duty.
+    /// Input coefficients φ_0..φ_{q−1}, slm of flow per slm of the map's flow.
     pub phi: Vec<f64>,
     /// Intercept, slm.
     pub c: f64,
@@ -52,7 +94,7 @@ pub struct DeviceId {
     pub iterations: Option<u32>,
 }
 
-/// Parses the rest of an `EXCITE` comment: `A-Multistep n=3000 u0=30.00 y0=19.058
+/// Parses the rest of an `EXCITE` comment: `flow-steps n=700 u0=30.00 y0=19.058
 /// attempt=1/3` (the firmware's parser; the operating point exactly in its units).
 pub(super) fn parse_excite(rest: &str, name: &Path, line: u64) -> Result<ExciteLine, IdError> {
     let parsed = lines::ExciteLine::parse(&format!("EXCITE {rest}")).map_err(|e| {

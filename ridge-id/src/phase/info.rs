@@ -4,7 +4,7 @@
 use ridge_core_host::{ArxModel, Offset};
 use serde::Serialize;
 
-use super::device_lines::{DeviceId, ExciteLine};
+use super::device_lines::{DeviceId, DeviceMap, ExciteLine};
 use super::options::SegmentOptions;
 use super::read::Segment;
 
@@ -21,6 +21,8 @@ pub struct SegmentInfo {
     pub lines: (u64, u64),
     /// The `# EXCITE` line before it, if any.
     pub excite: Option<ExciteLine>,
+    /// The `# MAP` line its input went through, if any.
+    pub map: Option<DeviceMap>,
     /// The pump's `# ID` line after it, if any.
     pub device: Option<DeviceId>,
     /// The operating point subtracted, `(u0, y0)` in the log's units.
@@ -36,6 +38,7 @@ impl Segment {
             count: self.count,
             lines: self.lines(),
             excite: self.excite.clone(),
+            map: self.map,
             device: self.device.clone(),
             operating_point: self.operating_point,
         }
@@ -49,7 +52,7 @@ pub struct Agreement {
     pub same_structure: bool,
     /// Largest |Δθ_i| (with the same structure; else `None`).
     pub theta: Option<f64>,
-    /// Largest |Δφ_j|, slm per unit duty.
+    /// Largest |Δφ_j|, in the model's units (slm per slm of the map's flow).
     pub phi: Option<f64>,
     /// |Δc|, slm.
     pub c: Option<f64>,

@@ -7,11 +7,16 @@
 //!
 //! ```text
 //! t,u,y,r,phase
-//! # EXCITE A-Multistep n=3000 u0=30.00 y0=19.058 attempt=1/3
-//! 2.51,0.3000,19.05833,,settle
-//! 2.52,0.5000,19.06667,,excite
+//! # SCAN n=441 lag=20 u0=30.00 y0=19.058 attempt=1/3
+//! 1.52,0.3040,19.06667,,scan
 //! …
-//! # ID p=1 q=1 d=3 off=1 theta=0.935000 phi=6.500000 c=-0.125000 score=-1234.5 eval=14/252 skip=0 iters=200
+//! # MAP first=15.00 step=5.33 flow=6.325,8.417,13.433,…
+//! …
+//! # EXCITE flow-steps n=700 u0=30.00 y0=19.058 attempt=1/3
+//! 5.94,0.4512,19.05833,,scan
+//! 5.95,0.4512,21.26667,,excite
+//! …
+//! # ID p=5 q=4 d=3 off=1 theta=… phi=… c=-0.218269 score=1149.6 eval=1/252 skip=0 iters=10
 //! ```
 //!
 //! A *segment* is a maximal run of consecutive rows whose `phase` cell equals the asked
@@ -19,6 +24,12 @@
 //! record; the `# EXCITE` comment before it gives the record's length `n` and its operating
 //! point (`u0` in percent, `y0` in slm), and the first `# ID` comment after it the model the
 //! pump identified on it ([`DeviceId`]).
+//!
+//! The pump's model is Hammerstein (`firmware/src/selfid/`): the static map of the attempt's
+//! `# MAP` line, then the dynamics from the map's flow to the measured flow. When a `# MAP`
+//! comment precedes the segment's `# EXCITE` line, the segment's input is that map's flow
+//! (slm) at each row's duty, and so is the operating point's (`u0` through the map): the
+//! statistics the pump accumulated ([`DeviceMap`]).
 //!
 //! Which segment: the `--attempt N`-th of the file (counted from 1 in file order), or by
 //! default the last *complete* one (followed by a row of another phase, or holding the `n`
@@ -46,7 +57,7 @@ mod options;
 mod read;
 mod shift;
 
-pub use device_lines::{DeviceId, ExciteLine};
+pub use device_lines::{DeviceId, DeviceMap, ExciteLine};
 pub use info::{Agreement, SegmentInfo};
 pub use options::{OperatingPoint, SegmentOptions, EXCITE_PHASE};
 pub use read::{read, read_from, Segment};

@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use ridge_pump_firmware::units::SAMPLE_RATE_HZ;
 
-use super::device_lines::{parse_excite, parse_id, DeviceId, ExciteLine};
+use super::device_lines::{parse_excite, parse_id, parse_map, DeviceId, DeviceMap, ExciteLine};
 use super::lines::Lines;
 use super::options::{OperatingPoint, SegmentOptions, EXCITE_PHASE};
 use crate::csv::{column, found, number, unquote, Sample};
@@ -20,7 +20,8 @@ use crate::input::{Input, MEMORY_ROWS};
 pub struct Segment {
     /// The capture file.
     pub path: PathBuf,
-    /// Its rows as samples (absolute values, as logged), with their lines.
+    /// Its rows as samples (absolute values: as logged, the input through [`Segment::map`]
+    /// when there is one), with their lines.
     pub samples: Vec<Sample>,
     /// Which segment of the file it is (from 1) and how many of that phase the file has.
     pub index: u32,
@@ -28,9 +29,12 @@ pub struct Segment {
     pub count: u32,
     /// The `# EXCITE` comment that announced it, if any.
     pub excite: Option<ExciteLine>,
+    /// The `# MAP` comment before that `# EXCITE` line, if any: the samples' input and the
+    /// operating point's are the map's flow (slm) at the logged duty.
+    pub map: Option<DeviceMap>,
     /// The first `# ID` comment after it (before the next segment), if any.
     pub device: Option<DeviceId>,
-    /// The operating point subtracted, `(u0, y0)` in the log's units (`None`: nothing).
+    /// The operating point subtracted, `(u0, y0)` in the samples' units (`None`: nothing).
     pub operating_point: Option<(f64, f64)>,
 }
 
@@ -50,6 +54,7 @@ struct Building {
     index: u32,
     samples: Vec<Sample>,
     excite: Option<ExciteLine>,
+    map: Option<DeviceMap>,
     /// The previous row's `t` and line.
     last_t: Option<(f64, u64)>,
     /// The sample period `t` must step by, s: the pump's with an `# EXCITE` line, else the
@@ -115,6 +120,9 @@ pub fn read_from(
     let mut kept: Option<Building> = None;
     let mut count = 0u32;
     let mut last_excite: Option<ExciteLine> = None;
+    // The last `# MAP` line, and the one current when the last `# EXCITE` line came.
+    let mut last_map: Option<DeviceMap> = None;
+    let mut excite_map: Option<DeviceMap> = None;
     // A malformed row since the last good one, while a segment was being read.
     let mut bad_row: Option<IdError> = None;
     let mut phases: Vec<String> = Vec::new();
@@ -128,6 +136,9 @@ pub fn read_from(
             let comment = comment.trim();
             if let Some(rest) = comment.strip_prefix("EXCITE ") {
                 last_excite = Some(parse_excite(rest, name, line)?);
+                excite_map = last_map.take();
+            } else if let Some(rest) = comment.strip_prefix("MAP ") {
+                last_map = Some(parse_map(rest, name, line)?);
             } else if let Some(rest) = comment.strip_prefix("ID ") {
                 // The pump's result for the segment just read (before any later segment).
                 let target = match (&mut current, &mut kept) {
@@ -185,6 +196,7 @@ pub fn read_from(
             let excite = last_excite.take();
             Building {
                 index: count,
+                map: excite.as_ref().and(excite_map.take()),
                 announced: excite
                     .as_ref()
                     .filter(|_| opts.phase == EXCITE_PHASE)
@@ -348,11 +360,20 @@ fn finish(b: Building, count: u32, name: &Path, opts: &SegmentOptions) -> Result
             ),
         ));
     }
+    // Through the map: the input is its flow at the logged duty, the logged operating
+    // point's too (a given one is in the samples' units already).
+    let mut samples = b.samples;
+    if let Some(m) = &b.map {
+        for s in &mut samples {
+            s.u = m.flow(s.u);
+        }
+    }
+    let through = |u0: f64| b.map.as_ref().map_or(u0, |m| m.flow(u0));
     let operating_point = match opts.operating_point {
         OperatingPoint::None => None,
         OperatingPoint::Given { u0, y0 } => Some((u0, y0)),
         OperatingPoint::Log => match &b.excite {
-            Some(e) => Some((e.u0, e.y0)),
+            Some(e) => Some((through(e.u0), e.y0)),
             None => {
                 return Err(IdError::file(
                     name,
@@ -367,10 +388,11 @@ fn finish(b: Building, count: u32, name: &Path, opts: &SegmentOptions) -> Result
     };
     Ok(Segment {
         path: name.to_path_buf(),
-        samples: b.samples,
+        samples,
         index: b.index,
         count,
         excite: b.excite,
+        map: b.map,
         device: b.device,
         operating_point,
     })

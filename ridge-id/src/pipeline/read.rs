@@ -120,6 +120,12 @@ pub(super) fn read(opts: &Options) -> Result<Records, IdError> {
     let (est_in, val_in) = match &segment {
         Some(seg) => {
             let val = opts.validate.as_deref().map(Input::open).transpose()?;
+            // The model's input is the map's flow when the segment's was: the validation
+            // record's duty goes through the same map.
+            let val = match &seg.map {
+                Some(m) => val.map(|v| v.through(*m)),
+                None => val,
+            };
             (seg.input(), val)
         }
         None => Input::open_pair(&opts.input, opts.validate.as_deref())?,

@@ -291,8 +291,18 @@ impl SegmentInfo {
             count: u32,
             lines: [u64; 2],
             excite_line: Option<u64>,
+            /// The `# MAP` line the input went through: its line, first knot and spacing
+            /// (duty fraction), and its 16 flows (slm).
+            map: Option<Map>,
             operating_point: Option<[f64; 2]>,
             device: Option<Device<'a>>,
+        }
+        #[derive(Serialize)]
+        struct Map {
+            line: u64,
+            first: f64,
+            step: f64,
+            flow: Vec<f64>,
         }
         let j = Json {
             phase: &self.phase,
@@ -300,6 +310,17 @@ impl SegmentInfo {
             count: self.count,
             lines: [self.lines.0, self.lines.1],
             excite_line: self.excite.as_ref().map(|e| e.line),
+            map: self.map.as_ref().map(|m| Map {
+                line: m.line,
+                first: f64::from(m.map.first()) / 10_000.0,
+                step: f64::from(m.map.step()) / 10_000.0,
+                flow: m
+                    .map
+                    .knots()
+                    .iter()
+                    .map(|k| f64::from(*k) / 120.0)
+                    .collect(),
+            }),
             operating_point: self.operating_point.map(|(u, y)| [u, y]),
             device: self.device.as_ref().map(|d| Device {
                 line: d.line,

@@ -24,6 +24,22 @@ impl SegmentInfo {
             "  segment     phase {}: segment {} of {} (lines {}–{}){excite}\n",
             self.phase, self.index, self.count, self.lines.0, self.lines.1
         );
+        if let Some(m) = &self.map {
+            let knots: Vec<String> = m
+                .map
+                .knots()
+                .iter()
+                .map(|k| format!("{:.3}", f64::from(*k) / 120.0))
+                .collect();
+            o += &format!(
+                "  map         MAP line {}: duty {:.2} % + k x {:.2} % -> flow [{}] slm; u is \
+                 the map's flow at the logged duty (the pump's model is from it)\n",
+                m.line,
+                f64::from(m.map.first()) / 100.0,
+                f64::from(m.map.step()) / 100.0,
+                knots.join(", ")
+            );
+        }
         match self.operating_point {
             Some((u0, y0)) => {
                 o += &format!(

@@ -156,7 +156,12 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
         format!(", {resets} reset(s)")
     };
     report::run_summary(&mut s, bench.time_s(), out.wall_s, &extra, &[]);
-    let mut ok = report::model(&mut s, out.id.as_ref(), out.estimation.as_ref());
+    let mut ok = report::model(
+        &mut s,
+        out.map.as_ref(),
+        out.id.as_ref(),
+        out.estimation.as_ref(),
+    );
 
     let model = out.id.as_ref().and_then(|id| id.model.arx().ok());
     let fresh = model.as_ref().map(|_| {
@@ -170,6 +175,7 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
             &cfg.bench.sensor,
             cfg.bench.seed.wrapping_add(1000),
             FRESH_RECORD,
+            out.map,
             3_000,
             latency,
         );
