@@ -18,6 +18,43 @@ pub const FRESH_RECORD: Record = Record::BRamp;
 /// Plant sub-steps per 10 ms tick in both benches (0.5 ms each).
 pub const SUBSTEPS: usize = 20;
 
+/// What the fresh signal's sensor-noise seed adds to the run's seed (a new noise draw).
+pub const FRESH_SEED_OFFSET: u64 = 1000;
+
+/// The fresh signal's base duty, 1/10 000 (30 %: held 2 s before the record).
+pub const FRESH_BASE: u16 = 3_000;
+
+/// Write latency (0.5 ms sub-steps) when the estimation record could not be rebuilt.
+pub const FRESH_LATENCY_DEFAULT: usize = 2;
+
+/// The report's fresh validation signal for a run with noise seed `seed`: [`FRESH_RECORD`]
+/// from [`FRESH_BASE`], noise seed `seed + FRESH_SEED_OFFSET`, the measured write `latency`
+/// (or [`FRESH_LATENCY_DEFAULT`]), the model's `map`; `frac` as in [`fresh_record`]. Returns
+/// the record and the latency used.
+pub fn fresh_signal(
+    pump: &PumpParams,
+    lung: Option<&LungParams>,
+    sensor: &Sfm3300Params,
+    seed: u64,
+    map: Option<InputMap>,
+    latency: Option<usize>,
+    frac: impl Fn(u16) -> f64,
+) -> (Samples, usize) {
+    let latency = latency.unwrap_or(FRESH_LATENCY_DEFAULT);
+    let rec = fresh_record(
+        pump,
+        lung,
+        sensor,
+        seed.wrapping_add(FRESH_SEED_OFFSET),
+        FRESH_RECORD,
+        map,
+        FRESH_BASE,
+        latency,
+        frac,
+    );
+    (rec, latency)
+}
+
 /// Free-run and one-step fits (%) of `model` on `samples` (physical units, the input through
 /// the samples' map; ridge-core's `Evaluation`, eq. 16 of the paper), with the trace for a
 /// plot.

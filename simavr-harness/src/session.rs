@@ -37,6 +37,11 @@ pub fn pwm_counts(duty: u16) -> u32 {
     u32::from(duty_to_counts(duty, PWM_MAX as u16))
 }
 
+/// The duty fraction the pump sees for a duty in 1/10 000: [`pwm_counts`] of [`PWM_MAX`].
+pub fn pwm_fraction(duty: u16) -> f64 {
+    pwm_counts(duty) as f64 / f64::from(PWM_MAX)
+}
+
 /// Tick timing summary.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Timing {
@@ -404,8 +409,17 @@ pub fn fresh_record(
     base: u16,
     latency: usize,
 ) -> Samples {
-    let frac = |d: u16| pwm_counts(d) as f64 / f64::from(PWM_MAX);
-    validation::fresh_record(pump, lung, sensor, seed, record, map, base, latency, frac)
+    validation::fresh_record(
+        pump,
+        lung,
+        sensor,
+        seed,
+        record,
+        map,
+        base,
+        latency,
+        pwm_fraction,
+    )
 }
 
 /// Median sub-steps between a read and the PWM change that follows it in the same tick, over

@@ -6,7 +6,7 @@
 use std::path::PathBuf;
 
 use harness_kit::report::{self, Board, Control, Validation, Work};
-use harness_kit::validation::FRESH_RECORD;
+use harness_kit::validation;
 
 use crate::bench::secs;
 use crate::machine::CPI;
@@ -98,20 +98,17 @@ pub fn render(out: &Outcome, cfg: &SessionConfig, opts: &Options) -> (String, bo
         let latency = out
             .estimation
             .as_ref()
-            .map_or(2, |e| session::write_latency(bench, e));
+            .map(|e| session::write_latency(bench, e));
         let period = bench.duty_now().period;
-        let rec = session::fresh_record(
+        validation::fresh_signal(
             &cfg.bench.pump,
             cfg.bench.lung.as_ref(),
             &cfg.bench.sensor,
-            cfg.bench.seed.wrapping_add(1000),
-            FRESH_RECORD,
+            cfg.bench.seed,
             out.map,
-            3_000,
             latency,
-            period,
-        );
-        (rec, latency)
+            |d| session::duty_fraction(d, period),
+        )
     });
     report::validation(
         &mut s,

@@ -304,6 +304,12 @@ pub fn duty_counts(duty: u16, period: u32) -> u32 {
     ))
 }
 
+/// The duty fraction the pump sees for a duty in 1/10 000 with a `period`-count PWM period
+/// ([`duty_counts`] of it).
+pub fn duty_fraction(duty: u16, period: u32) -> f64 {
+    f64::from(duty_counts(duty, period)) / f64::from(period.max(1))
+}
+
 /// Rebuilds the record announced by line `idx` (`EXCITE` / `VALIDATE`) from the frames served
 /// and the duty log (`harness_kit::samples::rebuild`, the duty checked in TIM3 counts).
 pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
@@ -357,7 +363,7 @@ pub fn fresh_record(
     latency: usize,
     period: u32,
 ) -> Samples {
-    let frac = |d: u16| f64::from(duty_counts(d, period)) / f64::from(period.max(1));
+    let frac = |d: u16| duty_fraction(d, period);
     validation::fresh_record(pump, lung, sensor, seed, record, map, base, latency, frac)
 }
 

@@ -10,7 +10,7 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use harness_kit::report::{self, Board, Control, Validation, Work};
-use harness_kit::validation::FRESH_RECORD;
+use harness_kit::validation;
 use pump_sim::baseline::experiment::run_ticks;
 use pump_sim::PlantArgs;
 use simavr_harness::session::{self, Outcome, SessionConfig};
@@ -168,18 +168,16 @@ fn print_outcome(args: &Args, cfg: &SessionConfig, out: &Outcome) -> ExitCode {
         let latency = out
             .estimation
             .as_ref()
-            .map_or(2, |e| session::write_latency(bench, e));
-        let rec = session::fresh_record(
+            .map(|e| session::write_latency(bench, e));
+        validation::fresh_signal(
             &cfg.bench.pump,
             cfg.bench.lung.as_ref(),
             &cfg.bench.sensor,
-            cfg.bench.seed.wrapping_add(1000),
-            FRESH_RECORD,
+            cfg.bench.seed,
             out.map,
-            3_000,
             latency,
-        );
-        (rec, latency)
+            session::pwm_fraction,
+        )
     });
     report::validation(
         &mut s,
