@@ -230,3 +230,90 @@ pub fn write<W: ufmt::uWrite>(w: &mut W) {
     let _ = ufmt::uwriteln!(w, "u64mul {} {}", (p >> 32) as u32, p as u32);
     let _ = ufmt::uwriteln!(w, "end");
 }
+
+/// The structure of the re-identification check and benchmark: `p + q` + intercept = 9
+/// coefficients, the largest window of `docs/control.md` (10 columns with the target).
+pub const REID_STRUCTURE: Structure = Structure { p: 5, q: 3, d: 2 };
+
+/// Sample `t` of the re-identification record, counts: a staircase input (`u`, 7 levels
+/// held 43 ticks) and a second-order response with pseudo-random noise (`y`), in integers so
+/// that the board and the host see the same samples.
+pub fn reid_sample(t: u32, y1: i16, y2: i16) -> (i16, i16) {
+    let u = 600 + ((t / 43) % 7) as i32 * 500 - 1500;
+    let mut x = t.wrapping_mul(2_654_435_761) ^ 0x5bd1_e995;
+    x ^= x >> 15;
+    let noise = (x % 61) as i32 - 30;
+    let y = (14 * i32::from(y1) - 5 * i32::from(y2)) / 10 + u / 4 + 200 + noise;
+    (u as i16, y.clamp(-32_000, 32_000) as i16)
+}
+
+/// Fills `window` with `ticks` samples of [`reid_sample`], a breath boundary every 250.
+pub fn reid_fill(window: &mut ridge_core::reid::Window<'_>, ticks: u32) {
+    let (mut y1, mut y2) = (0i16, 0i16);
+    for t in 0..ticks {
+        let (u, y) = reid_sample(t, y1, y2);
+        let _ = window.push(u, y);
+        if t % 250 == 249 {
+            window.end_breath();
+        }
+        y2 = y1;
+        y1 = y;
+    }
+}
+
+/// Re-identification (`ridge_core::reid`): the window's statistics and the sliced fit (one
+/// unit per call, as a tick would run it), printed as integers and bit patterns, then `end`.
+/// A part of its own (the `AVR_ARITH=reid` image): with [`write`] the image would pass 64 KB
+/// of flash (71 KB measured), where this check's `.data` copy is not yet shown to work.
+pub fn write_reid<W: ufmt::uWrite>(w: &mut W) {
+    reid_lines(w);
+    let _ = ufmt::uwriteln!(w, "end");
+}
+
+fn reid_lines<W: ufmt::uWrite>(w: &mut W) {
+    use ridge_core::reid::{window_len, Refit, RefitStep, Window};
+    let mut store = [0i64; window_len(9)];
+    let Ok(mut win) = Window::new(REID_STRUCTURE, Offset::Intercept, 2, &mut store) else {
+        let _ = ufmt::uwriteln!(w, "reid window error");
+        return;
+    };
+    reid_fill(&mut win, 1500);
+    let _ = ufmt::uwriteln!(w, "reid rows {} weight {}", win.rows(), win.weight());
+    for i in 0..=win.params() {
+        let (a, b) = (win.entry(i, 0), win.entry(i, i));
+        let _ = ufmt::uwriteln!(
+            w,
+            "reid g {} {} {} {} {}",
+            i,
+            (a >> 32) as u32,
+            a as u32,
+            (b >> 32) as u32,
+            b as u32
+        );
+    }
+    let scale = ridge_pump_firmware::units::SCALE;
+    let Ok(mut refit) = Refit::start(&win, RidgeM::PAPER, &scale) else {
+        let _ = ufmt::uwriteln!(w, "reid start error");
+        return;
+    };
+    let _ = ufmt::uwriteln!(w, "reid response {}", refit.response().to_bits());
+    let mut calls = 0u32;
+    loop {
+        calls += 1;
+        match refit.step(1) {
+            RefitStep::Working => {}
+            RefitStep::Done(m, k) => {
+                let _ = ufmt::uwriteln!(w, "reid calls {} iterations {}", calls, k);
+                for v in m.theta().iter().chain(m.phi()) {
+                    let _ = ufmt::uwriteln!(w, "reid coef {}", v.to_bits());
+                }
+                let _ = ufmt::uwriteln!(w, "reid intercept {}", m.intercept().to_bits());
+                break;
+            }
+            RefitStep::Refused(_) => {
+                let _ = ufmt::uwriteln!(w, "reid refused");
+                break;
+            }
+        }
+    }
+}

@@ -19,6 +19,7 @@ pub mod paper;
 pub mod plant;
 pub mod powerup;
 pub mod pump;
+pub mod reid;
 pub mod sfm3300;
 
 use std::fs::File;

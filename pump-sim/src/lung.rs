@@ -98,6 +98,12 @@ impl Lung {
         &self.params
     }
 
+    /// Changes the lung's parameters now (a sudden change of compliance, resistance, PEEP or
+    /// leak), keeping its volume: the pressure jumps to `V / C'`.
+    pub fn set_params(&mut self, params: LungParams) {
+        self.params = params;
+    }
+
     /// Lung pressure `V / C`, cmH₂O.
     pub fn pressure(&self) -> f64 {
         self.volume / self.params.compliance

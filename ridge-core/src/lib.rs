@@ -26,6 +26,8 @@
 //!    default), BIC or validation loss, exactly pruned.
 //! 6. [`ArxModel`], [`Predictor`], [`Evaluation`]: one-step and free-run prediction with
 //!    RMSE and fit %, seeded with measured samples.
+//! 7. [`reid`]: re-identification of one structure from a running loop's data: windowed
+//!    exact statistics forgotten once a breath, Ridge-M in bounded slices, its checks.
 //!
 //! Compile-time maxima: `p ≤ P_MAX = 6`, `q ≤ Q_MAX = 6`, `d ≤ D_MAX = 6`. Nothing in
 //! the crate allocates or panics on bad data: every failure is an [`Error`].
@@ -49,6 +51,7 @@ mod modal;
 pub mod model;
 pub mod normal;
 pub mod real;
+pub mod reid;
 pub mod rls;
 pub mod search;
 pub mod structure;

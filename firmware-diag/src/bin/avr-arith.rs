@@ -1,6 +1,7 @@
 //! Arithmetic self-check image for the ATmega2560 (diagnostics, not flashed by users): runs
 //! the ridge-core statistics path on a fixed record and prints the results over USART0, so
-//! that a host run of the same computation can be compared bit for bit.
+//! that a host run of the same computation can be compared bit for bit. `AVR_ARITH=reid` at
+//! build time selects the re-identification part (`arith_check::write_reid`) instead.
 #![cfg_attr(target_arch = "avr", no_std, no_main)]
 
 #[cfg(not(target_arch = "avr"))]
@@ -34,7 +35,10 @@ mod image {
         dp.USART0.ucsr0a().write(|w| unsafe { w.bits(1 << 1) });
         dp.USART0.ucsr0b().write(|w| unsafe { w.bits(1 << 3) });
         dp.USART0.ucsr0c().write(|w| unsafe { w.bits(0b110) });
-        firmware_diag::arith_check::write(&mut Tx);
+        match option_env!("AVR_ARITH") {
+            Some("reid") => firmware_diag::arith_check::write_reid(&mut Tx),
+            _ => firmware_diag::arith_check::write(&mut Tx),
+        }
         loop {}
     }
 

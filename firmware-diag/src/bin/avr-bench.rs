@@ -28,6 +28,7 @@
 //! | `fmt-ours` | `ridge_pump_firmware::numfmt::Fixed` with `ufmt` |
 //! | `fmt-ufmt-float` | `ufmt_float::uFmt_f32::Four` with `ufmt` |
 //! | `fmt-core` | `core::fmt`'s `{:.4}` |
+//! | `reid-ours` | `ridge_core::reid` at 9 coefficients: a tick's `Window::push`, a breath's `end_breath`, `Refit::start`, and each unit of `Refit::step` (factor rows, solution, 3 iterates) |
 //!
 //! Protocol (read by `simavr-harness`'s `avr-bench`): for each measurement the image prints
 //! `M <variant> <label>`, raises PB7 (Arduino pin 13), calls the routine (`#[inline(never)]`),
@@ -703,6 +704,79 @@ mod image {
         core::fmt::Write::write_fmt(buf, format_args!("{v:.4}")).ok();
     }
 
+    // ------------------------------------------------------------------ re-identification
+
+    type Win<'a> = ridge_core::reid::Window<'a>;
+    type Refit = ridge_core::reid::Refit<f32>;
+
+    /// One tick's statistics: a rank-1 update of the 10-column window.
+    #[inline(never)]
+    fn reid_push(w: &mut Win<'_>, u: i16, y: i16) -> bool {
+        w.push(u, y).is_ok()
+    }
+
+    /// The breath boundary's forgetting.
+    #[inline(never)]
+    fn reid_breath(w: &mut Win<'_>) {
+        w.end_breath();
+    }
+
+    /// The snapshot that starts a re-estimate.
+    #[inline(never)]
+    fn reid_start(w: &Win<'_>) -> Option<Refit> {
+        let m = ridge_core::RidgeM {
+            max_iter: 3,
+            tol: 0.0,
+            ..ridge_core::RidgeM::PAPER
+        };
+        Refit::start(w, m, &ridge_pump_firmware::units::SCALE).ok()
+    }
+
+    /// One unit of the re-estimate: 0 working, 1 done, 2 refused.
+    #[inline(never)]
+    fn reid_unit(r: &mut Refit) -> u8 {
+        match r.step(1) {
+            ridge_core::reid::RefitStep::Working => 0,
+            ridge_core::reid::RefitStep::Done(..) => 1,
+            ridge_core::reid::RefitStep::Refused(_) => 2,
+        }
+    }
+
+    fn bench_reid_ours() {
+        use firmware_diag::arith_check::{reid_fill, REID_STRUCTURE};
+        use ridge_core::reid::{window_len, Window};
+        let mut store = [0i64; window_len(9)];
+        let Ok(mut w) = Window::new(REID_STRUCTURE, ridge_core::Offset::Intercept, 2, &mut store)
+        else {
+            Tx.write_str("reid window error\n").ok();
+            return;
+        };
+        reid_fill(&mut w, 1499);
+        let ok = measure("reid-ours", "push", || {
+            reid_push(&mut w, black_box(-700), black_box(950))
+        });
+        word(u8::from(ok));
+        end();
+        measure("reid-ours", "breath", || reid_breath(&mut w));
+        word(w.weight());
+        end();
+        let Some(mut r) = measure("reid-ours", "start", || reid_start(&w)) else {
+            Tx.write_str("reid start error\n").ok();
+            return;
+        };
+        end();
+        // 10 factor rows, the solution, 3 iterates.
+        let labels = [
+            "row0", "row1", "row2", "row3", "row4", "row5", "row6", "row7", "row8", "row9",
+            "solution", "iter1", "iter2", "iter3",
+        ];
+        for label in labels {
+            let s = measure("reid-ours", label, || reid_unit(&mut r));
+            word(s);
+            end();
+        }
+    }
+
     // ------------------------------------------------------------------ main
 
     #[avr_device::entry]
@@ -817,6 +891,9 @@ mod image {
         }
         if const { runs("fmt-core") } {
             bench_fmt("fmt-core", fmt_core);
+        }
+        if const { runs("reid-ours") } {
+            bench_reid_ours();
         }
 
         Tx.write_str("DONE\n").ok();

@@ -150,8 +150,8 @@ fn run(
 // ---------------------------------------------------------------------- code size
 
 /// Families of the timed routines (`<family>_<variant>` in the image).
-const FAMILIES: [&str; 8] = [
-    "sqrt_", "chol_", "eig_", "push_", "pop_", "crc8_", "crc32_", "fmt_",
+const FAMILIES: [&str; 9] = [
+    "sqrt_", "chol_", "eig_", "push_", "pop_", "crc8_", "crc32_", "fmt_", "reid_",
 ];
 
 /// The timed routine a (Rust v0) mangled symbol names, if any: an identifier `<len><family>_…`.
