@@ -30,9 +30,18 @@
 //!   in its erase can outrank the newest one.
 //!
 //! The next save goes to the first erased slot of the sector holding the newest committed
-//! slot; when that sector is full, the **other** sector is erased first (it holds only older
-//! records) and the save goes to its first slot. An erase cut by a reset leaves the newest
-//! record, in the sector not being erased, loadable.
+//! slot; when that sector is full, it goes to the first slot of the **other** sector (which
+//! holds only older records), erased first unless it reads all `0xFF`. An erase cut by a reset
+//! leaves the newest record, in the sector not being erased, loadable.
+//!
+//! An erase stalls the CPU for 2 s (up to 4 s): the sensor is not read and the PWM holds its
+//! duty meanwhile, so it must not happen while the pump runs. The board erases at boot,
+//! before the pump is driven ([`boot_erase`]): the other sector, once the sector in use has
+//! fewer than [`RUN_SAVES`] erased slots left. A run can then make [`RUN_SAVES`] saves (all
+//! of them, if it started with fewer left) before one would need an erase; the board refuses
+//! that save instead (`PERSIST failed`), and the next boot makes the room. A sector is then
+//! erased once every [`SLOTS`] saves, as without the boot erase, and the boot that does it is
+//! 2 s longer.
 //!
 //! Loading ([`plan`]): the committed slot with the highest sequence number; a tombstone there
 //! means no record; a newest slot whose record is not whole ([`persist::intact`]: only bit rot
@@ -69,6 +78,10 @@ pub const SLOT_LEN: usize = PROGRAMMED_LEN.div_ceil(16) * 16;
 /// Slots in one sector.
 pub const SLOTS: usize = SECTOR_LEN / SLOT_LEN;
 
+/// Saves a run can make without an erase: at boot the other sector is erased when the sector in
+/// use has fewer erased slots left ([`boot_erase`]).
+pub const RUN_SAVES: usize = SLOTS / 2;
+
 /// The commit mark: `"RP"` and the record length.
 pub const MARK: [u8; 4] = {
     let len = (RECORD_LEN as u16).to_le_bytes();
@@ -99,7 +112,8 @@ pub struct Plan {
     pub load: Option<At>,
     /// The slot the next save programs.
     pub target: At,
-    /// Whether the target's sector must be erased first.
+    /// Whether the target's sector must be erased first (it is not blank): 2 s with the CPU
+    /// stalled, done only at boot ([`boot_erase`]).
     pub erase: bool,
     /// The sequence number the next save gets.
     pub seq: u32,
@@ -143,6 +157,11 @@ fn first_free(sector: &[u8]) -> usize {
             s.len() == SLOT_LEN && s.iter().all(|&b| b == 0xFF)
         })
         .unwrap_or(SLOTS)
+}
+
+/// Whether every slot of a sector reads erased (`0xFF`).
+fn blank(sector: &[u8]) -> bool {
+    sector.len() == SECTOR_LEN && sector.iter().all(|&b| b == 0xFF)
 }
 
 /// The committed slot with the highest sequence number below `below` (all: `None`).
@@ -193,11 +212,7 @@ pub fn plan(sectors: [&[u8]; 2]) -> Plan {
             _ => Some(at),
         }
     });
-    // The log goes on in the newest slot's sector; with none, in the first sector with room.
-    let active = match top {
-        Some((at, _)) => at.sector,
-        None => u8::from(first_free(sector(sectors, 0)) >= SLOTS),
-    };
+    let active = active(sectors, top);
     let free = first_free(sector(sectors, active));
     let (target, erase) = if free < SLOTS {
         let at = At {
@@ -206,12 +221,12 @@ pub fn plan(sectors: [&[u8]; 2]) -> Plan {
         };
         (at, false)
     } else {
-        // Full: the other sector, erased first (it holds only older records).
+        // Full: the other sector, erased first unless blank (it holds only older records).
         let at = At {
             sector: 1 - active,
             slot: 0,
         };
-        (at, true)
+        (at, !blank(sector(sectors, 1 - active)))
     };
     Plan {
         load,
@@ -219,6 +234,24 @@ pub fn plan(sectors: [&[u8]; 2]) -> Plan {
         erase,
         seq: top.map_or(0, |(_, seq)| seq.saturating_add(1)),
     }
+}
+
+/// The sector the log goes on in: the newest slot's; with none, the first with room.
+fn active(sectors: [&[u8]; 2], top: Option<(At, u32)>) -> u8 {
+    match top {
+        Some((at, _)) => at.sector,
+        None => u8::from(first_free(sector(sectors, 0)) >= SLOTS),
+    }
+}
+
+/// The sector (index into [`SECTORS`]) to erase at boot, before the pump is driven: the one
+/// not in use, when the one in use has fewer than [`RUN_SAVES`] erased slots left and the
+/// other is not blank. `None`: no erase.
+pub fn boot_erase(sectors: [&[u8]; 2]) -> Option<u8> {
+    let active = active(sectors, newest(sectors, None));
+    let other = 1 - active;
+    (first_free(sector(sectors, active)) > SLOTS - RUN_SAVES && !blank(sector(sectors, other)))
+        .then_some(other)
 }
 
 /// The record of the slot `plan` loads, if any.

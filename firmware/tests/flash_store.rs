@@ -9,7 +9,7 @@
 
 use ridge_core::{ArxModel, InputMap, Offset};
 use ridge_pump_firmware::flash_store::{
-    self, plan, slot_bytes, At, PROGRAMMED_LEN, SECTOR_LEN, SLOTS, SLOT_LEN,
+    self, boot_erase, plan, slot_bytes, At, PROGRAMMED_LEN, RUN_SAVES, SECTOR_LEN, SLOTS, SLOT_LEN,
 };
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
 
@@ -168,9 +168,9 @@ fn a_full_sector_switches_to_the_other_and_an_erase_cut_keeps_the_newest() {
     for k in 0..SLOTS as u16 {
         save(&mut full, &record(k % 50), Cut::None);
     }
-    // The first switch erases the second sector too (blank or not: a switch always erases).
+    // The first switch finds the second sector blank: no erase.
     let p = plan(view(&full));
-    assert_eq!((p.target, p.erase), (At { sector: 1, slot: 0 }, true));
+    assert_eq!((p.target, p.erase), (At { sector: 1, slot: 0 }, false));
     save(&mut full, &record(100), Cut::None);
     for k in 0..(SLOTS as u16 - 1) {
         save(&mut full, &record(k % 50), Cut::None);
@@ -200,9 +200,11 @@ fn a_full_sector_switches_to_the_other_and_an_erase_cut_keeps_the_newest() {
                 Some(&newest),
                 "erase cut at bit probability {prob}, seed {seed}"
             );
-            // After the cut, the next save erases again and lands in the first slot.
+            // After the cut, the next save erases again (unless every bit rose) and lands in
+            // the first slot.
+            let all_risen = cut[0].iter().all(|&b| b == 0xFF);
             let p = save(&mut cut, &record(201), Cut::None);
-            assert_eq!((p.target, p.erase), (At { sector: 0, slot: 0 }, true));
+            assert_eq!((p.target, p.erase), (At { sector: 0, slot: 0 }, !all_risen));
             assert_eq!(loaded(&cut).as_deref(), Some(&record(201)[..]));
         }
     }
@@ -228,4 +230,59 @@ fn a_damaged_newest_record_falls_back_or_is_refused() {
     only[0][10] ^= 0x04;
     let got = loaded(&only).expect("handed on");
     assert_eq!(persist::intact(&got), Err(persist::PersistError::Crc));
+}
+
+/// The erase at boot ([`boot_erase`]), walked through boots and runs as the board does them:
+/// at each boot the named sector is erased; each run then saves a number of records (up to
+/// [`RUN_SAVES`], varied). Truths: no save of a run needs an erase (the board would refuse
+/// it), the newest saved record always loads, the boot erases come once per [`SLOTS`] saves
+/// (as the erases did when a save made its own room), never of the sector holding the
+/// newest record, and a run past [`RUN_SAVES`] saves meets an erase only after them.
+#[test]
+fn erasing_at_boot_leaves_every_run_its_saves_without_an_erase() {
+    let mut m = blank();
+    let mut noise = Noise(5);
+    let (mut saves, mut erases, mut k) = (0usize, 0usize, 0u16);
+    let mut newest: Option<Vec<u8>> = None;
+    while saves < 3 * SLOTS + 100 {
+        if let Some(index) = boot_erase(view(&m)) {
+            let holds_newest = plan(view(&m)).load.map(|at| at.sector);
+            assert_ne!(holds_newest, Some(index), "after {saves} saves");
+            m[usize::from(index)].fill(0xFF);
+            erases += 1;
+            assert_eq!(boot_erase(view(&m)), None, "erased");
+        }
+        assert_eq!(loaded(&m), newest, "boot after {saves} saves");
+        let run = (noise.next() % (RUN_SAVES as u64 + 1)) as usize;
+        for _ in 0..run {
+            k = k.wrapping_add(1);
+            let rec = record(k % 60);
+            let p = save(&mut m, &rec, Cut::None);
+            assert!(!p.erase, "save {} of a run after {saves} saves", saves);
+            saves += 1;
+            newest = Some(rec.to_vec());
+            assert_eq!(loaded(&m), newest);
+        }
+    }
+    // Two sectors filled past the first: one erase per further sector's worth.
+    assert_eq!(
+        erases,
+        (saves - SLOTS) / SLOTS,
+        "{erases} erases in {saves} saves"
+    );
+
+    // A run that keeps saving: the first RUN_SAVES need no erase, one after them does.
+    let mut m = blank();
+    for i in 0..(2 * SLOTS - RUN_SAVES) {
+        save(&mut m, &record((i % 60) as u16), Cut::None);
+    }
+    assert_eq!(boot_erase(view(&m)), None, "RUN_SAVES slots left");
+    let mut first_erase = None;
+    for i in 0..=RUN_SAVES {
+        let p = save(&mut m, &record(7), Cut::None);
+        if p.erase && first_erase.is_none() {
+            first_erase = Some(i);
+        }
+    }
+    assert_eq!(first_erase, Some(RUN_SAVES));
 }

@@ -457,12 +457,12 @@ impl Bench {
         let clock = Rc::new(Cell::new(0));
         let sensor = Rc::new(RefCell::new(SensorState::new(
             Sfm3300::new(cfg.sensor.clone(), cfg.seed),
-            cfg.frequency,
-            clock.clone(),
+            u64::from(cfg.frequency) / 2_000,
         )));
         machine.attach_twi(
             Box::new(Sfm3300Slave {
                 state: sensor.clone(),
+                clock: clock.clone(),
             }),
             clock,
         )?;

@@ -101,28 +101,9 @@ pub fn ensure_elf() -> Result<PathBuf, String> {
     BUILT.get_or_init(build).clone()
 }
 
-/// Section sizes of an AVR ELF.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Sizes {
-    /// `.text` (code and vectors, includes `.progmem`).
-    pub text: u32,
-    /// `.data` (initialised RAM, stored in flash too).
-    pub data: u32,
-    /// `.bss` + `.noinit`.
-    pub bss: u32,
-}
-
-impl Sizes {
-    /// Flash used: `.text + .data`.
-    pub fn flash(&self) -> u32 {
-        self.text + self.data
-    }
-
-    /// Static RAM: `.data + .bss + .noinit`.
-    pub fn ram(&self) -> u32 {
-        self.data + self.bss
-    }
-}
+/// Section sizes of an AVR ELF: text = `.text` (code and vectors, includes `.progmem`), bss =
+/// `.bss` + `.noinit`.
+pub use harness_kit::image::Sizes;
 
 /// Reads the section headers of a 32-bit little-endian ELF.
 pub fn sizes(elf: &Path) -> Result<Sizes, String> {

@@ -17,9 +17,13 @@
 //!   (`ridge_pump_firmware::lines`, beside the lines' writer).
 //! - [`firmware`]: locating/building the ELF and its section sizes.
 //! - [`session`]: a whole power-up identification run and its figures (what `simavr-run`
-//!   prints and the tests check).
-//! - [`tracking`]: run mode rebuilt tick by tick from the bench (setpoint, duty, flow),
-//!   checked against the firmware's `TRACK` lines and scored ([`tracking::RunTrace`]).
+//!   prints through `harness_kit::report`, the report both boards share, and the tests check).
+//! - [`tracking`]: run mode's view of the bench for `harness_kit::run` (rebuilt tick by tick,
+//!   checked against the firmware's `TRACK` lines and scored), and the design's cycles.
+//!
+//! What does not depend on simavr (the records rebuilt from the served frames, the host rerun,
+//! validation scoring, run mode, the SFM3300's I2C side, the report) is `harness-kit`'s,
+//! shared with `stm32-harness`.
 //! - [`uart`]: a serial line into USART0 (commands to the firmware's console at 115 200
 //!   baud, scheduled at a cycle or after a line the firmware printed), down to the UART's
 //!   receiver ([`uart::UartInput`]); [`Bench::send_at`](bench::Bench::send_at),

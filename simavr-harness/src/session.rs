@@ -4,33 +4,25 @@
 //! search rerun on the host from the exact samples the firmware saw, tick timing, CPU load,
 //! missed ticks, search time, stack and image sizes.
 //!
-//! Sample convention (firmware `selfid`): at each tick the firmware reads `y_t` and pushes
-//! `(v, y_t)` with `v` the static map's flow at the duty applied during the interval that ends
-//! with that reading, i.e. the duty it wrote in the previous tick. The bench records every
-//! frame it served and every PWM change, so the pairs are rebuilt from the bench's own logs:
-//! the duty in effect when a frame was read, mapped back to the record generator's duty
-//! (1/10 000; the generator rebuilt from the `MAP` and `SCAN` lines and the firmware's
-//! settings) and checked against the timer count it must produce.
+//! The records are rebuilt as `harness_kit::samples` describes (the duty checked in the timer
+//! counts OCR4A + 1 the board writes, [`pwm_counts`]); the host rerun, the scoring and the fresh
+//! validation signal are `harness_kit`'s (re-exported here for the tests).
 
-use std::path::Path;
 use std::time::Instant;
 
-use ridge_core::{ArxModel, Evaluation, InputMap, IntGram, Real, Search};
+pub use harness_kit::host::{coefficient_error, firmware_search, host_search, host_search_in};
+pub use harness_kit::samples::Samples;
+pub use harness_kit::validation::{plot, score};
 
-use crate::bench::{Bench, BenchConfig, RunEnd, TickTiming, SUBSTEPS};
+use crate::bench::{Bench, BenchConfig, RunEnd, TickTiming};
 use crate::firmware::{self, Sizes};
 use crate::transcript::Line;
-use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params, Valve};
-use ridge_id::eval::Trace;
-use ridge_id::plot::{write_fit_png, Axes, Panel};
-use ridge_pump_firmware::excitation::{FlowSteps, Record};
-use ridge_pump_firmware::lines::{
-    ExciteLine, IdLine, MapLine, ParsedLine, PrintedModel, ScanLine, ValidateLine,
-};
+use harness_kit::{samples, validation};
+use pump_sim::{LungParams, PumpParams, Sfm3300Params};
+use ridge_core::InputMap;
+use ridge_pump_firmware::excitation::Record;
+use ridge_pump_firmware::lines::{IdLine, MapLine, ParsedLine};
 use ridge_pump_firmware::pump::duty_to_counts;
-use ridge_pump_firmware::selfid::{absolute_model, DEFAULT_CONFIG};
-use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::{MODEL_SCALE, SLM_PER_COUNT};
 
 /// Timer TOP + 1 of the board's pump PWM (OC4A, 20 kHz): `max_duty_cycle()`.
 pub const PWM_MAX: u32 = 800;
@@ -45,52 +37,9 @@ pub fn pwm_counts(duty: u16) -> u32 {
     u32::from(duty_to_counts(duty, PWM_MAX as u16))
 }
 
-/// A record as the firmware saw it: duty (1/10 000) in effect at each read, the raw word read.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Samples {
-    /// The preset the duties follow ([`fresh_record`]); `None` for the device's own records
-    /// (`flow-steps`).
-    pub record: Option<Record>,
-    /// The static map the model's input goes through (the `MAP` line before the record, or
-    /// the model's for a fresh record).
-    pub map: Option<InputMap>,
-    /// Duties, 1/10 000.
-    pub u: Vec<u16>,
-    /// SFM3300 raw words.
-    pub raw: Vec<u16>,
-    /// Core cycle of each read.
-    pub cycle: Vec<u64>,
-    /// Operating point the firmware subtracts (`EXCITE … u0= y0=`): duty 1/10 000 (the map's
-    /// flow there is what it subtracts from the map's flow).
-    pub u0: u16,
-    /// Operating point flow, counts (`raw − 32768`).
-    pub y0: i16,
-    /// The operating point recomputed from the served frames as the firmware defines it:
-    /// rounded mean (halves away from zero) of the last 50 readings of the settle phase (the
-    /// one read in the tick that printed `SCAN` the last).
-    pub y0_frames: Option<i16>,
-}
-
-impl Samples {
-    /// The model's input at sample `i`: the map's flow at its duty, slm (the duty as a
-    /// fraction without a map).
-    pub fn input(&self, i: usize) -> f64 {
-        let u = self.u.get(i).copied().unwrap_or(0);
-        match &self.map {
-            Some(m) => f64::from(m.at(u)) * f64::from(SLM_PER_COUNT),
-            None => f64::from(u) / 10_000.0,
-        }
-    }
-
-    /// Number of samples.
-    pub fn len(&self) -> usize {
-        self.u.len()
-    }
-
-    /// Whether empty.
-    pub fn is_empty(&self) -> bool {
-        self.u.is_empty()
-    }
+/// The duty fraction the pump sees for a duty in 1/10 000: [`pwm_counts`] of [`PWM_MAX`].
+pub fn pwm_fraction(duty: u16) -> f64 {
+    pwm_counts(duty) as f64 / f64::from(PWM_MAX)
 }
 
 /// Tick timing summary.
@@ -288,10 +237,7 @@ pub fn analyse(bench: Bench, sizes: Sizes, wall_s: f64) -> Outcome {
             .map(|(j, _)| *j)
     });
     let search_cycles = match (&estimation, search_end) {
-        (Some(s), Some(j)) => s
-            .cycle
-            .last()
-            .map(|c| bench.line_starts[j].saturating_sub(*c)),
+        (Some(s), Some(j)) => s.at.last().map(|c| bench.line_starts[j].saturating_sub(*c)),
         _ => None,
     };
     // Every search: from the end of an excitation record to the next ID/REJECT line.
@@ -431,175 +377,27 @@ fn timing(
 }
 
 /// Rebuilds the record announced by line `idx` (`EXCITE flow-steps n=.. u0=.. y0=..` /
-/// `VALIDATE flow-steps n=..`) from the frames served and the PWM log, aligned on the record
-/// generator's duty sequence: [`FlowSteps`] on the map of the last `MAP` line before it, with
-/// the firmware's settings and the lag of the last `SCAN` line (the validation record's seed
-/// is the complement of the estimation record's).
+/// `VALIDATE flow-steps n=..`) from the frames served and the PWM log
+/// (`harness_kit::samples::rebuild`, the duty checked in the timer's counts).
 pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
-    let text = &bench.lines.get(idx)?.text;
-    // (samples, operating point: duty 1/10 000, flow counts (none on VALIDATE), seed)
-    let r = &DEFAULT_CONFIG.records;
-    let (n, u0, y0, seed) = match ExciteLine::parse(text) {
-        Ok(e) => (e.samples, e.u0, e.y0, r.seed),
-        Err(_) => {
-            let v = ValidateLine::parse(text).ok()?;
-            (v.samples, 0, 0, !r.seed)
-        }
-    };
-    let before = |keyword: &str| {
-        bench.lines[..idx]
-            .iter()
-            .rev()
-            .find(|l| l.text.split_whitespace().next() == Some(keyword))
-    };
-    let map = MapLine::parse(&before("MAP")?.text).ok()?.map;
-    let scan = before("SCAN")?;
-    let lag = ScanLine::parse(&scan.text).ok()?.lag;
-    let scan_at = bench.lines.iter().position(|l| std::ptr::eq(l, scan))?;
-    let samples = u16::try_from(n).ok()?;
-    let mut steps = FlowSteps::new(&map, &r.shape(lag, samples, seed))?;
-    let gen: Vec<u16> = std::iter::from_fn(|| steps.next_step().map(|(d, _)| d)).collect();
+    let lines: Vec<(u64, &str)> = bench
+        .lines
+        .iter()
+        .zip(&bench.line_starts)
+        .map(|(l, &start)| (start, l.text.as_str()))
+        .collect();
     let frames = bench.sensor.borrow().served();
-    let at = bench.line_starts[idx];
-    let j0 = frames.partition_point(|(c, _)| *c < at);
     let counts_at = |c: u64| {
         bench
             .duty_at(c)
             .map_or(0, |d| if d.connected { u32::from(d.ocr) + 1 } else { 0 })
     };
-    for k in j0.saturating_sub(3)..=j0 + 3 {
-        if k + gen.len() > frames.len() {
-            break;
-        }
-        let ok = gen
-            .iter()
-            .enumerate()
-            .all(|(i, &g)| counts_at(frames[k + i].0) == pwm_counts(g));
-        if ok {
-            let settled = frames.partition_point(|(c, _)| *c < bench.line_starts[scan_at]);
-            let y0_frames = (settled >= 50).then(|| {
-                let sum: i32 = frames[settled - 50..settled]
-                    .iter()
-                    .map(|(_, raw)| i32::from(raw_to_counts(*raw)))
-                    .sum();
-                let half = if sum >= 0 { 25 } else { -25 };
-                ((sum + half) / 50) as i16
-            });
-            let mut s = Samples {
-                map: Some(map),
-                u0,
-                y0,
-                y0_frames,
-                ..Samples::default()
-            };
-            for (i, &g) in gen.iter().enumerate() {
-                s.u.push(g);
-                s.raw.push(frames[k + i].1);
-                s.cycle.push(frames[k + i].0);
-            }
-            return Some(s);
-        }
-    }
-    None
+    samples::rebuild(&lines, idx, &frames, |c, g| counts_at(c) == pwm_counts(g))
 }
 
-/// The firmware's search configuration (`selfid::DEFAULT_CONFIG.search`: ridge-core's
-/// default search on the device's grid, p ≤ 5, with an intercept, on deviations from the
-/// operating point), in `T`.
-pub fn firmware_search<T: Real>() -> Search<T> {
-    Search {
-        grid: DEFAULT_CONFIG.search.grid,
-        offset: DEFAULT_CONFIG.search.offset,
-        ..Search::default()
-    }
-}
-
-/// Reruns the firmware's search on the host from `samples` with exact integer statistics and
-/// `f64` normal equations (ridge-core `IntGram` + `Search<f64>` on the deviations
-/// `(v − v0, y − y0)`, `v` the map's flow at the duty), and converts the result to the absolute
-/// model with an intercept as the firmware does (`selfid::absolute_model`:
-/// `c = c_dev + y0 (1 − Σθ) − v0 Σφ`).
-pub fn host_search(samples: &Samples) -> Result<IdLine, String> {
-    host_search_in::<f64>(samples)
-}
-
-/// [`host_search`] with the normal equations and the search in `T` (`f32` is what the
-/// firmware runs).
-pub fn host_search_in<T: Real>(samples: &Samples) -> Result<IdLine, String> {
-    let map = samples.map.ok_or("no MAP line before the record")?;
-    let mut g = IntGram::new();
-    let (v0, y0) = (map.at(samples.u0), i32::from(samples.y0));
-    for (&u, &raw) in samples.u.iter().zip(&samples.raw) {
-        let dv = i32::from(map.at(u)) - i32::from(v0);
-        g.push(dv, i32::from(raw_to_counts(raw)) - y0)
-            .map_err(|e| format!("{e:?}"))?;
-    }
-    let normal = g.normal::<T>(MODEL_SCALE).map_err(|e| format!("{e:?}"))?;
-    let sel = firmware_search::<T>()
-        .run(&normal, None)
-        .map_err(|e| format!("{e:?}"))?;
-    let m = absolute_model(&sel.fit.model(), v0, samples.y0).map_err(|e| format!("{e:?}"))?;
-    let s = m.structure();
-    Ok(IdLine {
-        model: PrintedModel {
-            p: s.p,
-            q: s.q,
-            d: s.d,
-            offset: m.offset(),
-            theta: m.theta().iter().map(|v| v.to_f64()).collect(),
-            phi: m.phi().iter().map(|v| v.to_f64()).collect(),
-            c: m.intercept().to_f64(),
-        },
-        score: sel.score.to_f64(),
-        evaluated: sel.evaluated,
-        candidates: sel.candidates,
-        skipped: sel.skipped,
-        iterations: sel.fit.iterations,
-    })
-}
-
-/// Largest coefficient difference between two models of the same structure, relative to
-/// `max(1, |b|)` per coefficient (θ, φ, c); `None` if the structures differ.
-pub fn coefficient_error(a: &PrintedModel, b: &PrintedModel) -> Option<f64> {
-    if (a.p, a.q, a.d) != (b.p, b.q, b.d) || a.theta.len() != b.theta.len() {
-        return None;
-    }
-    let pairs = a
-        .theta
-        .iter()
-        .zip(&b.theta)
-        .chain(a.phi.iter().zip(&b.phi))
-        .chain(std::iter::once((&a.c, &b.c)));
-    Some(
-        pairs
-            .map(|(x, y)| (x - y).abs() / y.abs().max(1.0))
-            .fold(0.0, f64::max),
-    )
-}
-
-/// Free-run and one-step scores of `model` on `samples` (physical units, the input through the
-/// samples' map), with the trace for a plot.
-pub fn score(model: &ArxModel<f64>, samples: &Samples) -> (Option<f64>, Option<f64>, Trace) {
-    let mut ev = Evaluation::new(*model);
-    let mut trace = Trace::new(samples.len() as u64, 2000);
-    for (i, &raw) in samples.raw.iter().enumerate() {
-        let y = pump_sim::sfm3300::raw_to_flow(raw);
-        let p = ev.push(samples.input(i), y);
-        trace.push(i as u64, y, p);
-    }
-    trace.finish();
-    (
-        ev.free_run().map(|m| m.fit),
-        ev.one_step().map(|m| m.fit),
-        trace,
-    )
-}
-
-/// A fresh validation signal on the host, with the loop's timing: the plant (blower `pump`,
-/// test lung `lung` if any) sub-stepped as in the bench, the reading taken at the tick, the new
-/// duty applied `latency` sub-steps later, the sensor noise from `seed`. Starts from `base`
-/// duty held for 2 s, as the firmware settles. `map`: the model's map, kept with the samples
-/// for scoring.
+/// A fresh validation signal on the host with the loop's timing
+/// (`harness_kit::validation::fresh_record`), the duty as the board's timer makes it
+/// ([`pwm_counts`] of [`PWM_MAX`]).
 #[allow(clippy::too_many_arguments)]
 pub fn fresh_record(
     pump: &PumpParams,
@@ -611,81 +409,22 @@ pub fn fresh_record(
     base: u16,
     latency: usize,
 ) -> Samples {
-    let mut p = pump.clone();
-    p.ts_s /= SUBSTEPS as f64;
-    p.delay_samples *= SUBSTEPS;
-    let mut pump = Pump::new(p);
-    let mut lung = lung.cloned().map(Lung::new);
-    let mut sfm = Sfm3300::new(sensor.clone(), seed);
-    let frac = |d: u16| pwm_counts(d) as f64 / f64::from(PWM_MAX);
-    // One 0.5 ms plant step at duty `d`: the flow at its end.
-    let mut step = |d: u16| {
-        let open = pump.step(frac(d));
-        match &mut lung {
-            Some(l) => {
-                let p = pump.params();
-                // The firmware holds the exhalation valve open while it identifies.
-                l.step(Valve::Open, open, p.shutoff_of_speed(pump.speed()), p.ts_s)
-            }
-            None => open,
-        }
-    };
-    let latency = latency.min(SUBSTEPS);
-    let mut prev = base;
-    let mut flow = 0.0;
-    for _ in 0..200 * SUBSTEPS {
-        flow = step(base);
-    }
-    let mut s = Samples {
-        record: Some(record),
+    validation::fresh_record(
+        pump,
+        lung,
+        sensor,
+        seed,
+        record,
         map,
-        ..Samples::default()
-    };
-    for g in record.generator() {
-        for _ in 0..latency {
-            flow = step(prev);
-        }
-        for _ in latency..SUBSTEPS {
-            flow = step(g);
-        }
-        prev = g;
-        let raw = sfm.measure_raw(flow);
-        s.u.push(g);
-        s.raw.push(raw);
-        s.cycle.push(0);
-    }
-    s.u0 = base;
-    s
+        base,
+        latency,
+        pwm_fraction,
+    )
 }
 
 /// Median sub-steps between a read and the PWM change that follows it in the same tick, over
-/// `samples` (the duty written is seen by the plant at the next 0.5 ms step).
+/// `samples` (`harness_kit::validation::write_latency`).
 pub fn write_latency(bench: &Bench, samples: &Samples) -> usize {
-    let step = TICK_CYCLES / SUBSTEPS as u64;
-    let mut lat: Vec<u64> = samples
-        .cycle
-        .iter()
-        .filter_map(|&c| {
-            let i = bench.duty_log.partition_point(|d| d.cycle <= c);
-            let d = bench.duty_log.get(i)?;
-            (d.cycle - c < TICK_CYCLES).then(|| (d.cycle - c).div_ceil(step))
-        })
-        .collect();
-    if lat.is_empty() {
-        return 1;
-    }
-    lat.sort_unstable();
-    lat[lat.len() / 2] as usize
-}
-
-/// Writes a PNG with one panel per `(title, trace)`.
-pub fn plot(path: &Path, panels: &[(String, Trace)]) -> Result<(), String> {
-    let p: Vec<Panel<'_>> = panels
-        .iter()
-        .map(|(t, tr)| Panel {
-            title: t.clone(),
-            trace: tr,
-        })
-        .collect();
-    write_fit_png(path, &Axes::pump(), &p).map_err(|e| e.to_string())
+    let changes: Vec<u64> = bench.duty_log.iter().map(|d| d.cycle).collect();
+    validation::write_latency(samples, &changes, TICK_CYCLES)
 }

@@ -1,368 +1,80 @@
-//! Run mode seen from the bench: the firmware's flow controller tracking its setpoint program,
-//! rebuilt tick by tick from what the bench observed, and scored.
-//!
-//! The bench sees the duty on the PWM pin, the true flow and the words the simulated SFM3300
-//! served; the setpoint is the firmware's program (`ridge_pump_firmware::setpoint::value`, the
-//! same code) from the first run tick on. Two facts from the firmware's lines pin it down:
-//! - **when run mode started**: each `TRACK … tick=n` line is printed in the tick that
-//!   completed `n` run ticks; the bench tick in which the line's first byte left the UART is
-//!   that tick, so run tick 0 is `n − 1` bench ticks earlier (every `TRACK` line must agree);
-//! - **the start flow** the program holds first: the first `TRACK` window lies within the
-//!   demo's hold, so its mean setpoint `sp=` is the start flow (a whole number of sensor
-//!   counts).
-//!
-//! Each `TRACK` line's `sp=` and `flow=` are then recomputed from the rebuilt trace over the
-//! same ticks: they must match to the printed precision ([`RunTrace::track_mismatch`]), which
-//! checks the alignment, the program and the readings at once.
-//!
-//! After a `VENT` command ([`RunTrace::ventilated`]) the program is the volume-controlled breath
-//! from the tick that first closed the exhalation valve on: its setpoints are replayed from the
-//! firmware's own code (`setpoint::Setpoint` and `ventilation::Ventilation`, fed the readings the
-//! firmware was served, so that the per-breath volume trim moves the amplitude exactly as it did
-//! on the device), and the `TRACK` lines check them as they check the demo's.
-//!
-//! Every row also carries the breath and its phase from the valve's pin ([`TraceRow::breath`],
-//! [`TraceRow::phase`]): the simulator's truth, not the firmware's program.
-//!
-//! Conventions of the rebuilt [`Trace`] (as `pump_sim::baseline` scores it): interval `k` runs
-//! from run tick `k` to run tick `k + 1`; `setpoint[k]` is the program's value for it, `duty[k]`
-//! the duty the firmware wrote in tick `k`, `flow[k]` / `measured[k]` the true flow and the
-//! reading the firmware takes at tick `k + 1` (the end of the interval).
+//! Run mode seen from the bench, for `harness_kit::run` (which rebuilds it tick by tick and
+//! checks it against the `TRACK` lines, see there): the bench's ticks (tick interrupt entries),
+//! the lines with the cycle their first byte left the UART, the frames the SFM3300 served and
+//! the duty on the PWM pin, in core cycles; and the design's cycles, which only this bench can
+//! tell (the ticks that found the main loop busy).
 
-use std::io::Write;
-use std::path::Path;
-
-use pump_sim::baseline::experiment::{score, Scores, Trace};
-use pump_sim::sfm3300::raw_to_flow;
+use harness_kit::run::RunInput;
+pub use harness_kit::run::{program, RunTrace, TraceRow};
 use pump_sim::Valve;
-use ridge_core::control::Limits;
-use ridge_pump_firmware::event::Event;
-use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
-use ridge_pump_firmware::setpoint::{value, Program, Setpoint, VolumeBreath};
-use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, SLM_PER_COUNT};
-use ridge_pump_firmware::ventilation::Ventilation;
+use ridge_pump_firmware::setpoint::VolumeBreath;
 
 use crate::bench::Bench;
 
-/// One row of the per-tick trace of a whole session (`--trace` CSV).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TraceRow {
-    /// Tick start (tick interrupt entry), seconds since reset.
-    pub t: f64,
-    /// The program's setpoint for the interval starting at this tick, slm; `None` before run
-    /// mode.
-    pub setpoint: Option<f64>,
-    /// Duty on the pump pin during the interval starting at this tick, 0..1.
-    pub duty: f64,
-    /// True flow at the end of the interval (at the next tick's reading), slm.
-    pub flow: f64,
-    /// Breaths the valve started so far (closings of the exhalation valve), 0 before the first.
-    pub breath: usize,
-    /// `Some(true)` when the valve was closed during the interval (inspiration), `Some(false)`
-    /// when open after the first breath started (expiration), `None` before it.
-    pub phase: Option<bool>,
+/// Run mode rebuilt from `bench` (`harness_kit::run::RunTrace::rebuild`); an error says what
+/// is missing (no `CTRL` line, no `TRACK` lines, no ticks).
+pub fn run_trace(bench: &Bench) -> Result<RunTrace, String> {
+    rebuild(bench, None)
 }
 
-/// Run mode rebuilt from a bench (see the module docs).
-#[derive(Clone, Debug)]
-pub struct RunTrace {
-    /// Bench tick index ([`Bench::ticks`]) of run tick 0.
-    pub first_tick: usize,
-    /// Cycle at which run tick 0 started.
-    pub first_cycle: u64,
-    /// The start flow the program holds first, slm.
-    pub start: f64,
-    /// Setpoint preview from the `CTRL` line, ticks.
-    pub preview: u32,
-    /// The run-mode trace (one entry per complete interval).
-    pub trace: Trace,
-    /// Every tick of the session, for the CSV.
-    pub rows: Vec<TraceRow>,
-    /// `TRACK` lines checked against the rebuilt trace.
-    pub track_lines: usize,
-    /// Largest difference between a `TRACK` line's `sp=` / `flow=` and the same means from
-    /// the rebuilt trace, slm (0.0005 is the printing's rounding).
-    pub track_mismatch: f64,
-    /// `TRACK` lines whose `tick=` disagreed with the first one's alignment.
-    pub misaligned: usize,
-    /// The controller's duty limits (fractions), for plots.
-    pub limits: Limits<f64>,
-    /// Cycles the design took, at most: from the start of the tick in which the main loop
-    /// last left its idle wait before the `CTRL` line (the design runs in the main loop after
-    /// that tick's work) to the line's first byte.
-    pub design_cycles: Option<u64>,
-    /// The run tick the volume program started at ([`RunTrace::ventilated`]), if any.
-    pub vent_tick: Option<usize>,
-    /// The replayed volume program's `BREATH` events (what the firmware must have printed).
-    pub replayed: Vec<Event>,
+/// As [`run_trace`] for a run that was sent `VENT` with the settings `breath`: the volume
+/// program from the tick that first closed the exhalation valve on, replayed.
+pub fn run_trace_ventilated(bench: &Bench, breath: VolumeBreath) -> Result<RunTrace, String> {
+    rebuild(bench, Some(breath))
 }
 
-/// The program run mode tracks: the firmware's default settings' (the image's `Config`).
-pub fn program() -> Program {
-    DEFAULT_CONFIG.control.program
-}
-
-impl RunTrace {
-    /// Rebuilds run mode from `bench` (see the module docs); an error says what is missing
-    /// (no `CTRL` line, no `TRACK` lines, no frames).
-    pub fn from_bench(bench: &Bench) -> Result<Self, String> {
-        Self::rebuild(bench, None)
-    }
-
-    /// As [`from_bench`](Self::from_bench) for a run that was sent `VENT` with the settings
-    /// `breath`: the volume program from the tick that first closed the valve on, replayed.
-    pub fn ventilated(bench: &Bench, breath: VolumeBreath) -> Result<Self, String> {
-        Self::rebuild(bench, Some(breath))
-    }
-
-    fn rebuild(bench: &Bench, vent: Option<VolumeBreath>) -> Result<Self, String> {
-        let ctrl_idx = bench
+fn rebuild(bench: &Bench, vent: Option<VolumeBreath>) -> Result<RunTrace, String> {
+    let duty_at = |c: u64| bench.duty_at(c).map_or(0.0, |d| d.fraction);
+    let flow_at = |c: u64| {
+        // No frame (sensor fault): the plant sample nearest the tick.
+        let i = bench.plant_log.partition_point(|s| s.cycle < c);
+        bench
+            .plant_log
+            .get(i)
+            .or(bench.plant_log.last())
+            .map_or(0.0, |s| s.flow)
+    };
+    let input = RunInput {
+        lines: bench
             .lines
             .iter()
-            .position(|l| l.text.starts_with("CTRL"))
-            .ok_or("no CTRL line: the controller was not designed")?;
-        let ctrl = &bench.lines[ctrl_idx];
-        let preview = ctrl
-            .parsed()
-            .int("preview")
-            .and_then(|p| u32::try_from(p).ok())
-            .ok_or("CTRL line without preview=")?;
-        let ticks = bench.ticks();
-        if ticks.len() < 2 {
-            return Err("no ticks".into());
-        }
-        let tick_of = |cycle: u64| ticks.partition_point(|t| t.start <= cycle).checked_sub(1);
-        let ctrl_start = bench.line_starts[ctrl_idx];
-        let design_cycles = tick_of(ctrl_start).and_then(|j| {
-            // The ticks the ISR found the main loop busy, back from the CTRL line; the design
-            // began in the earliest of them.
-            let mut k = j;
-            while k > 0 && ticks[k].interrupted_busy {
-                k -= 1;
-            }
-            ticks.get(k + 1).map(|t| ctrl_start.saturating_sub(t.start))
-        });
-        // (bench tick of emission, tick=, sp, flow) of every TRACK line.
-        let mut tracks = Vec::new();
-        for (i, l) in bench.lines.iter().enumerate() {
-            if !l.text.starts_with("TRACK") {
-                continue;
-            }
-            let p = l.parsed();
-            let (Some(n), Some(sp), Some(flow)) = (p.int("tick"), p.num("sp"), p.num("flow"))
-            else {
-                return Err(format!("unreadable TRACK line: {}", l.text));
-            };
-            let j = tick_of(bench.line_starts[i]).ok_or("TRACK line before the first tick")?;
-            tracks.push((j, n, sp, flow));
-        }
-        let &(j1, n1, sp1, _) = tracks.first().ok_or("no TRACK line")?;
-        let first_tick = usize::try_from(j1 as i64 - (n1 - 1))
-            .map_err(|_| "TRACK tick= before the session started")?;
-        let misaligned = tracks
+            .zip(&bench.line_starts)
+            .map(|(l, &start)| (start, l.text.as_str()))
+            .collect(),
+        ticks: bench.ticks().iter().map(|t| t.start).collect(),
+        per_s: f64::from(bench.frequency()),
+        frames: bench.sensor.borrow().served_with_flow(),
+        duty_at: &duty_at,
+        flow_at: &flow_at,
+        now: bench.machine.cycle(),
+        valve: bench
+            .valve_log
             .iter()
-            .filter(|&&(j, n, _, _)| j as i64 - (n - 1) != first_tick as i64)
-            .count();
-        // The first window lies within the hold: its mean setpoint is the start flow, a whole
-        // number of counts (as the firmware holds its reading).
-        let counts = (sp1 * f64::from(FLOW_SCALE)).round();
-        let start = f64::from(counts as f32 * SLM_PER_COUNT);
-        // Frames: the reading of each bench tick (the first frame served within it).
-        let frames = bench.sensor.borrow().served_with_flow();
-        let frame_of = |j: usize| -> Option<(u16, f64)> {
-            let from = ticks.get(j)?.start;
-            let to = ticks.get(j + 1).map_or(u64::MAX, |t| t.start);
-            let i = frames.partition_point(|f| f.0 < from);
-            frames
-                .get(i)
-                .filter(|f| f.0 < to)
-                .map(|&(_, raw, flow)| (raw, flow))
-        };
-        let duty_of = |j: usize| -> f64 {
-            let end = ticks.get(j + 1).map_or(bench.machine.cycle(), |t| t.start);
-            bench
-                .duty_at(end.saturating_sub(1))
-                .map_or(0.0, |d| d.fraction)
-        };
-        // The setpoint of every run tick: the program's, and from the valve's first closing
-        // the volume program replayed on the readings.
-        let program = program();
-        let run_ticks = ticks.len().saturating_sub(first_tick);
-        let mut sp: Vec<f64> = (0..run_ticks)
-            .map(|k| f64::from(value(program, start as f32, k as u32)))
-            .collect();
-        let mut vent_tick = None;
-        let mut replayed = Vec::new();
-        if let Some(b) = vent {
-            let closed = bench
-                .valve_log
-                .iter()
-                .find(|(_, v)| *v == Valve::Closed)
-                .ok_or("VENT sent, but the valve never closed")?;
-            let j = tick_of(closed.0).ok_or("valve closed before the first tick")?;
-            let k0 = j
-                .checked_sub(first_tick)
-                .ok_or("valve closed before run mode")?;
-            vent_tick = Some(k0);
-            let reading = |k: usize| frame_of(first_tick + k).map(|(raw, _)| raw_to_counts(raw));
-            let mut held = (0..=k0).rev().find_map(reading).unwrap_or(0);
-            let mut ended = k0.checked_sub(1).map_or(start, |k| sp[k]) as f32;
-            let mut setpoint = Setpoint::new(Program::Volume(b), ended);
-            let mut v = Ventilation::new(b.tidal);
-            for (k, slot) in sp.iter_mut().enumerate().skip(k0) {
-                let (_, phase) = setpoint.volume_phase().ok_or("not a volume program")?;
-                let r = setpoint.advance();
-                *slot = f64::from(r);
-                if let Some(y) = reading(k) {
-                    held = y;
-                }
-                let mut event = None;
-                v.after_pwm(&mut setpoint, phase, held, ended, &mut event);
-                if let Some(e @ Event::Breath(_)) = event {
-                    replayed.push(e);
-                }
-                ended = r;
-            }
-        }
-        let sp_at = |k: usize| sp.get(k).copied().unwrap_or(f64::NAN);
-        // The valve during each interval (its state at the interval's end) and the breaths
-        // started by then.
-        let valve_of = |j: usize| -> (usize, Option<bool>) {
-            let end = ticks.get(j + 1).map_or(bench.machine.cycle(), |t| t.start);
-            let n = bench
-                .valve_log
-                .iter()
-                .take_while(|(c, _)| *c < end)
-                .filter(|(_, v)| *v == Valve::Closed)
-                .count();
-            let closed = bench
-                .valve_log
-                .iter()
-                .take_while(|(c, _)| *c < end)
-                .last()
-                .is_some_and(|(_, v)| *v == Valve::Closed);
-            (n, (n > 0).then_some(closed))
-        };
-        let plant_flow = |j: usize| -> f64 {
-            // No frame (sensor fault): the plant sample nearest the tick.
-            let c = ticks.get(j).map_or(0, |t| t.start);
-            let i = bench.plant_log.partition_point(|s| s.cycle < c);
-            bench
-                .plant_log
-                .get(i)
-                .or(bench.plant_log.last())
-                .map_or(0.0, |s| s.flow)
-        };
+            .map(|&(c, v)| (c, v == Valve::Closed))
+            .collect(),
+        vent,
+    };
+    RunTrace::rebuild(&input)
+}
 
-        let mut rows = Vec::with_capacity(ticks.len());
-        let mut trace = Trace::default();
-        for (j, t) in ticks.iter().enumerate() {
-            let next = frame_of(j + 1);
-            let flow = next.map_or_else(|| plant_flow(j + 1), |f| f.1);
-            let setpoint = (j >= first_tick).then(|| sp_at(j - first_tick));
-            let (breath, phase) = valve_of(j);
-            rows.push(TraceRow {
-                t: t.start as f64 / f64::from(bench.frequency()),
-                setpoint,
-                duty: duty_of(j),
-                flow,
-                breath,
-                phase,
-            });
-            // Complete intervals only (the next tick's reading exists).
-            if let (Some(sp), Some((raw, _))) = (setpoint, next) {
-                if j + 1 < ticks.len() {
-                    trace.setpoint.push(sp);
-                    trace.flow.push(flow);
-                    trace.measured.push(raw_to_flow(raw));
-                    trace.duty.push(
-                        (duty_of(j) * f64::from(DUTY_FULL_SCALE))
-                            .round()
-                            .clamp(0.0, f64::from(DUTY_FULL_SCALE)) as u16,
-                    );
-                }
-            }
-        }
-
-        // Recompute every TRACK window: pairs (setpoint of interval i − 1, reading at run tick
-        // i) for i in the window, the first pair with the start flow.
-        let mut mismatch = 0.0f64;
-        let mut prev = 0i64;
-        for &(_, n, sp, flow) in &tracks {
-            let (mut s_sp, mut s_y, mut m) = (0.0, 0.0, 0usize);
-            for i in prev.max(0)..n {
-                let i = i as usize;
-                let Some((raw, _)) = frame_of(first_tick + i) else {
-                    continue;
-                };
-                s_sp += if i == 0 { start } else { sp_at(i - 1) };
-                s_y += raw_to_flow(raw);
-                m += 1;
-            }
-            if m > 0 {
-                let m = m as f64;
-                mismatch = mismatch
-                    .max((s_sp / m - sp).abs())
-                    .max((s_y / m - flow).abs());
-            }
-            prev = n;
-        }
-        let c = &DEFAULT_CONFIG.control;
-        let frac = |d: u16| f64::from(d) / f64::from(DUTY_FULL_SCALE);
-        Ok(RunTrace {
-            first_tick,
-            first_cycle: ticks[first_tick.min(ticks.len() - 1)].start,
-            start,
-            preview,
-            trace,
-            rows,
-            track_lines: tracks.len(),
-            track_mismatch: mismatch,
-            misaligned,
-            limits: Limits {
-                min: frac(c.duty_min),
-                max: frac(c.duty_max),
-                max_step: frac(c.duty_step),
-            },
-            design_cycles,
-            vent_tick,
-            replayed,
-        })
+/// Cycles the controller design took, at most: from the start of the tick in which the main
+/// loop last left its idle wait before the `CTRL` line (the design runs in the main loop after
+/// that tick's work) to the line's first byte. `None` without a `CTRL` line.
+pub fn design_cycles(bench: &Bench) -> Option<u64> {
+    let ctrl_idx = bench
+        .lines
+        .iter()
+        .position(|l| l.text.starts_with("CTRL"))?;
+    let ticks = bench.ticks();
+    let ctrl_start = bench.line_starts[ctrl_idx];
+    let j = ticks
+        .partition_point(|t| t.start <= ctrl_start)
+        .checked_sub(1)?;
+    // The ticks the ISR found the main loop busy, back from the CTRL line; the design began in
+    // the earliest of them.
+    let mut k = j;
+    while k > 0 && ticks[k].interrupted_busy {
+        k -= 1;
     }
-
-    /// The run's scores (steps, breaths, duty variation) from the true flow, as
-    /// `pump_sim::baseline` scores its host runs; `None` when run mode was shorter than the
-    /// demo program's scored part (`pump_sim::baseline::experiment::run_ticks`).
-    pub fn scores(&self) -> Option<Scores> {
-        score(&self.trace, false, self.preview)
-    }
-
-    /// Writes the per-tick CSV `t,setpoint,duty,flow,breath,phase` (seconds since reset, slm
-    /// or empty before run mode, duty 0..1, true flow in slm, breaths the valve started so far
-    /// (0 before the first), `i` in inspiration, `e` in expiration, empty before the first
-    /// breath).
-    pub fn write_csv(&self, path: &Path) -> Result<(), String> {
-        let err = |e: std::io::Error| format!("{}: {e}", path.display());
-        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(err)?;
-        }
-        let mut w = std::io::BufWriter::new(std::fs::File::create(path).map_err(err)?);
-        writeln!(w, "t,setpoint,duty,flow,breath,phase").map_err(err)?;
-        for r in &self.rows {
-            let sp = r.setpoint.map_or_else(String::new, |v| format!("{v:.4}"));
-            let phase = match r.phase {
-                Some(true) => "i",
-                Some(false) => "e",
-                None => "",
-            };
-            writeln!(
-                w,
-                "{:.5},{sp},{:.5},{:.4},{},{phase}",
-                r.t, r.duty, r.flow, r.breath
-            )
-            .map_err(err)?;
-        }
-        w.flush().map_err(err)
-    }
+    ticks.get(k + 1).map(|t| ctrl_start.saturating_sub(t.start))
 }

@@ -43,7 +43,7 @@
 //! because the controller has integral action: on a stable loop the mean error at a constant
 //! setpoint goes to zero and what remains is what the sensor feeds back. The step overshoot
 //! must stay within the 10 % target. The `TRACK` lines must equal the figures
-//! recomputed from the frames the bench served (`RunTrace`, as in `tests/simavr.rs`).
+//! recomputed from the frames the bench served (`run_trace`, as in `tests/simavr.rs`).
 //!
 //! Refusals: the same image with one byte of the record flipped (θ₁'s sign/exponent byte)
 //! and the Intel HEX checksum of its line fixed up — a valid file whose record fails its CRC
@@ -72,7 +72,7 @@ use serde_json::Value;
 use simavr_harness::bench::{Bench, BenchConfig, RunEnd};
 use simavr_harness::firmware;
 use simavr_harness::session::PWM_MAX;
-use simavr_harness::tracking::RunTrace;
+use simavr_harness::tracking::run_trace;
 
 /// Sensor noise seed of the estimation log.
 const EST_SEED: u64 = 101;
@@ -556,7 +556,7 @@ fn a_ridge_id_record_is_loaded_and_the_pump_tracks_on_it() {
     assert!(ctrl > loaded[0], "{log}");
 
     // Run mode as the bench saw it; the TRACK lines are the served frames' figures.
-    let run = RunTrace::from_bench(&b).unwrap_or_else(|e| panic!("{e}:\n{log}"));
+    let run = run_trace(&b).unwrap_or_else(|e| panic!("{e}:\n{log}"));
     assert!(
         run.track_lines >= 10 && run.track_mismatch <= 0.002 && run.misaligned == 0,
         "TRACK lines {}, recomputed difference {:.4} slm, misaligned {}\n{log}",
@@ -622,7 +622,7 @@ fn a_ridge_id_record_is_loaded_and_the_pump_tracks_on_it() {
     let q = 1.0 / f64::from(PWM_MAX);
     let max_duty = b.duty_log.iter().map(|d| d.fraction).fold(0.0, f64::max);
     assert!(max_duty <= frac(c.duty_max) + q / 2.0, "duty {max_duty}");
-    for d in b.duty_log.iter().filter(|d| d.cycle < run.first_cycle) {
+    for d in b.duty_log.iter().filter(|d| d.cycle < run.first_at) {
         assert!(
             same_duty(d.fraction, 0) || same_duty(d.fraction, DEFAULT_CONFIG.base_duty),
             "duty {} before run mode\n{log}",

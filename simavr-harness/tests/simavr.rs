@@ -27,7 +27,7 @@ use simavr_harness::bus::{BusEvent, BusState, SdaHold};
 use simavr_harness::firmware;
 use simavr_harness::sensor::Fault;
 use simavr_harness::session::{self, Outcome, SessionConfig, TICK_CYCLES};
-use simavr_harness::tracking::RunTrace;
+use simavr_harness::tracking::{design_cycles, run_trace};
 
 /// Tick budget, cycles (1.6 ms at 16 MHz).
 const TICK_BUDGET: u64 = 25_600;
@@ -736,7 +736,7 @@ fn sda_held_low_for_good_stops_the_pump_within_its_bound() {
 fn avr_tester_runs_the_firmware_with_the_sfm3300_slave() {
     use avr_tester::AvrTester;
     use pump_sim::{Sfm3300, Sfm3300Params};
-    use simavr_harness::sensor::{SensorState, Sfm3300Slave};
+    use simavr_harness::sensor::{SensorState, Sfm3300Slave, UPDATE_CYCLES_16MHZ};
     use std::cell::{Cell, RefCell};
     use std::rc::Rc;
 
@@ -748,11 +748,11 @@ fn avr_tester_runs_the_firmware_with_the_sfm3300_slave() {
     let clock = Rc::new(Cell::new(0u64));
     let state = Rc::new(RefCell::new(SensorState::new(
         Sfm3300::new(Sfm3300Params::default(), 1),
-        16_000_000,
-        clock.clone(),
+        UPDATE_CYCLES_16MHZ,
     )));
     avr.twi0().attach_slave(Sfm3300Slave {
         state: state.clone(),
+        clock: clock.clone(),
     });
     let mut out = String::new();
     for ms in 1..=200u64 {
@@ -951,7 +951,7 @@ fn tracking_run(
     if o.timing.missed > 0 {
         bad.push(format!("{} tick overrun(s)", o.timing.missed));
     }
-    let run = match RunTrace::from_bench(&o.bench) {
+    let run = match run_trace(&o.bench) {
         Ok(r) => r,
         Err(e) => {
             bad.push(format!("no run mode: {e}"));
@@ -966,7 +966,7 @@ fn tracking_run(
             run.track_lines, run.track_mismatch, run.misaligned
         ));
     }
-    match run.design_cycles {
+    match design_cycles(&o.bench) {
         Some(c) if c < session::DESIGN_BUDGET_CYCLES => {}
         c => bad.push(format!("design {c:?} cycles ≥ 100 ms")),
     }
@@ -974,7 +974,7 @@ fn tracking_run(
         .bench
         .ticks()
         .iter()
-        .filter(|t| t.start >= run.first_cycle)
+        .filter(|t| t.start >= run.first_at)
         .filter_map(|t| t.control)
         .collect();
     if let Some(w) = control.iter().max() {

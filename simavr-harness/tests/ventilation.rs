@@ -137,7 +137,7 @@ fn check_run(what: &str, o: &VentOutcome, breaths: u32) {
         }
     }
     println!("{what}: breaths 3-{breaths} within ±(4 mL + 5 %): {in5}/{n}");
-    match simavr_harness::tracking::RunTrace::ventilated(bench, o.breath) {
+    match simavr_harness::tracking::run_trace_ventilated(bench, o.breath) {
         Ok(run) => {
             let fw: Vec<(f64, f64)> = rows
                 .iter()

@@ -17,13 +17,13 @@ use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params, Valve
 use ridge_pump_firmware::flash_store::SECTORS;
 
 use crate::bus::{BusSlave, Lines, SdaHold};
-use crate::lines::Line;
 use crate::machine::Machine;
 use crate::periph::flash::{self, EraseCut};
 use crate::periph::i2c::BusFault;
 use crate::periph::rcc::ResetCause;
 use crate::periph::{Time, PS_PER_S};
-use crate::sensor::{Fault, SensorState, Sfm3300Slave};
+use crate::sensor::{Fault, SensorState, Sfm3300Slave, UPDATE_PS};
+use crate::transcript::Line;
 
 /// Plant sub-steps per 10 ms sample (0.5 ms each).
 pub const SUBSTEPS: usize = 20;
@@ -177,10 +177,10 @@ impl std::fmt::Debug for Bench {
 impl Bench {
     /// Loads the image, attaches sensor and plant; the core is at reset.
     pub fn new(cfg: BenchConfig) -> Result<Self, String> {
-        let sensor = Rc::new(RefCell::new(SensorState::new(Sfm3300::new(
-            cfg.sensor.clone(),
-            cfg.seed,
-        ))));
+        let sensor = Rc::new(RefCell::new(SensorState::new(
+            Sfm3300::new(cfg.sensor.clone(), cfg.seed),
+            UPDATE_PS,
+        )));
         let bus = Rc::new(RefCell::new(Lines::default()));
         let slave = BusSlave {
             inner: Box::new(Sfm3300Slave {

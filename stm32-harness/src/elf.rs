@@ -27,28 +27,10 @@ pub struct Symbol {
     pub size: u32,
 }
 
-/// Section sizes of an ARM ELF, bytes (as `arm-none-eabi-size -B` counts them).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Sizes {
-    /// Allocated read-only sections (`.vector_table`, `.text`, `.rodata`, …).
-    pub text: u32,
-    /// `.data` (initialised RAM, stored in flash too).
-    pub data: u32,
-    /// `.bss`, `.uninit` (zeroed or uninitialised RAM).
-    pub bss: u32,
-}
-
-impl Sizes {
-    /// Flash used: text + data.
-    pub fn flash(&self) -> u32 {
-        self.text + self.data
-    }
-
-    /// Static RAM: data + bss.
-    pub fn ram(&self) -> u32 {
-        self.data + self.bss
-    }
-}
+/// Section sizes of an ARM ELF, bytes (as `arm-none-eabi-size -B` counts them: text = the
+/// allocated read-only sections, `.vector_table`, `.text`, `.rodata`, …; bss = `.bss` and
+/// `.uninit`).
+pub use harness_kit::image::Sizes;
 
 /// A loaded image.
 #[derive(Clone, Debug, Default)]

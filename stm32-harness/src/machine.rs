@@ -829,4 +829,14 @@ impl Machine {
         self.resets.clear();
         self.boot(ResetCause::PowerOn)
     }
+
+    /// Writes `bytes` at `offset` into the flash while the image runs, without the flash
+    /// interface and without a stall (a test's shortcut to a store state a run would take
+    /// many saves to reach).
+    pub fn write_flash(&mut self, offset: u32, bytes: &[u8]) -> Result<(), String> {
+        self.chip_mut().flash.load(offset, bytes)?;
+        self.uc
+            .mem_write(u64::from(flash::BASE + offset), bytes)
+            .map_err(uc_err("write flash"))
+    }
 }

@@ -1,68 +1,72 @@
-//! What `stm32-run` prints from a session: the firmware's lines, the model with its host
-//! rerun, the validation, the design and run mode's `TRACK` lines, instructions per control
-//! tick, of the search and of the design, flash and RAM. In one file so that the board-
-//! independent report `simavr-harness` prints can take its place once both share it.
+//! What `stm32-run` (`scripts/simulate --board stm32f411`) prints from a session: the report
+//! `harness_kit::report` prints for both boards, section by section, filled with this
+//! harness's figures: instructions at the HCLK the RCC selects (100 MHz), counted at 1 cycle
+//! each ([`CPI`]), the stack's high-water mark from the RAM paint.
 
-use std::fmt::Write as _;
+use std::path::PathBuf;
 
-use ridge_id::capture::{classify, Kind};
+use harness_kit::report::{self, Board, Control, Validation, Work};
+use harness_kit::validation;
 
 use crate::bench::secs;
 use crate::machine::CPI;
-use crate::session::{self, IdLine, Outcome};
+use crate::session::{self, Outcome, SessionConfig, TICK_PS};
+use crate::tracking;
 
 /// Target instructions per control tick (0.1 ms at 100 MHz, issue 30).
 pub const TICK_TARGET: u64 = 10_000;
 
-fn show_model(m: &IdLine) -> String {
-    let list = |v: &[f64]| {
-        v.iter()
-            .map(|x| format!("{x:.6}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    format!(
-        "(p, q, d) = ({}, {}, {})  theta = [{}]  phi = [{}]  c = {:.4}",
-        m.p,
-        m.q,
-        m.d,
-        list(&m.theta),
-        list(&m.phi),
-        m.c
-    )
+/// The board as the report names it and counts its work.
+pub fn board(hclk_hz: u32) -> Board {
+    let mhz = hclk_hz / 1_000_000;
+    Board {
+        name: "STM32F411",
+        emulator: "Unicorn",
+        unit: "instructions",
+        per_s: f64::from(hclk_hz) / CPI as f64,
+        clock: format!("HCLK {mhz} MHz, {CPI} cycle per instruction assumed"),
+        control_span: "tick start -> TIM3_CCR1 written: sensor read + state machine + PWM",
+        run_control_span: "tick start -> TIM3_CCR1 written, incl. the controller",
+        tick_budget: format!("target {TICK_TARGET} instructions ({:.1} ms)", {
+            TICK_TARGET as f64 * CPI as f64 / f64::from(hclk_hz) * 1e3
+        }),
+        search_kind: "ticking",
+    }
 }
 
-fn ms(ps: u64) -> f64 {
-    ps as f64 / 1e9
+/// Where the report's files go and what it shows.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Every line (log rows too), not only the events.
+    pub all_lines: bool,
+    /// PNG of measured vs model flow.
+    pub png: PathBuf,
+    /// PNG of the setpoint vs the flow in run mode.
+    pub track_png: PathBuf,
+    /// Per-tick CSV of the session, if asked.
+    pub trace: Option<PathBuf>,
+    /// The plant as `PlantArgs::describe` says it.
+    pub plant: String,
 }
 
-/// The report of `out` (`all_lines`: every line, log rows too). Returns the text and whether
-/// the run identified an accepted model without a fault.
-pub fn render(out: &Outcome, all_lines: bool) -> (String, bool) {
+/// The report of `out` (run with `cfg`). Returns the text and whether the run identified an
+/// accepted model without a fault or an unmodelled access.
+pub fn render(out: &Outcome, cfg: &SessionConfig, opts: &Options) -> (String, bool) {
     let mut s = String::new();
     let bench = &out.bench;
-    let _ = writeln!(
-        s,
-        "firmware lines{}:",
-        if all_lines {
-            ""
-        } else {
-            " (events; log rows left out)"
-        }
-    );
-    for l in &bench.lines {
-        if all_lines || (l.keyword() != "RES" && classify(l.text.as_bytes()) != Kind::Row) {
-            let _ = writeln!(s, "  [{:8.3} s] {}", secs(l.start), l.text);
-        }
-    }
     let m = &bench.machine;
-    let sim = bench.time_s();
+    let hclk = m.chip().clocks().hclk;
+    let board = board(hclk);
+    let lines: Vec<(f64, &str)> = bench
+        .lines
+        .iter()
+        .map(|l| (secs(l.start), l.text.as_str()))
+        .collect();
+    report::lines(&mut s, &lines, opts.all_lines);
+
     let resets = m.resets.len().saturating_sub(1);
-    let _ = writeln!(
-        s,
-        "\nemulated {sim:.2} s in {:.2} s wall ({:.1}x real time), {} instructions, {:.2} s of polling skipped by the clock jump{}",
-        out.wall_s,
-        sim / out.wall_s.max(1e-9),
+    let extra = format!(
+        ", {} instructions, {:.2} s of polling skipped by the clock jump{}",
         m.instructions(),
         secs(m.core().jumped),
         if resets > 0 {
@@ -72,167 +76,128 @@ pub fn render(out: &Outcome, all_lines: bool) -> (String, bool) {
         }
     );
     let misses = &m.chip().misses;
+    let mut notes = Vec::new();
     if !misses.is_empty() {
-        let _ = writeln!(s, "  unmodelled accesses: {misses:?}");
+        notes.push(format!("unmodelled accesses: {misses:?}"));
     }
     if !m.faults.is_empty() {
-        let _ = writeln!(s, "  CPU faults: {:?}", m.faults);
+        notes.push(format!("CPU faults: {:?}", m.faults));
     }
-    let mut ok = misses.is_empty();
+    report::run_summary(&mut s, bench.time_s(), out.wall_s, &extra, &notes);
+    let mut ok = misses.is_empty() && m.faults.is_empty();
 
-    let _ = writeln!(
-        s,
-        "\n== identified model (ID line: dynamics from the map's flow to the flow, slm/slm)"
+    ok &= report::model(
+        &mut s,
+        out.map.as_ref(),
+        out.id.as_ref(),
+        out.estimation.as_ref(),
     );
-    if let Some(map) = &out.map {
-        let flows: Vec<String> = map
-            .knots()
-            .iter()
-            .map(|k| format!("{:.1}", f64::from(*k) / 120.0))
-            .collect();
-        let _ = writeln!(
-            s,
-            "  map (MAP line): duty {:.2} % + k x {:.2} % -> flow [{}] slm",
-            f64::from(map.first()) / 100.0,
-            f64::from(map.step()) / 100.0,
-            flows.join(", ")
-        );
-    }
-    match &out.id {
-        Some(id) => {
-            let _ = writeln!(s, "  {}", show_model(id));
-            if let Some((e, n)) = id.eval {
-                let _ = writeln!(s, "  candidates evaluated {e} of {n} (exact pruning)");
-            }
-        }
-        None => {
-            let _ = writeln!(s, "  none");
-            ok = false;
-        }
-    }
-    match (&out.id, &out.estimation) {
-        (Some(id), Some(est)) => {
-            for (name, host) in [
-                ("f64", session::host_search::<f64>(est)),
-                (
-                    "f32, as the firmware computes",
-                    session::host_search::<f32>(est),
-                ),
-            ] {
-                let text = match host {
-                    Ok(h) => match session::coefficient_error(id, &h) {
-                        Some(e) => format!("same structure, max coefficient difference {e:.2e}"),
-                        None => format!("DIFFERENT: {}", show_model(&h)),
-                    },
-                    Err(e) => format!("failed: {e}"),
-                };
-                let _ = writeln!(
-                    s,
-                    "  host rerun ({name}; IntGram + Search on the {} samples served): {text}",
-                    est.len()
-                );
-            }
-        }
-        (Some(_), None) => {
-            let _ = writeln!(
-                s,
-                "  (estimation record could not be rebuilt from the logs)"
-            );
-        }
-        _ => {}
-    }
 
-    let _ = writeln!(s, "\n== validation");
-    match &out.accept {
-        Some(a) => {
-            let _ = writeln!(
-                s,
-                "  firmware: ACCEPT free-run fit {} %, rmse {} slm, one-step rmse {} slm",
-                a.get("fit").unwrap_or("?"),
-                a.get("rmse").unwrap_or("?"),
-                a.get("one").unwrap_or("?")
-            );
-        }
-        None => ok = false,
-    }
-    for r in &out.rejects {
-        let _ = writeln!(s, "  firmware: REJECT {:?}", r.fields);
-    }
-
-    let _ = writeln!(s, "\n== flow control");
-    match bench.find("CTRL").next() {
-        Some(l) => {
-            let _ = writeln!(s, "  firmware: {}", l.text);
-        }
-        None => {
-            let _ = writeln!(s, "  no CTRL line");
-        }
-    }
-    let tracks: Vec<_> = bench.find("TRACK").collect();
-    if let Some(last) = tracks.last() {
-        let _ = writeln!(s, "  {} TRACK lines; last: {}", tracks.len(), last.text);
-    }
+    let model = out.id.as_ref().and_then(|id| id.model.arx().ok());
+    let fresh = model.as_ref().map(|_| {
+        let latency = out
+            .estimation
+            .as_ref()
+            .map(|e| session::write_latency(bench, e));
+        let period = bench.duty_now().period;
+        validation::fresh_signal(
+            &cfg.bench.pump,
+            cfg.bench.lung.as_ref(),
+            &cfg.bench.sensor,
+            cfg.bench.seed,
+            out.map,
+            latency,
+            |d| session::duty_fraction(d, period),
+        )
+    });
+    report::validation(
+        &mut s,
+        &Validation {
+            accept: out.accept.as_ref(),
+            rejects: &out.rejects,
+            model,
+            record: out.validation.as_ref(),
+            fresh,
+            png: &opts.png,
+        },
+    );
 
     let t = &out.timing;
-    let hz = m.chip().clocks().hclk;
-    let _ = writeln!(
-        s,
-        "\n== instructions (HCLK {} MHz, {CPI} cycle per instruction assumed; tick = 10 ms)",
-        hz / 1_000_000
-    );
-    let _ = writeln!(
-        s,
-        "  control (tick start -> TIM3_CCR1 written: sensor read, state machine, PWM) over {} ticks: mean {:.0}, worst {} instructions (target {TICK_TARGET}); worst {:.3} ms emulated incl. the I2C transfer",
-        t.ticks,
-        t.control_mean,
-        t.control_worst,
-        ms(t.control_worst_ps)
-    );
-    let _ = writeln!(
-        s,
-        "  whole tick (to the idle wait, incl. report lines): mean {:.0}, worst {} instructions",
-        t.tick_mean, t.tick_worst
-    );
-    match (t.search_instr, t.search_ps) {
-        (Some(i), Some(p)) => {
-            let _ = writeln!(
-                s,
-                "  search: {i} instructions, {:.1} ms emulated (incl. {} ticks run inside it)",
-                ms(p),
-                t.search_ticks.map_or("?".into(), |n| n.to_string())
-            );
-        }
-        _ => {
-            let _ = writeln!(s, "  search: n/a");
-        }
-    }
-    match (t.design_instr, t.design_ps) {
-        (Some(i), Some(p)) => {
-            let _ = writeln!(s, "  design: {i} instructions, {:.1} ms emulated", ms(p));
-        }
-        _ => {
-            let _ = writeln!(s, "  design: n/a");
-        }
-    }
-    for f in &out.faults {
-        let _ = writeln!(s, "  FAULT {} {:?}", f.words.join(" "), f.fields);
-        ok = false;
+    if cfg.track_s > 0.0 {
+        let run = tracking::run_trace(bench);
+        let control = match &run {
+            Ok(r) => m
+                .core()
+                .ticks
+                .ticks
+                .iter()
+                .filter(|k| k.start >= r.first_at && k.busy_ps < TICK_PS)
+                .filter_map(|k| k.control_instr)
+                .collect(),
+            Err(_) => Vec::new(),
+        };
+        let c = Control {
+            ctrl: bench.find("CTRL").next().map(|l| l.text.as_str()),
+            run,
+            per_s: crate::periph::PS_PER_S as f64,
+            design: t.design_instr,
+            control,
+            plant: opts.plant.clone(),
+            png: &opts.track_png,
+            trace: opts.trace.clone(),
+        };
+        ok &= report::control(&mut s, &board, &c);
     }
 
-    let z = out.sizes;
-    let _ = writeln!(
-        s,
-        "\n== flash and RAM\n  flash {} B (text {} + data {}) of the image's 256 KB (sectors 0-5; 6 and 7 hold the record); static RAM {} B (data {} + bss {}) of 128 KB; stack high-water {} B (measured: RAM below the stack top no longer holding the power-up pattern)",
-        z.flash(),
-        z.text,
-        z.data,
-        z.ram(),
-        z.data,
-        z.bss,
-        out.bench
-            .machine
-            .stack_used()
-            .map_or_else(|| "n/a".to_string(), |b| b.to_string())
+    let ticks = &m.core().ticks.ticks;
+    let normal = ticks.iter().filter(|k| k.busy_ps < TICK_PS);
+    let control_worst = normal
+        .clone()
+        .filter_map(|k| k.control_instr.map(|c| (c, secs(k.start))))
+        .fold((0, 0.0), |a, b| if b.0 > a.0 { b } else { a });
+    let tick_worst = normal
+        .map(|k| (k.busy_instr, secs(k.start)))
+        .fold((0, 0.0), |a, b| if b.0 > a.0 { b } else { a });
+    let work = Work {
+        control_ticks: ticks
+            .iter()
+            .filter(|k| k.busy_ps < TICK_PS && k.control_instr.is_some())
+            .count(),
+        control_worst,
+        control_mean: t.control_mean,
+        control_note: format!(
+            "; worst {:.3} ms emulated incl. the I2C transfer (100 kHz)",
+            secs(t.control_worst_ps) * 1e3
+        ),
+        ticks: t.ticks,
+        tick_worst,
+        tick_mean: t.tick_mean,
+        load: t.load,
+        missed: t.missed,
+        during_search: t.search_ticks.map_or(0, |n| n.max(0) as usize),
+        during_design: t.design_ps.map_or(0, |p| (p / TICK_PS) as usize),
+        firmware_missed: t.firmware_missed,
+        search: t.search_instr,
+        faults: out
+            .faults
+            .iter()
+            .map(|(at, f)| (secs(*at), f.clone()))
+            .collect(),
+    };
+    ok &= report::work(&mut s, &board, &work);
+
+    let sizes = out.sizes;
+    let stack = bench.machine.stack_used();
+    report::sizes(
+        &mut s,
+        sizes,
+        "the image's 256 KB (sectors 0-5; 6 and 7 hold the record)",
+        &[format!(
+            "stack high-water (measured: RAM below the stack top no longer holding the power-up pattern) {} B  ->  static RAM + stack {} B of 128 KB",
+            stack.map_or_else(|| "n/a".to_string(), |b| b.to_string()),
+            sizes.ram() + stack.unwrap_or(0)
+        )],
     );
+    ok &= out.accept.is_some();
     (s, ok)
 }

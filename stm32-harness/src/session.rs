@@ -1,127 +1,30 @@
 //! One power-up of the image in the closed-loop bench and the figures taken from it: the
-//! identified model (`ID` line), the firmware's validation (`ACCEPT`/`REJECT`), the same
-//! search rerun on the host from the exact samples the firmware saw, the design (`CTRL`),
-//! instructions per control tick, of the search and of the design, and the image's sizes.
+//! identified model (`ID` line), the firmware's validation (`ACCEPT`/`REJECT`), the records it
+//! estimated and validated on rebuilt from what the bench served (for the host rerun and the
+//! scoring in `harness_kit`), the design (`CTRL`), instructions per control tick, of the search
+//! and of the design, and the image's sizes.
 //!
-//! Sample convention (firmware `selfid`): at each tick the firmware reads `y_t` and pushes
-//! `(v, y_t)` with `v` the static map's flow at the duty applied during the interval that ends
-//! with that reading. The bench logged every frame the sensor served and every duty on the
-//! pin, so the record is rebuilt from them: the frames of the record are the run of
-//! consecutive frames whose duty at the read matches the record generator's sequence (in TIM3
-//! counts; the generator rebuilt from the `MAP` and `SCAN` lines and the firmware's settings),
-//! as `simavr-harness` rebuilds it from the ATmega2560's timer.
+//! The records are rebuilt as `harness_kit::samples` describes, the duty checked in TIM3
+//! counts ([`duty_counts`]).
 
 use std::time::Instant;
 
-use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params, Valve};
-use ridge_core::{ArxModel, Evaluation, InputMap, IntGram, Offset, Real, Search};
-use ridge_pump_firmware::excitation::{FlowSteps, Record};
-use ridge_pump_firmware::lines::{ExciteLine, MapLine, ScanLine};
+use harness_kit::samples::{self, Samples};
+use harness_kit::validation;
+use pump_sim::{LungParams, PumpParams, Sfm3300Params};
+use ridge_core::InputMap;
+use ridge_pump_firmware::excitation::Record;
+use ridge_pump_firmware::lines::{IdLine, MapLine, ParsedLine};
 use ridge_pump_firmware::pump::duty_to_counts;
-use ridge_pump_firmware::selfid::{absolute_model, DEFAULT_CONFIG};
-use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::{MODEL_SCALE, SLM_PER_COUNT};
 
-use crate::bench::{Bench, BenchConfig, RunEnd, SUBSTEPS};
+use crate::bench::{Bench, BenchConfig, RunEnd};
 use crate::elf::Sizes;
-use crate::lines::{Line, ParsedLine};
 use crate::periph::Time;
 use crate::ticks::Tick;
+use crate::transcript::Line;
 
 /// One loop tick: 10 ms, ps.
 pub const TICK_PS: Time = 10_000_000_000;
-
-/// The model of an `ID` / `LOADED` line.
-#[derive(Clone, Debug, PartialEq)]
-pub struct IdLine {
-    /// Output orders.
-    pub p: u8,
-    /// Input coefficients.
-    pub q: u8,
-    /// Delay.
-    pub d: u8,
-    /// Constant term.
-    pub offset: Offset,
-    /// θ.
-    pub theta: Vec<f64>,
-    /// φ.
-    pub phi: Vec<f64>,
-    /// Intercept.
-    pub c: f64,
-    /// Criterion value.
-    pub score: Option<f64>,
-    /// Candidates evaluated / in the grid.
-    pub eval: Option<(i64, i64)>,
-}
-
-impl IdLine {
-    /// Parses an `ID` or `LOADED` line.
-    pub fn parse(r: &ParsedLine) -> Option<Self> {
-        Some(IdLine {
-            p: u8::try_from(r.int("p")?).ok()?,
-            q: u8::try_from(r.int("q")?).ok()?,
-            d: u8::try_from(r.int("d")?).ok()?,
-            offset: if r.int("off").unwrap_or(0) != 0 {
-                Offset::Intercept
-            } else {
-                Offset::None
-            },
-            theta: r.list("theta")?,
-            phi: r.list("phi")?,
-            c: r.num("c").unwrap_or(0.0),
-            score: r.num("score"),
-            eval: r.ratio("eval"),
-        })
-    }
-
-    /// As a ridge-core model (from the map's flow to the flow, slm).
-    pub fn model(&self) -> Option<ArxModel<f64>> {
-        ArxModel::new(&self.theta, &self.phi, self.d, self.offset, self.c).ok()
-    }
-}
-
-/// A record as the firmware saw it.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Samples {
-    /// The preset the duties follow ([`fresh_record`]); `None` for the device's own records
-    /// (`flow-steps`).
-    pub record: Option<Record>,
-    /// The static map the model's input goes through (the `MAP` line before the record, or
-    /// the model's for a fresh record).
-    pub map: Option<InputMap>,
-    /// Duties, 1/10 000.
-    pub u: Vec<u16>,
-    /// SFM3300 raw words.
-    pub raw: Vec<u16>,
-    /// Time of each read, ps.
-    pub at: Vec<Time>,
-    /// Operating point duty (`EXCITE … u0=`), 1/10 000.
-    pub u0: u16,
-    /// Operating point flow (`y0=`), counts.
-    pub y0: i16,
-}
-
-impl Samples {
-    /// The model's input at sample `i`: the map's flow at its duty, slm (the duty as a
-    /// fraction without a map).
-    pub fn input(&self, i: usize) -> f64 {
-        let u = self.u.get(i).copied().unwrap_or(0);
-        match &self.map {
-            Some(m) => f64::from(m.at(u)) * f64::from(SLM_PER_COUNT),
-            None => f64::from(u) / 10_000.0,
-        }
-    }
-
-    /// Number of samples.
-    pub fn len(&self) -> usize {
-        self.u.len()
-    }
-
-    /// Whether empty.
-    pub fn is_empty(&self) -> bool {
-        self.u.is_empty()
-    }
-}
 
 /// Instructions per tick and of the blocking jobs.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -151,6 +54,12 @@ pub struct Timing {
     pub design_instr: Option<u64>,
     /// The same in emulated time, ps.
     pub design_ps: Option<Time>,
+    /// Ticks that overran 10 ms outside the search and the design.
+    pub missed: usize,
+    /// CPU load over the ticks within 10 ms: busy time / time to the next tick.
+    pub load: f64,
+    /// The firmware's own `MISSED late=.. lost=..` totals (last line), if printed.
+    pub firmware_missed: Option<(i64, i64)>,
 }
 
 /// What a session produced.
@@ -167,10 +76,12 @@ pub struct Outcome {
     pub accept: Option<ParsedLine>,
     /// `REJECT` lines.
     pub rejects: Vec<ParsedLine>,
-    /// `FAULT` lines.
-    pub faults: Vec<ParsedLine>,
+    /// `FAULT` lines with when they started.
+    pub faults: Vec<(Time, ParsedLine)>,
     /// The estimation record as the firmware saw it.
     pub estimation: Option<Samples>,
+    /// The validation record as the firmware saw it.
+    pub validation: Option<Samples>,
     /// Timing.
     pub timing: Timing,
     /// Image sizes.
@@ -250,7 +161,7 @@ pub fn run(cfg: &SessionConfig) -> Result<Outcome, String> {
 pub fn analyse(bench: Bench, wall_s: f64) -> Outcome {
     let parsed: Vec<ParsedLine> = bench.lines.iter().map(Line::parsed).collect();
     let id_idx = parsed.iter().rposition(|r| r.keyword == "ID");
-    let id = id_idx.and_then(|i| IdLine::parse(&parsed[i]));
+    let id = id_idx.and_then(|i| IdLine::parse(&bench.lines[i].text).ok());
     let accept = parsed.iter().find(|r| r.keyword == "ACCEPT").cloned();
     let rejects = parsed
         .iter()
@@ -259,8 +170,9 @@ pub fn analyse(bench: Bench, wall_s: f64) -> Outcome {
         .collect();
     let faults = parsed
         .iter()
-        .filter(|r| r.keyword == "FAULT")
-        .cloned()
+        .zip(&bench.lines)
+        .filter(|(r, _)| r.keyword == "FAULT")
+        .map(|(r, l)| (l.start, r.clone()))
         .collect();
     let excite = match id_idx {
         Some(j) => parsed[..j].iter().rposition(|r| r.keyword == "EXCITE"),
@@ -274,6 +186,13 @@ pub fn analyse(bench: Bench, wall_s: f64) -> Outcome {
         .and_then(|l| MapLine::parse(&l.text).ok())
         .map(|m| m.map);
     let estimation = excite.and_then(|i| rebuild(&bench, i));
+    let validate = id_idx.and_then(|j| {
+        parsed
+            .iter()
+            .enumerate()
+            .position(|(i, r)| i > j && r.keyword == "VALIDATE")
+    });
+    let validation = validate.and_then(|i| rebuild(&bench, i));
     let timing = timing(&bench, &parsed, id_idx);
     let sizes = bench.machine.image().sizes;
     Outcome {
@@ -284,6 +203,7 @@ pub fn analyse(bench: Bench, wall_s: f64) -> Outcome {
         rejects,
         faults,
         estimation,
+        validation,
         timing,
         sizes,
         wall_s,
@@ -327,7 +247,34 @@ fn timing(bench: &Bench, parsed: &[ParsedLine], id_idx: Option<usize>) -> Timing
     let search = search_line.and_then(|i| job(bench, i));
     let design_line = parsed.iter().position(|r| r.keyword == "CTRL");
     let design = design_line.and_then(|i| job(bench, i));
+    // Overruns: ticks past 10 ms but for those in which the search or the design ran.
+    let jobs: Vec<Time> = [search_line, design_line]
+        .into_iter()
+        .flatten()
+        .filter_map(|i| bench.lines.get(i).map(|l| l.start))
+        .collect();
+    let missed = ticks
+        .iter()
+        .filter(|k| k.busy_ps >= TICK_PS)
+        .filter(|k| {
+            !jobs
+                .iter()
+                .any(|&t| (k.start..=k.start + k.busy_ps).contains(&t))
+        })
+        .count();
+    let (busy_ps, span_ps) = ticks
+        .windows(2)
+        .filter(|w| w[0].busy_ps < TICK_PS)
+        .fold((0u64, 0u64), |(b, s), w| {
+            (b + w[0].busy_ps, s + (w[1].start - w[0].start))
+        });
     Timing {
+        missed,
+        load: busy_ps as f64 / span_ps.max(1) as f64,
+        firmware_missed: parsed
+            .iter()
+            .rfind(|r| r.keyword == "MISSED")
+            .and_then(|r| Some((r.int("late")?, r.int("lost")?))),
         ticks: normal.len(),
         control_mean: mean(&control),
         control_worst: control.iter().copied().max().unwrap_or(0),
@@ -357,106 +304,26 @@ pub fn duty_counts(duty: u16, period: u32) -> u32 {
     ))
 }
 
-/// Rebuilds the record announced by line `idx` (`EXCITE flow-steps n=.. u0=.. y0=..`) from
-/// the frames served and the duty log, aligned on the record generator's duty sequence:
-/// [`FlowSteps`] on the map of the last `MAP` line before it, with the firmware's settings
-/// and the lag of the last `SCAN` line.
+/// The duty fraction the pump sees for a duty in 1/10 000 with a `period`-count PWM period
+/// ([`duty_counts`] of it).
+pub fn duty_fraction(duty: u16, period: u32) -> f64 {
+    f64::from(duty_counts(duty, period)) / f64::from(period.max(1))
+}
+
+/// Rebuilds the record announced by line `idx` (`EXCITE` / `VALIDATE`) from the frames served
+/// and the duty log (`harness_kit::samples::rebuild`, the duty checked in TIM3 counts).
 pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
-    let e = ExciteLine::parse(&bench.lines.get(idx)?.text).ok()?;
-    let before = |keyword: &str| {
-        bench.lines[..idx]
-            .iter()
-            .rev()
-            .find(|l| l.keyword() == keyword)
-    };
-    let map = MapLine::parse(&before("MAP")?.text).ok()?.map;
-    let lag = ScanLine::parse(&before("SCAN")?.text).ok()?.lag;
-    let r = &DEFAULT_CONFIG.records;
-    let samples = u16::try_from(e.samples).ok()?;
-    let mut steps = FlowSteps::new(&map, &r.shape(lag, samples, r.seed))?;
-    let gen: Vec<u16> = std::iter::from_fn(|| steps.next_step().map(|(d, _)| d)).collect();
-    let frames = bench.sensor.borrow().served();
-    let at = bench.lines[idx].start;
-    let j0 = frames.partition_point(|f| f.0 < at);
-    let counts_at = |t: Time| bench.duty_at(t).map(|d| (d.ccr, d.period));
-    for k in j0.saturating_sub(3)..=j0 + 3 {
-        if k + gen.len() > frames.len() {
-            break;
-        }
-        let ok = gen.iter().enumerate().all(|(i, &g)| {
-            counts_at(frames[k + i].0).is_some_and(|(ccr, period)| ccr == duty_counts(g, period))
-        });
-        if ok {
-            let mut s = Samples {
-                map: Some(map),
-                u0: e.u0,
-                y0: e.y0,
-                ..Samples::default()
-            };
-            for (i, &g) in gen.iter().enumerate() {
-                s.u.push(g);
-                s.raw.push(frames[k + i].1);
-                s.at.push(frames[k + i].0);
-            }
-            return Some(s);
-        }
-    }
-    None
-}
-
-/// Reruns the firmware's search on the host from `samples`: ridge-core's exact integer
-/// statistics (`IntGram`) and the firmware's search (`selfid::DEFAULT_CONFIG.search`: the
-/// default search on the device's grid, p ≤ 5, with an intercept) in `T` on the deviations `(v − v0, y − y0)` from the
-/// operating point (`v` the map's flow at the duty), then the absolute model as the firmware
-/// forms it (`selfid::absolute_model`).
-pub fn host_search<T: Real>(samples: &Samples) -> Result<IdLine, String> {
-    let map = samples.map.ok_or("no MAP line before the record")?;
-    let mut g = IntGram::new();
-    let (v0, y0) = (map.at(samples.u0), i32::from(samples.y0));
-    for (&u, &raw) in samples.u.iter().zip(&samples.raw) {
-        let dv = i32::from(map.at(u)) - i32::from(v0);
-        g.push(dv, i32::from(raw_to_counts(raw)) - y0)
-            .map_err(|e| format!("{e:?}"))?;
-    }
-    let normal = g.normal::<T>(MODEL_SCALE).map_err(|e| format!("{e:?}"))?;
-    let search = Search::<T> {
-        grid: DEFAULT_CONFIG.search.grid,
-        offset: DEFAULT_CONFIG.search.offset,
-        ..Search::default()
-    };
-    let sel = search.run(&normal, None).map_err(|e| format!("{e:?}"))?;
-    let m = absolute_model(&sel.fit.model(), v0, samples.y0).map_err(|e| format!("{e:?}"))?;
-    let s = m.structure();
-    Ok(IdLine {
-        p: s.p,
-        q: s.q,
-        d: s.d,
-        offset: m.offset(),
-        theta: m.theta().iter().map(|v| v.to_f64()).collect(),
-        phi: m.phi().iter().map(|v| v.to_f64()).collect(),
-        c: m.intercept().to_f64(),
-        score: Some(sel.score.to_f64()),
-        eval: Some((i64::from(sel.evaluated), i64::from(sel.candidates))),
-    })
-}
-
-/// Largest coefficient difference relative to `max(1, |b|)` (θ, φ, c); `None` if the
-/// structures differ.
-pub fn coefficient_error(a: &IdLine, b: &IdLine) -> Option<f64> {
-    if (a.p, a.q, a.d) != (b.p, b.q, b.d) || a.theta.len() != b.theta.len() {
-        return None;
-    }
-    let pairs = a
-        .theta
+    let lines: Vec<(u64, &str)> = bench
+        .lines
         .iter()
-        .zip(&b.theta)
-        .chain(a.phi.iter().zip(&b.phi))
-        .chain(std::iter::once((&a.c, &b.c)));
-    Some(
-        pairs
-            .map(|(x, y)| (x - y).abs() / y.abs().max(1.0))
-            .fold(0.0, f64::max),
-    )
+        .map(|l| (l.start, l.text.as_str()))
+        .collect();
+    let frames = bench.sensor.borrow().served();
+    samples::rebuild(&lines, idx, &frames, |at, g| {
+        bench
+            .duty_at(at)
+            .is_some_and(|d| d.ccr == duty_counts(g, d.period))
+    })
 }
 
 /// Writes what USART1 sent as the CSV `ridge-id capture` writes (its `Capture`, so the formats
@@ -481,21 +348,9 @@ pub fn write_capture(
     Ok(counts)
 }
 
-/// Free-run fit (%) of `model` on `samples` (the input through the samples' map, flows in
-/// slm), ridge-core's `Evaluation` (eq. 16 of the paper).
-pub fn free_run_fit(model: &ArxModel<f64>, samples: &Samples) -> Option<f64> {
-    let mut ev = Evaluation::new(*model);
-    for (i, &raw) in samples.raw.iter().enumerate() {
-        ev.push(samples.input(i), pump_sim::sfm3300::raw_to_flow(raw));
-    }
-    ev.free_run().map(|m| m.fit)
-}
-
-/// A fresh validation signal on the host with the loop's timing, as `simavr-harness` makes
-/// it: the plant (blower `pump`, test lung `lung` if any) sub-stepped as in the bench, the
-/// reading taken at the tick, the new duty (TIM3 counts of a `period`-count PWM period) seen
-/// `latency` sub-steps later, the sensor noise from `seed`; from `base` duty held for 2 s, as
-/// the firmware settles. `map`: the model's map, kept with the samples for scoring.
+/// A fresh validation signal on the host with the loop's timing
+/// (`harness_kit::validation::fresh_record`), the duty as TIM3 makes it of a `period`-count
+/// PWM period.
 #[allow(clippy::too_many_arguments)]
 pub fn fresh_record(
     pump: &PumpParams,
@@ -508,67 +363,13 @@ pub fn fresh_record(
     latency: usize,
     period: u32,
 ) -> Samples {
-    let mut p = pump.clone();
-    p.ts_s /= SUBSTEPS as f64;
-    p.delay_samples *= SUBSTEPS;
-    let mut pump = Pump::new(p);
-    let mut lung = lung.cloned().map(Lung::new);
-    let mut sfm = Sfm3300::new(sensor.clone(), seed);
-    let frac = |d: u16| f64::from(duty_counts(d, period)) / f64::from(period.max(1));
-    let mut step = |d: u16| {
-        let open = pump.step(frac(d));
-        match &mut lung {
-            Some(l) => {
-                let p = pump.params();
-                // The passive exhalation valve the host twin was written for.
-                l.step(Valve::Open, open, p.shutoff_of_speed(pump.speed()), p.ts_s)
-            }
-            None => open,
-        }
-    };
-    let latency = latency.min(SUBSTEPS);
-    let mut prev = base;
-    let mut flow = 0.0;
-    for _ in 0..200 * SUBSTEPS {
-        flow = step(base);
-    }
-    let mut s = Samples {
-        record: Some(record),
-        map,
-        u0: base,
-        ..Samples::default()
-    };
-    for g in record.generator() {
-        for _ in 0..latency {
-            flow = step(prev);
-        }
-        for _ in latency..SUBSTEPS {
-            flow = step(g);
-        }
-        prev = g;
-        s.u.push(g);
-        s.raw.push(sfm.measure_raw(flow));
-        s.at.push(0);
-    }
-    s
+    let frac = |d: u16| duty_fraction(d, period);
+    validation::fresh_record(pump, lung, sensor, seed, record, map, base, latency, frac)
 }
 
 /// Median plant sub-steps (0.5 ms) between a read of `samples` and the PWM change that
-/// follows it in the same tick (the duty written is seen by the plant at the next step).
+/// follows it in the same tick (`harness_kit::validation::write_latency`).
 pub fn write_latency(bench: &Bench, samples: &Samples) -> usize {
-    let step = TICK_PS / SUBSTEPS as u64;
-    let mut lat: Vec<u64> = samples
-        .at
-        .iter()
-        .filter_map(|&t| {
-            let i = bench.duty_log.partition_point(|d| d.at <= t);
-            let d = bench.duty_log.get(i)?;
-            (d.at - t < TICK_PS).then(|| (d.at - t).div_ceil(step))
-        })
-        .collect();
-    if lat.is_empty() {
-        return 1;
-    }
-    lat.sort_unstable();
-    lat[lat.len() / 2] as usize
+    let changes: Vec<u64> = bench.duty_log.iter().map(|d| d.at).collect();
+    validation::write_latency(samples, &changes, TICK_PS)
 }

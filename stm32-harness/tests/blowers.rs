@@ -19,13 +19,15 @@
 mod common;
 
 use common::elf;
+use harness_kit::host::{coefficient_error, host_search};
+use harness_kit::validation::score;
 use pump_sim::baseline::table::breath_pct;
 use pump_sim::PumpParams;
 use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::selfid::Config;
 use stm32_harness::bench::secs;
 use stm32_harness::session::{self, Outcome, SessionConfig};
-use stm32_harness::tracking::RunTrace;
+use stm32_harness::tracking::run_trace;
 
 /// Control tick budget, instructions (0.1 ms at 100 MHz, issue 30's target).
 const TICK_BUDGET: u64 = 10_000;
@@ -89,8 +91,8 @@ fn check_identification(o: &Outcome) -> Vec<String> {
             o.map
         ));
     }
-    match session::host_search::<f64>(est) {
-        Ok(host) => match session::coefficient_error(id, &host) {
+    match host_search(est) {
+        Ok(host) => match coefficient_error(&id.model, &host.model) {
             Some(e) if e <= COEF_TOL => {}
             e => bad.push(format!(
                 "firmware {id:?} vs host {host:?}: coefficient difference {e:?}"
@@ -98,9 +100,9 @@ fn check_identification(o: &Outcome) -> Vec<String> {
         },
         Err(e) => bad.push(format!("host search failed: {e}")),
     }
-    match id.model() {
-        None => bad.push("ID line does not give a valid model".into()),
-        Some(model) => {
+    match id.model.arx() {
+        Err(_) => bad.push("ID line does not give a valid model".into()),
+        Ok(model) => {
             let cfg = o.bench.config();
             let period = o.bench.duty_log.last().map_or(1, |d| d.period);
             let fresh = session::fresh_record(
@@ -114,7 +116,7 @@ fn check_identification(o: &Outcome) -> Vec<String> {
                 session::write_latency(&o.bench, est),
                 period,
             );
-            match session::free_run_fit(&model, &fresh) {
+            match score(&model, &fresh).0 {
                 Some(f) if f >= MIN_FRESH_FIT => {
                     println!("fresh validation ({FRESH_RECORD:?}) free-run fit {f:.1} %")
                 }
@@ -180,7 +182,7 @@ fn tracking_run(
         Some(t) if secs(t) < DESIGN_BUDGET_S => {}
         t => bad.push(format!("design {:?} s ≥ {DESIGN_BUDGET_S} s", t.map(secs))),
     }
-    let run = match RunTrace::from_bench(&o.bench) {
+    let run = match run_trace(&o.bench) {
         Ok(r) => r,
         Err(e) => {
             bad.push(format!("no run mode: {e}"));

@@ -5,11 +5,12 @@
 //!
 //! The image is built (incrementally) if missing or stale; `STM32_ELF` names another.
 
+use harness_kit::host::{coefficient_error, host_search_in};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use stm32_harness::bench::{ps, secs, Action, Bench, BenchConfig};
 use stm32_harness::firmware;
-use stm32_harness::lines::Line;
-use stm32_harness::session::{self, host_search, SessionConfig};
+use stm32_harness::session::{self, SessionConfig};
+use stm32_harness::transcript::Line;
 
 fn elf() -> std::path::PathBuf {
     firmware::ensure_elf().expect("STM32F411 image")
@@ -117,13 +118,16 @@ fn identification_equals_the_host_rerun_on_the_samples_served() {
     let id = out.id.as_ref().expect("ID line");
     let est = out.estimation.as_ref().expect("estimation record rebuilt");
     assert_eq!(est.len(), usize::from(DEFAULT_CONFIG.records.samples));
-    for host in [host_search::<f64>(est), host_search::<f32>(est)] {
+    for host in [host_search_in::<f64>(est), host_search_in::<f32>(est)] {
         let host = host.unwrap();
-        let err = session::coefficient_error(id, &host)
+        let err = coefficient_error(&id.model, &host.model)
             .unwrap_or_else(|| panic!("structure differs: firmware {id:?}, host {host:?}"));
         // The ID line prints 6 decimals; the firmware computes in f32.
         assert!(err < 1e-4, "max coefficient difference {err:e}");
-        assert_eq!(id.eval, host.eval);
+        assert_eq!(
+            (id.evaluated, id.candidates),
+            (host.evaluated, host.candidates)
+        );
     }
 }
 

@@ -308,7 +308,7 @@ fn sda_held_low_by_the_sensor_is_clocked_free() {
             .borrow()
             .served()
             .iter()
-            .map(|&(t, _, _)| t)
+            .map(|&(t, _)| t)
             .filter(|t| (hold..end).contains(t))
             .collect();
         assert!(

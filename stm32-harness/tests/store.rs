@@ -1,8 +1,9 @@
 //! The STM32F411 image's persisted record in the emulated flash (`firmware/src/flash_store.rs`
 //! over sectors 6 and 7; the board's `FlashStore`): written after `ACCEPT`, loaded after a
 //! reset and checked at boot; a damaged or implausible record refused; a power cut at every
-//! program access of a save, or during the erase that makes room, never loses the record; a
-//! save into a full sector completes without a watchdog reset.
+//! program access of a save, or during the erase that makes room, never loses the record; the
+//! room is made at boot, before the pump runs (without a watchdog reset), and a save that would
+//! need an erase while the pump runs is refused without a stall.
 //!
 //! Truths: the records the tests store (the firmware's encoder, `persist::encode`, of a known
 //! model), the ID line of the run that saved, the flash contents and program accesses the
@@ -16,14 +17,16 @@ mod common;
 use common::{elf, run_to, texts, transcript};
 use ridge_core::{ArxModel, InputMap, Offset};
 use ridge_pump_firmware::flash_store::{
-    self, slot_bytes, At, PROGRAMMED_LEN, SECTORS, SECTOR_LEN, SLOTS, SLOT_LEN,
+    self, slot_bytes, At, PROGRAMMED_LEN, RUN_SAVES, SECTORS, SECTOR_LEN, SLOTS, SLOT_LEN,
 };
+use ridge_pump_firmware::lines::PrintedModel;
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
 use stm32_harness::bench::{ps, secs, Action, Bench, BenchConfig, RunEnd};
-use stm32_harness::lines::Line;
 use stm32_harness::periph::flash::{EraseCut, Programmed, BASE};
 use stm32_harness::periph::rcc::ResetCause;
-use stm32_harness::session::{self, IdLine, SessionConfig};
+use stm32_harness::periph::Time;
+use stm32_harness::session::{self, SessionConfig};
+use stm32_harness::transcript::Line;
 
 /// Offset of θ₁ in a record, and of the first φ and of the CRC (`firmware/src/persist.rs`).
 const THETA_AT: usize = 9;
@@ -81,18 +84,18 @@ fn boot(mem: Vec<u8>, limit_s: f64) -> Bench {
 }
 
 /// The model of the first `LOADED` line.
-fn loaded(b: &Bench) -> Option<IdLine> {
+fn loaded(b: &Bench) -> Option<PrintedModel> {
     b.find("LOADED")
         .next()
-        .and_then(|l| IdLine::parse(&l.parsed()))
+        .and_then(|l| PrintedModel::from_line(&l.parsed()).ok())
 }
 
 /// The model a record holds, as a LOADED line prints it (6 decimals).
-fn printed(record: &[u8]) -> IdLine {
+fn printed(record: &[u8]) -> PrintedModel {
     let (m, _, _) = persist::decode(record).expect("a whole record");
     let r6 = |v: f32| (f64::from(v) * 1e6).round() / 1e6;
     let s = m.structure();
-    IdLine {
+    PrintedModel {
         p: s.p,
         q: s.q,
         d: s.d,
@@ -100,13 +103,11 @@ fn printed(record: &[u8]) -> IdLine {
         theta: m.theta().iter().map(|&v| r6(v)).collect(),
         phi: m.phi().iter().map(|&v| r6(v)).collect(),
         c: r6(m.intercept()),
-        score: None,
-        eval: None,
     }
 }
 
 /// The same model (structure and coefficients as printed).
-fn same_model(a: &IdLine, b: &IdLine) -> bool {
+fn same_model(a: &PrintedModel, b: &PrintedModel) -> bool {
     (a.p, a.q, a.d) == (b.p, b.q, b.d)
         && a.theta.len() == b.theta.len()
         && a.phi.len() == b.phi.len()
@@ -126,7 +127,7 @@ fn the_record_is_written_loaded_after_a_reset_and_checked() {
     let cfg = SessionConfig::new(elf());
     let first = session::run(&cfg).expect("session");
     assert!(first.bench.lines.iter().any(|l| l.text == "PERSIST saved"));
-    let id = first.id.clone().expect("ID line");
+    let id = first.id.clone().expect("ID line").model;
     let store = first.bench.store();
     let plan = flash_store::plan([&store[0], &store[1]]);
     assert_eq!(plan.load, Some(At { sector: 0, slot: 0 }), "{plan:?}");
@@ -295,7 +296,7 @@ fn a_power_cut_at_every_program_access_of_a_save_keeps_a_record() {
         transcript(&saved)
     );
     let writes = saved.machine.chip().flash.programmed.clone();
-    let id = session::analyse(saved, 0.0).id.expect("ID line");
+    let id = session::analyse(saved, 0.0).id.expect("ID line").model;
     assert_eq!(writes.len(), PROGRAMMED_LEN, "program accesses of the save");
     let slot1 = SECTORS[0].1 + SLOT_LEN as u32;
     for (k, w) in writes.iter().enumerate() {
@@ -345,14 +346,16 @@ fn a_power_cut_at_every_program_access_of_a_save_keeps_a_record() {
     }
 }
 
-/// Sector 6 full (1 365 slots, the newest holding A), sector 7 holding older records. A save
-/// (`FORGET`: the forgotten record) needs room: the image erases sector 7 (2 s, the CPU
-/// stalled) with the watchdog's timeout raised to 8 s and in effect (the reload waits for
-/// IWDG_SR.RVU, RM0383 §15.4.4): no watchdog reset, `PERSIST saved`, the forgotten record in
-/// sector 7's first slot, sector 6 untouched; the next boot has no record. A power cut at
-/// several points of the erase (its bits part way, see `periph::flash`) leaves A loadable.
+/// Sector 6 full (1 365 slots, the newest holding A), sector 7 holding older records. The next
+/// save needs room, so the boot makes it before the pump is driven: it erases sector 7 (2 s,
+/// the CPU stalled, TIM3_CCR1 0 throughout) with the watchdog's timeout raised to 8 s and in
+/// effect (the reload waits for IWDG_SR.RVU, RM0383 §15.4.4): no watchdog reset, A loaded
+/// after it. A save while the pump runs (`FORGET`: the forgotten record) then goes to sector
+/// 7's first slot without a stall: `PERSIST saved`, sector 6 untouched, the next boot has no
+/// record. A power cut at several points of the boot's erase (its bits part way, see
+/// `periph::flash`) leaves A loadable, and the boot after it erases again.
 #[test]
-fn a_save_into_a_full_sector_erases_the_other_without_a_watchdog_reset_and_survives_a_cut() {
+fn a_full_sector_gets_its_room_at_boot_before_the_pump_runs_and_survives_a_cut() {
     let a = known(88.5);
     let older = known(77.0);
     let mut store = [vec![0xFF; SECTOR_LEN], vec![0xFF; SECTOR_LEN]];
@@ -375,25 +378,38 @@ fn a_save_into_a_full_sector_erases_the_other_without_a_watchdog_reset_and_survi
     assert_eq!((plan.target, plan.erase), (At { sector: 1, slot: 0 }, true));
     let mem = with_store(image(), &store);
 
-    let forget = |cut: Option<EraseCut>| {
-        let mut b = boot(mem.clone(), 4.0);
-        let m = loaded(&b).unwrap_or_else(|| panic!("A not loaded:\n{}", transcript(&b)));
-        assert!(same_model(&m, &printed(&a)));
-        run_to(&mut b, 2.0, "TRACK");
-        if let Some(c) = cut {
-            b.apply(Action::PowerCutInErase(c)).expect("arm");
-        }
-        b.send_at(b.time_s(), b"FORGET\n");
-        let end = if cut.is_some() {
-            run_to(&mut b, 6.0, "BOOT")
-        } else {
-            run_to(&mut b, 6.0, "PERSIST")
-        };
-        assert!(end.is_some(), "{}", transcript(&b));
-        b
-    };
+    let mut b = boot(mem.clone(), 6.0);
+    let m = loaded(&b).unwrap_or_else(|| panic!("A not loaded:\n{}", transcript(&b)));
+    assert!(same_model(&m, &printed(&a)));
+    let core = b.machine.core();
+    assert_eq!(core.erase_stalls.len(), 1, "{}", transcript(&b));
+    assert_eq!(b.machine.chip().flash.erased.len(), 1);
+    assert_eq!(b.machine.chip().flash.erased[0].1, SECTORS[1].0);
+    let stall = core.erase_stalls[0];
+    let stall_end = stall.at + stall.len;
+    let watchdog = stall.watchdog.expect("the IWDG runs") - stall.at;
+    println!(
+        "boot erase: CPU stalled {:.3} s from {:.4} s, the IWDG's timeout at its start {:.3} s",
+        secs(stall.len),
+        secs(stall.at),
+        secs(watchdog)
+    );
+    assert_eq!(stall.len, ps(2.0), "the whole 128 KB erase");
+    assert!(watchdog > ps(7.9), "IWDG timeout {:.3} s", secs(watchdog));
+    assert!(
+        core.pwm_writes
+            .iter()
+            .all(|&(t, ccr)| ccr == 0 || t > stall_end),
+        "the pump driven before the erase ended: {:?}",
+        &core.pwm_writes[..core.pwm_writes.len().min(5)]
+    );
+    assert!(b.duty_log.iter().all(|d| d.at > stall_end || d.ccr == 0));
+    let boot_line = b.find("BOOT").next().expect("BOOT");
+    assert!(boot_line.start > stall_end, "BOOT before the erase ended");
 
-    let b = forget(None);
+    run_to(&mut b, 2.0, "TRACK").expect("TRACK");
+    b.send_at(b.time_s(), b"FORGET\n");
+    run_to(&mut b, 1.0, "PERSIST").expect("PERSIST");
     assert_eq!(
         b.lines.last().map(|l| l.text.as_str()),
         Some("PERSIST saved")
@@ -406,17 +422,8 @@ fn a_save_into_a_full_sector_erases_the_other_without_a_watchdog_reset_and_survi
         m.resets,
         transcript(&b)
     );
+    assert_eq!(m.core().erase_stalls.len(), 1, "an erase while running");
     assert_eq!(m.chip().flash.erased.len(), 1);
-    assert_eq!(m.chip().flash.erased[0].1, SECTORS[1].0);
-    let stall = m.core().erase_stalls[0];
-    let watchdog = stall.watchdog.expect("the IWDG runs") - stall.at;
-    println!(
-        "erase: CPU stalled {:.3} s, the IWDG's timeout at its start {:.3} s",
-        secs(stall.len),
-        secs(watchdog)
-    );
-    assert_eq!(stall.len, ps(2.0), "the whole 128 KB erase");
-    assert!(watchdog > ps(7.9), "IWDG timeout {:.3} s", secs(watchdog));
     let after_store = b.store();
     assert_eq!(after_store[0], store[0], "sector 6 touched");
     assert_eq!(
@@ -431,22 +438,23 @@ fn a_save_into_a_full_sector_erases_the_other_without_a_watchdog_reset_and_survi
         "{}",
         transcript(&reboot)
     );
+    assert!(reboot.machine.core().erase_stalls.is_empty(), "room enough");
 
     for (i, fraction) in [0.0, 0.001, 0.1, 0.5, 0.999].into_iter().enumerate() {
         let cut = EraseCut {
             fraction,
             seed: 11 + i as u64,
         };
-        let mut b = forget(Some(cut));
+        let mut cfg = BenchConfig::new(elf());
+        cfg.flash = Some(mem.clone());
+        let mut b = Bench::new(cfg).expect("bench");
+        b.apply(Action::PowerCutInErase(cut)).expect("arm");
+        b.run_until(8.0, |l| l.keyword() == "LOADED").expect("run");
         assert_eq!(
             b.machine.resets.last().map(|r| r.cause),
             Some(ResetCause::PowerOn),
             "cut at {fraction}"
         );
-        b.run_until(b.time_s() + 4.0, |l| {
-            matches!(l.keyword(), "LOADED" | "STORED-REJECTED" | "EXCITE")
-        })
-        .expect("run");
         let boots: Vec<&str> = b
             .lines
             .iter()
@@ -454,24 +462,111 @@ fn a_save_into_a_full_sector_erases_the_other_without_a_watchdog_reset_and_survi
             .map(|l| l.text.as_str())
             .collect();
         assert_eq!(
-            boots.last().copied(),
-            Some("BOOT board=stm32f411 reset=14 record=stored"),
+            boots,
+            ["BOOT board=stm32f411 reset=14 record=stored"],
             "cut at {fraction}: {:?}",
             texts(&b.lines)
         );
-        let after_cut = b.lines.iter().rposition(|l| l.keyword() == "BOOT").unwrap();
-        let m = b.lines[after_cut..]
-            .iter()
-            .find(|l| l.keyword() == "LOADED")
-            .and_then(|l| IdLine::parse(&l.parsed()))
+        let m = loaded(&b)
             .unwrap_or_else(|| panic!("cut at {fraction}: A not loaded:\n{}", transcript(&b)));
         assert!(same_model(&m, &printed(&a)), "cut at {fraction}");
+        let store_now = b.store();
         assert_eq!(
-            b.store()[0],
-            store[0],
+            store_now[0], store[0],
             "cut at {fraction}: sector 6 touched"
         );
+        assert!(
+            store_now[1].iter().all(|&x| x == 0xFF),
+            "cut at {fraction}: sector 7 not erased at the next boot"
+        );
     }
+}
+
+/// A run that has used up its saves ([`RUN_SAVES`]: the sector in use had that many erased
+/// slots at boot, and the test fills them while the image runs, as that many saves would): the
+/// next save would need sector 7 erased, 2 s with the CPU stalled while the pump runs. The
+/// image refuses it (`PERSIST failed`): no erase, no stall, the store as it was, the control
+/// ticks on (no `MISSED` line, `TRACK` lines go on). After a power cycle the boot makes the
+/// room, the newest record (A) loads, and the same save succeeds.
+#[test]
+fn a_save_that_needs_an_erase_while_the_pump_runs_is_refused_without_a_stall() {
+    let a = known(88.5);
+    let older = known(77.0);
+    let mut store = [vec![0xFF; SECTOR_LEN], vec![0xFF; SECTOR_LEN]];
+    let put = |store: &mut [Vec<u8>; 2], sector: usize, slot: usize, seq: u32| {
+        let at = slot * SLOT_LEN;
+        store[sector][at..at + PROGRAMMED_LEN].copy_from_slice(&slot_bytes(&a, seq).unwrap());
+    };
+    for i in 0..10 {
+        let at = i * SLOT_LEN;
+        store[1][at..at + PROGRAMMED_LEN].copy_from_slice(&slot_bytes(&older, i as u32).unwrap());
+    }
+    let used = SLOTS - RUN_SAVES;
+    for i in 0..used {
+        put(&mut store, 0, i, 10 + i as u32);
+    }
+    assert_eq!(flash_store::boot_erase([&store[0], &store[1]]), None);
+    let mut b = boot(with_store(image(), &store), 4.0);
+    let m = loaded(&b).unwrap_or_else(|| panic!("A not loaded:\n{}", transcript(&b)));
+    assert!(same_model(&m, &printed(&a)));
+    run_to(&mut b, 2.0, "TRACK").expect("TRACK");
+    // The run's saves: the rest of sector 6, each a committed copy of A.
+    let mut full = store.clone();
+    for i in used..SLOTS {
+        put(&mut full, 0, i, 10 + i as u32);
+    }
+    let bytes = &full[0][used * SLOT_LEN..];
+    b.machine
+        .write_flash(SECTORS[0].1 + (used * SLOT_LEN) as u32, bytes)
+        .expect("write");
+    let plan = flash_store::plan([&full[0], &full[1]]);
+    assert_eq!((plan.target, plan.erase), (At { sector: 1, slot: 0 }, true));
+
+    let sent = b.send_at(b.time_s(), b"FORGET\n");
+    run_to(&mut b, 1.0, "PERSIST").expect("PERSIST");
+    assert_eq!(
+        b.lines.last().map(|l| l.text.as_str()),
+        Some("PERSIST failed"),
+        "{}",
+        transcript(&b)
+    );
+    b.run_for(2.0).expect("run");
+    let core = b.machine.core();
+    assert!(
+        core.erase_stalls.is_empty(),
+        "a stall: {:?}",
+        core.erase_stalls
+    );
+    assert!(b.machine.chip().flash.erased.is_empty());
+    assert!(b.machine.resets.len() == 1, "{:?}", b.machine.resets);
+    assert_eq!(b.store(), full, "the store changed");
+    let after = |kw: &'static str| b.find(kw).filter(move |l| l.start > sent);
+    assert!(after("MISSED").next().is_none(), "{}", transcript(&b));
+    let tracks: Vec<Time> = after("TRACK").map(|l| l.start).collect();
+    assert!(tracks.len() >= 2, "{}", transcript(&b));
+    // The pump ran on: the duty changes at least once a breath after the refusal.
+    assert!(
+        b.duty_log.iter().filter(|d| d.at > sent).count() > 10,
+        "the duty froze"
+    );
+
+    // A power cycle: the boot erases sector 7, A loads, the save goes through.
+    let mut b = boot(b.flash(), 6.0);
+    assert_eq!(b.machine.core().erase_stalls.len(), 1, "no boot erase");
+    let m = loaded(&b).unwrap_or_else(|| panic!("A not loaded:\n{}", transcript(&b)));
+    assert!(same_model(&m, &printed(&a)));
+    run_to(&mut b, 2.0, "TRACK").expect("TRACK");
+    b.send_at(b.time_s(), b"FORGET\n");
+    run_to(&mut b, 1.0, "PERSIST").expect("PERSIST");
+    assert_eq!(
+        b.lines.last().map(|l| l.text.as_str()),
+        Some("PERSIST saved")
+    );
+    assert_eq!(b.machine.core().erase_stalls.len(), 1);
+    assert_eq!(
+        &b.store()[1][..PROGRAMMED_LEN],
+        &slot_bytes(&[0xFF; RECORD_LEN], 10 + SLOTS as u32).unwrap()[..]
+    );
 }
 
 /// At boot the image reads both sectors of the store: filled with zeros (no slot erased, none
@@ -484,10 +579,19 @@ fn scanning_a_full_store_is_work_not_a_wait() {
     let mut cfg = BenchConfig::new(elf());
     cfg.flash = Some(with_store(image(), &zeros));
     let mut b = Bench::new(cfg).expect("bench");
-    let end = b.run_until(0.5, |l| l.keyword() == "BOOT").expect("run");
+    let end = b.run_until(2.5, |l| l.keyword() == "BOOT").expect("run");
     assert!(matches!(end, RunEnd::Line(_)));
     let boot = b.find("BOOT").next().expect("BOOT");
-    assert!(boot.start < ps(0.01), "BOOT at {:.4} s", secs(boot.start));
+    // Neither sector has room: the boot erases one (2 s, `flash_store::boot_erase`); the
+    // rest is work.
+    let stalls: Time = b.machine.core().erase_stalls.iter().map(|s| s.len).sum();
+    assert_eq!(stalls, ps(2.0));
+    assert!(
+        boot.start - stalls < ps(0.01),
+        "BOOT at {:.4} s, {:.4} s of it erasing",
+        secs(boot.start),
+        secs(stalls)
+    );
     assert_eq!(boot.text, "BOOT board=stm32f411 reset=14 record=none");
 }
 

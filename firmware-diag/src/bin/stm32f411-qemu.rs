@@ -142,9 +142,10 @@ mod image {
         let mut ticker = Ticker::new(dp.TIM5.counter(&mut rcc));
 
         uwriteln!(out, "BOOT board=stm32f411-qemu").ok();
-        // A stretch in which the loop does not read (as during the ticking search or a flash
-        // erase): until the first received byte is lost, at most HOLD_TICKS. A burst of more
-        // than 255 bytes sent now fills the receive queue exactly.
+        // A stretch in which the loop does not read while the interrupt runs (as during the
+        // ticking search, but longer than its 15 ms, which the release image never exceeds):
+        // until the first received byte is lost, at most HOLD_TICKS. A burst of more than 255
+        // bytes sent now fills the receive queue exactly.
         let mut held = 0u32;
         while held < HOLD_TICKS && !bp::RX_LOST.load(Ordering::Acquire) {
             held += ticker.poll().map_or(0, u32::from);

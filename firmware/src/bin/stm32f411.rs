@@ -65,7 +65,7 @@ mod image {
             self.watchdog.feed();
         }
         fn save(&mut self, record: &[u8]) {
-            self.store.save(record, &mut self.watchdog);
+            self.store.save(record);
         }
         fn poll_store(&mut self) -> Option<bool> {
             // A clean run: the resets before it were no loop (a loop keeps its count, and the
@@ -132,7 +132,13 @@ mod image {
         );
         let sensor = Sfm3300::new(bp::bus::Bus::new(i2c));
 
-        let store = FlashStore::new(dp.FLASH);
+        // The watchdog from here on. A record store that needs room gets it now, before the
+        // pump is driven: an erase stalls the CPU for ~2 s (`FlashStore::prepare`).
+        let mut watchdog = IndependentWatchdog::new(dp.IWDG);
+        watchdog.stop_on_debug(&dp.DBGMCU, true);
+        watchdog.start(WATCHDOG_MS.millis());
+        let mut store = FlashStore::new(dp.FLASH);
+        store.prepare(&mut watchdog);
         let stored = store.load();
         let mut sid = SelfIdentification::new(Defaults, stored.as_ref().map(|r| &r[..]));
         // Reset loops (`resets`): count this boot's watchdog / brown-out reset; the third in a
@@ -150,9 +156,6 @@ mod image {
         });
 
         let ticker = Ticker::new(dp.TIM5.counter(&mut rcc));
-        let mut watchdog = IndependentWatchdog::new(dp.IWDG);
-        watchdog.stop_on_debug(&dp.DBGMCU, true);
-        watchdog.start(WATCHDOG_MS.millis());
 
         uwriteln!(
             out,

@@ -285,10 +285,12 @@ fn set_watchdog(watchdog: &mut IndependentWatchdog, ms: u32) {
 /// The record store ([`ridge_pump_firmware::flash_store`]): a log of slots over flash sectors
 /// 6 and 7 (0x0804_0000 and 0x0806_0000, 128 KB each), so that a power cut at any program
 /// access of a save, or during the erase that makes room, leaves the previous record
-/// loadable. A save programs 117 bytes (~16 µs each, the CPU stalled meanwhile); when the
-/// sector in use is full (1 365 saves), it first erases the other one, which stalls the CPU
-/// for ~2 s (up to 4 s): the watchdog's timeout is raised for it ([`set_watchdog`]), the PWM
-/// keeps running in hardware and the tick counter counts on.
+/// loadable. A save programs 117 bytes (~16 µs each, the CPU stalled meanwhile). An erase
+/// (making room when the sector in use fills up, 1 024 saves) stalls the CPU for ~2 s (up to
+/// 4 s): no sensor reads, the PWM holding its duty. So it is done only at boot, before the pump
+/// is driven ([`prepare`](Self::prepare), [`flash_store::boot_erase`]); a save that would need
+/// one while running is refused. The watchdog's timeout is raised for an erase
+/// ([`set_watchdog`]).
 pub struct FlashStore {
     flash: FLASH,
     /// Whether the chip has sectors 6 and 7 (512 KB parts; 256 KB parts end at sector 5):
@@ -322,6 +324,29 @@ impl FlashStore {
         })
     }
 
+    /// At boot, before the pump is driven: erases the sector [`flash_store::boot_erase`] names,
+    /// if any (~2 s, the CPU stalled), with the watchdog's timeout raised meanwhile. Returns
+    /// whether it erased; a failed erase leaves the store as the next save finds it (a save
+    /// needing the erase is then refused).
+    pub fn prepare(&mut self, watchdog: &mut IndependentWatchdog) -> bool {
+        if !self.available {
+            return false;
+        }
+        match flash_store::boot_erase(self.sectors()) {
+            Some(index) => self.erase(index, watchdog).is_ok(),
+            None => false,
+        }
+    }
+
+    /// Erases the store's sector `index` (into [`SECTORS`]) with the watchdog's timeout raised.
+    fn erase(&mut self, index: u8, watchdog: &mut IndependentWatchdog) -> Result<(), ()> {
+        let (number, _) = SECTORS.get(usize::from(index)).copied().ok_or(())?;
+        set_watchdog(watchdog, ERASE_WATCHDOG_MS);
+        let erased = self.flash.unlocked().erase(number);
+        set_watchdog(watchdog, WATCHDOG_MS);
+        erased.map_err(drop)
+    }
+
     /// The record to load ([`flash_store::plan`]).
     pub fn load(&self) -> Option<[u8; RECORD_LEN]> {
         if !self.available {
@@ -333,10 +358,12 @@ impl FlashStore {
     }
 
     /// Saves `record` ([`RECORD_LEN`] bytes, or all `0xFF` to forget), blocking: ~1.9 ms of
-    /// programming, plus a sector erase of ~2 s when the sector in use is full. A record
-    /// equal to the one loaded now (or forgetting with none loaded) is not written again. The
-    /// outcome comes from [`take_result`](Self::take_result).
-    pub fn save(&mut self, record: &[u8], watchdog: &mut IndependentWatchdog) {
+    /// programming. A save that needs a sector erased first (the run made more than
+    /// [`flash_store::RUN_SAVES`] saves) is refused: it fails, and the next boot makes the
+    /// room ([`prepare`](Self::prepare)). A record equal to the one loaded now (or
+    /// forgetting with none loaded) is not written again. The outcome comes from
+    /// [`take_result`](Self::take_result).
+    pub fn save(&mut self, record: &[u8]) {
         if record.len() != RECORD_LEN || !self.available {
             return;
         }
@@ -346,27 +373,13 @@ impl FlashStore {
             Some(current) => current == record,
             None => slots::is_tombstone(record),
         };
-        let ok = same || self.append(record, &plan, watchdog).is_ok();
+        let ok = same || (!plan.erase && self.append(record, &plan).is_ok());
         self.result = Some(ok);
     }
 
-    fn append(
-        &mut self,
-        record: &[u8],
-        plan: &flash_store::Plan,
-        watchdog: &mut IndependentWatchdog,
-    ) -> Result<(), ()> {
+    /// Programs `record`'s slot where `plan` says (its sector erased already).
+    fn append(&mut self, record: &[u8], plan: &flash_store::Plan) -> Result<(), ()> {
         let bytes = flash_store::slot_bytes(record, plan.seq).ok_or(())?;
-        if plan.erase {
-            let (number, _) = SECTORS
-                .get(usize::from(plan.target.sector))
-                .copied()
-                .ok_or(())?;
-            set_watchdog(watchdog, ERASE_WATCHDOG_MS);
-            let erased = self.flash.unlocked().erase(number);
-            set_watchdog(watchdog, WATCHDOG_MS);
-            erased.map_err(drop)?;
-        }
         let at = plan.target.offset() as usize;
         self.flash
             .unlocked()

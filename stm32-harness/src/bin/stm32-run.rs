@@ -1,8 +1,11 @@
 //! Runs the STM32F411 release image in the emulated chip against the simulated blower (into a
-//! test lung, optionally) and SFM3300, and prints what the firmware identified, the host's
-//! rerun of its search, the design, run mode's TRACK lines, instructions per control tick, of
-//! the search and of the design, flash and RAM; `--trace` writes the plant every 10 ms as CSV
-//! and `--log` the console's CSV log as `ridge-id capture` writes it.
+//! test lung, optionally) and SFM3300 (`scripts/simulate --board stm32f411` calls this) and
+//! prints the report `simavr-run` prints for the ATmega2560 (`harness_kit::report`): what the
+//! firmware identified and the host's rerun of its search, the validation, the design and how
+//! it tracked its setpoint program, instructions per control tick, of the search and of the
+//! design, flash and RAM; writes a PNG of measured vs model flow, a PNG of setpoint vs flow,
+//! with `--trace` a per-tick CSV, and with `--log` the console's CSV log as `ridge-id capture`
+//! writes it.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -10,7 +13,6 @@ use std::process::ExitCode;
 use clap::Parser;
 use pump_sim::baseline::experiment::run_ticks;
 use pump_sim::PlantArgs;
-use stm32_harness::bench::secs;
 use stm32_harness::session::{self, SessionConfig};
 use stm32_harness::{firmware, report};
 
@@ -36,7 +38,14 @@ struct Args {
     /// stops after ACCEPT.
     #[arg(long, value_name = "SECONDS")]
     track_s: Option<f64>,
-    /// Write the plant every 10 ms as CSV `t,duty,flow` (s, 0..1, slm).
+    /// PNG of measured vs model flow.
+    #[arg(long, default_value = "target/stm32/flow.png")]
+    png: PathBuf,
+    /// PNG of the setpoint vs the flow in run mode.
+    #[arg(long, default_value = "target/stm32/tracking.png")]
+    track_png: PathBuf,
+    /// Write every tick as CSV `t,setpoint,duty,flow` (s, slm or empty before run mode,
+    /// duty 0..1, true flow in slm).
     #[arg(long, value_name = "PATH")]
     trace: Option<PathBuf>,
     /// Print every line (log rows too).
@@ -76,7 +85,7 @@ fn main() -> ExitCode {
     cfg.log = args.log.is_some();
     cfg.clock_jump = !args.no_jump;
     println!(
-        "stm32: STM32F411 in Unicorn, {}, {}, sensor seed {}",
+        "stm32: STM32F411 @ 100 MHz in Unicorn, {}, {}, sensor seed {}",
         elf.display(),
         args.plant.describe(),
         args.seed
@@ -88,7 +97,14 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let (text, ok) = report::render(&out, args.lines);
+    let opts = report::Options {
+        all_lines: args.lines,
+        png: args.png.clone(),
+        track_png: args.track_png.clone(),
+        trace: args.trace.clone(),
+        plant: args.plant.describe(),
+    };
+    let (text, ok) = report::render(&out, &cfg, &opts);
     print!("{text}");
     let mut status = if ok {
         ExitCode::SUCCESS
@@ -96,16 +112,6 @@ fn main() -> ExitCode {
         println!("\nstm32-run: the firmware did not identify an accepted model cleanly");
         ExitCode::FAILURE
     };
-    if let Some(path) = &args.trace {
-        let mut csv = String::from("t,duty,flow\n");
-        for p in &out.bench.plant_log {
-            csv.push_str(&format!("{:.3},{:.5},{:.4}\n", secs(p.at), p.duty, p.flow));
-        }
-        if let Err(e) = std::fs::write(path, csv) {
-            eprintln!("stm32-run: {}: {e}", path.display());
-            status = ExitCode::FAILURE;
-        }
-    }
     if let Some(path) = &args.log {
         match session::write_capture(&out.bench, path) {
             Ok(c) => println!("\n== log\n  {} ({c})", path.display()),

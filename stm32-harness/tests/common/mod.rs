@@ -4,8 +4,8 @@
 
 use stm32_harness::bench::{ps, secs, Bench, RunEnd};
 use stm32_harness::firmware;
-use stm32_harness::lines::Line;
 use stm32_harness::periph::Time;
+use stm32_harness::transcript::Line;
 
 /// One loop tick, ps.
 pub const TICK: Time = 10_000_000_000;

@@ -12,14 +12,12 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Parser;
+use harness_kit::report::{self, Board, Control, Validation, Work};
+use harness_kit::validation;
 use pump_sim::baseline::experiment::run_ticks;
 use pump_sim::PlantArgs;
-use ridge_id::capture::{classify, Kind};
-use ridge_pump_firmware::event::RECORD_NAME;
-use ridge_pump_firmware::excitation::Record;
-use ridge_pump_firmware::lines::PrintedModel;
-use simavr_harness::session::{self, Outcome, SessionConfig, TICK_CYCLES};
-use simavr_harness::tracking::RunTrace;
+use simavr_harness::session::{self, Outcome, SessionConfig};
+use simavr_harness::tracking;
 use simavr_harness::uart::UartTiming;
 use simavr_harness::ventilation::{self, VentConfig};
 use simavr_harness::{capture, firmware};
@@ -83,30 +81,19 @@ enum Timing {
     Chip,
 }
 
-/// Excitation preset of the fresh host-side validation signal (a record the firmware neither
-/// estimates nor validates on).
-const FRESH_RECORD: Record = Record::BRamp;
-
-fn ms(cycles: f64) -> f64 {
-    cycles / 16_000.0
-}
-
-fn show_model(m: &PrintedModel) -> String {
-    let list = |v: &[f64]| {
-        v.iter()
-            .map(|x| format!("{x:.6}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    format!(
-        "(p, q, d) = ({}, {}, {})  theta = [{}]  phi = [{}]  c = {:.4}",
-        m.p,
-        m.q,
-        m.d,
-        list(&m.theta),
-        list(&m.phi),
-        m.c
-    )
+/// The board as the report names it and counts its work: cycles at 16 MHz, cycle-exact.
+fn board() -> Board {
+    Board {
+        name: "ATmega2560",
+        emulator: "simavr",
+        unit: "cycles",
+        per_s: 16e6,
+        clock: "16 MHz".into(),
+        control_span: "tick ISR -> pump PWM written: sensor read + statistics + PWM",
+        run_control_span: "ISR -> PWM written, incl. the controller",
+        tick_budget: "budget 1.6 ms".into(),
+        search_kind: "blocking",
+    }
 }
 
 fn main() -> ExitCode {
@@ -248,267 +235,133 @@ fn print_outcome(
     vent: Option<ridge_pump_firmware::setpoint::VolumeBreath>,
 ) -> ExitCode {
     let bench = &out.bench;
-    if args.lines {
-        for l in &bench.lines {
-            println!("  [{:8.3} s] {}", l.cycle as f64 / 16e6, l.text);
-        }
+    let board = board();
+    let mut s = String::new();
+    let lines: Vec<(f64, &str)> = bench
+        .lines
+        .iter()
+        .map(|l| (l.cycle as f64 / 16e6, l.text.as_str()))
+        .collect();
+    report::lines(&mut s, &lines, args.lines);
+    let resets = bench.machine.resets().len();
+    let extra = if resets == 0 {
+        String::new()
     } else {
-        println!("firmware lines (events; log rows left out):");
-        for l in bench.lines.iter().filter(|l| {
-            let k = l.text.split_whitespace().next().unwrap_or("");
-            !matches!(k, "RES") && classify(l.text.as_bytes()) != Kind::Row
-        }) {
-            println!("  [{:8.3} s] {}", l.cycle as f64 / 16e6, l.text);
-        }
-    }
-    let sim_s = bench.time_s();
-    println!(
-        "\nsimulated {:.2} s in {:.2} s wall ({:.1}x real time){}",
-        sim_s,
-        out.wall_s,
-        sim_s / out.wall_s.max(1e-9),
-        if bench.machine.resets().is_empty() {
-            String::new()
-        } else {
-            format!(", {} reset(s)", bench.machine.resets().len())
-        }
+        format!(", {resets} reset(s)")
+    };
+    report::run_summary(&mut s, bench.time_s(), out.wall_s, &extra, &[]);
+    let mut ok = report::model(
+        &mut s,
+        out.map.as_ref(),
+        out.id.as_ref(),
+        out.estimation.as_ref(),
     );
-    let mut ok = true;
 
-    println!("\n== identified model (ID line: dynamics from the map's flow to the flow, slm/slm)");
-    if let Some(map) = &out.map {
-        let flows: Vec<String> = map
-            .knots()
-            .iter()
-            .map(|k| format!("{:.1}", f64::from(*k) / 120.0))
-            .collect();
-        println!(
-            "  map (MAP line): duty {:.2} % + k x {:.2} % -> flow [{}] slm",
-            f64::from(map.first()) / 100.0,
-            f64::from(map.step()) / 100.0,
-            flows.join(", ")
-        );
-    }
-    match &out.id {
-        Some(id) => {
-            println!("  {}", show_model(&id.model));
-            println!(
-                "  candidates evaluated {} of {} (exact pruning)",
-                id.evaluated, id.candidates
-            );
-        }
-        None => {
-            println!("  none");
-            ok = false;
-        }
-    }
-    if let (Some(id), Some(est)) = (&out.id, &out.estimation) {
-        println!(
-            "  operating point: EXCITE y0 = {} counts, from the served frames {:?}",
-            est.y0, est.y0_frames
-        );
-        match session::host_search(est) {
-            Ok(host) => {
-                let err = session::coefficient_error(&id.model, &host.model);
-                println!(
-                    "  host rerun (IntGram + Search<f64> on the {} samples served): {}",
-                    est.len(),
-                    match err {
-                        Some(e) => format!("same structure, max coefficient difference {e:.2e}"),
-                        None => format!("DIFFERENT: {}", show_model(&host.model)),
-                    }
-                );
-            }
-            Err(e) => println!("  host rerun failed: {e}"),
-        }
-        if let Ok(h32) = session::host_search_in::<f32>(est) {
-            println!(
-                "  host rerun in f32 (as the firmware computes): {}",
-                match session::coefficient_error(&id.model, &h32.model) {
-                    Some(e) => format!("same structure, max coefficient difference {e:.2e}"),
-                    None => format!("DIFFERENT: {}", show_model(&h32.model)),
-                }
-            );
-        }
-    } else if let Some(est) = &out.estimation {
-        for (name, r) in [
-            ("f64", session::host_search(est)),
-            ("f32", session::host_search_in::<f32>(est)),
-        ] {
-            match r {
-                Ok(h) => println!(
-                    "  host ({name}) on the first record the firmware saw: {}",
-                    show_model(&h.model)
-                ),
-                Err(e) => println!("  host ({name}) on the first record: {e}"),
-            }
-        }
-    } else if out.id.is_some() {
-        println!("  (estimation record could not be rebuilt from the logs)");
-    }
-
-    println!("\n== validation");
-    if let Some(a) = &out.accept {
-        println!(
-            "  firmware: ACCEPT free-run fit {} %, rmse {} slm, one-step rmse {} slm",
-            a.get("fit").unwrap_or("?"),
-            a.get("rmse").unwrap_or("?"),
-            a.get("one").unwrap_or("?")
-        );
-    }
-    for r in &out.rejects {
-        println!(
-            "  firmware: REJECT {}",
-            r.fields
-                .iter()
-                .map(|(k, v)| format!("{k}={v}"))
-                .collect::<Vec<_>>()
-                .join(" ")
-        );
-    }
-    let mut panels = Vec::new();
-    if let Some(model) = out.id.as_ref().and_then(|id| id.model.arx().ok()) {
-        if let Some(val) = &out.validation {
-            let (free, one, trace) = session::score(&model, val);
-            println!(
-                "  host scoring of the firmware's validation record (closed loop): free-run fit {:.1} %, one-step fit {:.1} %",
-                free.unwrap_or(f64::NAN),
-                one.unwrap_or(f64::NAN)
-            );
-            panels.push((
-                format!(
-                    "closed loop, firmware validation record ({}): free-run fit {:.1} %",
-                    val.record.map_or(RECORD_NAME, Record::name),
-                    free.unwrap_or(f64::NAN)
-                ),
-                trace,
-            ));
-        }
+    let model = out.id.as_ref().and_then(|id| id.model.arx().ok());
+    let fresh = model.as_ref().map(|_| {
         let latency = out
             .estimation
             .as_ref()
-            .map_or(2, |e| session::write_latency(bench, e));
-        let fresh = session::fresh_record(
+            .map(|e| session::write_latency(bench, e));
+        validation::fresh_signal(
             &cfg.bench.pump,
             cfg.bench.lung.as_ref(),
             &cfg.bench.sensor,
-            cfg.bench.seed.wrapping_add(1000),
-            FRESH_RECORD,
+            cfg.bench.seed,
             out.map,
-            3_000,
             latency,
-        );
-        let (free, one, trace) = session::score(&model, &fresh);
-        println!(
-            "  fresh validation signal (host, {}, new noise seed, loop timing: duty applied {latency} x 0.5 ms after the read): free-run fit {:.1} %, one-step fit {:.1} %",
-            FRESH_RECORD.name(),
-            free.unwrap_or(f64::NAN),
-            one.unwrap_or(f64::NAN)
-        );
-        panels.push((
-            format!(
-                "fresh validation signal ({}, host): free-run fit {:.1} %",
-                FRESH_RECORD.name(),
-                free.unwrap_or(f64::NAN)
-            ),
-            trace,
-        ));
-    }
-    if !panels.is_empty() {
-        if let Some(dir) = args.png.parent() {
-            let _ = std::fs::create_dir_all(dir);
-        }
-        match session::plot(&args.png, &panels) {
-            Ok(()) => println!("  plot: {}", args.png.display()),
-            Err(e) => println!("  plot failed: {e}"),
-        }
+            session::pwm_fraction,
+        )
+    });
+    report::validation(
+        &mut s,
+        &Validation {
+            accept: out.accept.as_ref(),
+            rejects: &out.rejects,
+            model,
+            record: out.validation.as_ref(),
+            fresh,
+            png: &args.png,
+        },
+    );
+
+    if cfg.track_s > 0.0 || vent.is_some() {
+        let run = match vent {
+            Some(b) => tracking::run_trace_ventilated(bench, b),
+            None => tracking::run_trace(bench),
+        };
+        let control = match &run {
+            Ok(r) => bench
+                .ticks()
+                .iter()
+                .filter(|t| t.start >= r.first_at)
+                .filter_map(|t| t.control)
+                .collect(),
+            Err(_) => Vec::new(),
+        };
+        let c = Control {
+            ctrl: bench
+                .lines
+                .iter()
+                .find(|l| l.text.starts_with("CTRL"))
+                .map(|l| l.text.as_str()),
+            run,
+            per_s: f64::from(bench.frequency()),
+            design: tracking::design_cycles(bench),
+            control,
+            plant: args.plant.describe(),
+            png: &args.track_png,
+            trace: args.trace.clone(),
+        };
+        ok &= report::control(&mut s, &board, &c);
     }
 
-    if (cfg.track_s > 0.0 || vent.is_some()) && !print_tracking(args, out, vent) {
-        ok = false;
-    }
-
-    println!("\n== cycles (16 MHz; tick = 10 ms = {TICK_CYCLES} cycles)");
     let t = &out.timing;
-    println!(
-        "  control (tick ISR -> pump PWM written: sensor read + statistics + PWM) over {} ticks: worst {} cycles ({:.3} ms, at {:.3} s), mean {:.0} cycles ({:.3} ms); budget 1.6 ms",
-        t.control_ticks,
-        t.control_worst,
-        ms(t.control_worst as f64),
-        t.control_worst_at as f64 / 16e6,
-        t.control_mean,
-        ms(t.control_mean)
-    );
-    println!(
-        "  whole tick incl. report lines and persistence over {}: worst {} cycles ({:.3} ms, at {:.3} s), mean {:.0} cycles ({:.3} ms)",
-        t.ticks,
-        t.worst,
-        ms(t.worst as f64),
-        t.worst_at as f64 / 16e6,
-        t.mean,
-        ms(t.mean)
-    );
-    println!(
-        "  CPU load outside the search {:.1} %; missed ticks (overruns) {}; ticks during the blocking search {}, during the blocking design {}",
-        100.0 * t.load,
-        t.missed,
-        t.during_search,
-        t.during_design
-    );
-    if let Some((late, lost)) = t.firmware_missed {
-        println!("  firmware's own count: MISSED late={late} lost={lost}");
-    }
-    match t.search_cycles {
-        Some(c) => println!("  search time {} cycles = {:.3} s", c, c as f64 / 16e6),
-        None => println!("  search time: n/a"),
-    }
-    if !out.faults.is_empty() {
-        for (c, f) in &out.faults {
-            println!(
-                "  FAULT at {:.3} s: {} {}",
-                *c as f64 / 16e6,
-                f.words.join(" "),
-                f.fields
-                    .iter()
-                    .map(|(k, v)| format!("{k}={v}"))
-                    .collect::<Vec<_>>()
-                    .join(" ")
-            );
-        }
-        ok = false;
-    }
+    let work = Work {
+        control_ticks: t.control_ticks,
+        control_worst: (t.control_worst, t.control_worst_at as f64 / 16e6),
+        control_mean: t.control_mean,
+        control_note: String::new(),
+        ticks: t.ticks,
+        tick_worst: (t.worst, t.worst_at as f64 / 16e6),
+        tick_mean: t.mean,
+        load: t.load,
+        missed: t.missed,
+        during_search: t.during_search,
+        during_design: t.during_design,
+        firmware_missed: t.firmware_missed,
+        search: t.search_cycles,
+        faults: out
+            .faults
+            .iter()
+            .map(|(c, f)| (*c as f64 / 16e6, f.clone()))
+            .collect(),
+    };
+    ok &= report::work(&mut s, &board, &work);
 
-    println!("\n== flash and RAM");
-    let s = out.sizes;
-    println!(
-        "  flash {} B (text {} + data {}) of 256 KB; static RAM {} B (data {} + bss {})",
-        s.flash(),
-        s.text,
-        s.data,
-        s.ram(),
-        s.data,
-        s.bss
-    );
-    println!(
-        "  stack high-water: STACK line {} B, SRAM paint {} B  ->  static RAM + stack {} B of 8192",
+    let z = out.sizes;
+    let mut stack = vec![format!(
+        "stack high-water: STACK line {} B, SRAM paint {} B  ->  static RAM + stack {} B of 8192",
         out.stack_used
             .map_or_else(|| "n/a".into(), |v| v.to_string()),
         bench
             .stack_used()
             .map_or_else(|| "n/a".into(), |v| v.to_string()),
-        s.ram() + bench.stack_used().or(out.stack_used).unwrap_or(0)
-    );
-    match simavr_harness::stack::analyze_elf(&cfg.bench.elf) {
-        Ok(r) => println!(
-            "  worst-case stack over every path (call graph): {} B (main {} + interrupt {})  ->  static RAM + stack {} B (budget 6144){}",
+        z.ram() + bench.stack_used().or(out.stack_used).unwrap_or(0)
+    )];
+    stack.push(match simavr_harness::stack::analyze_elf(&cfg.bench.elf) {
+        Ok(r) => format!(
+            "worst-case stack over every path (call graph): {} B (main {} + interrupt {})  ->  static RAM + stack {} B (budget 6144){}",
             r.worst(),
             r.main.bytes,
             r.interrupt.bytes,
-            s.ram() + r.worst(),
+            z.ram() + r.worst(),
             if r.complete() { "" } else { " [incomplete: recursion or indirect calls]" }
         ),
-        Err(e) => println!("  worst-case stack: {e}"),
-    }
+        Err(e) => format!("worst-case stack: {e}"),
+    });
+    report::sizes(&mut s, z, "256 KB", &stack);
+    print!("{s}");
     if out.accept.is_none() {
         ok = false;
     }
@@ -518,141 +371,4 @@ fn print_outcome(
         println!("\nsimavr-run: the firmware did not identify an accepted model");
         ExitCode::FAILURE
     }
-}
-
-/// The flow-control section: the design, run mode rebuilt from the bench and checked against
-/// the firmware's TRACK lines, the step and breath figures, the plot and the CSV. `false` when
-/// there was no run mode to show.
-fn print_tracking(
-    args: &Args,
-    out: &Outcome,
-    vent: Option<ridge_pump_firmware::setpoint::VolumeBreath>,
-) -> bool {
-    let bench = &out.bench;
-    println!(
-        "\n== flow control (run mode: {})",
-        if vent.is_some() {
-            "the firmware's demo program, then VENT"
-        } else {
-            "the firmware's demo program"
-        }
-    );
-    if let Some(l) = bench.lines.iter().find(|l| l.text.starts_with("CTRL")) {
-        println!("  firmware: {}", l.text);
-    }
-    let run = match vent.map_or_else(
-        || RunTrace::from_bench(bench),
-        |b| RunTrace::ventilated(bench, b),
-    ) {
-        Ok(r) => r,
-        Err(e) => {
-            println!("  no run mode: {e}");
-            return false;
-        }
-    };
-    if let Some(c) = run.design_cycles {
-        println!(
-            "  design (model checks, pole placement, closed-loop checks) at most {} cycles = {:.1} ms; budget 100 ms",
-            c,
-            ms(c as f64)
-        );
-    }
-    println!(
-        "  run mode from {:.3} s, start flow {:.3} slm, setpoint preview {} ticks; {} TRACK lines recomputed from the bench: largest sp/flow difference {:.4} slm, {} misaligned",
-        run.first_cycle as f64 / 16e6,
-        run.start,
-        run.preview,
-        run.track_lines,
-        run.track_mismatch,
-        run.misaligned
-    );
-    let control: Vec<u64> = bench
-        .ticks()
-        .iter()
-        .filter(|t| t.start >= run.first_cycle)
-        .filter_map(|t| t.control)
-        .collect();
-    if let Some(&worst) = control.iter().max() {
-        println!(
-            "  control tick in run mode (ISR -> PWM written, incl. the controller) over {} ticks: worst {} cycles ({:.3} ms), mean {:.3} ms; budget 1.6 ms",
-            control.len(),
-            worst,
-            ms(worst as f64),
-            ms(control.iter().sum::<u64>() as f64 / control.len() as f64)
-        );
-    }
-    match run.scores().filter(|_| vent.is_none()) {
-        Some(sc) => {
-            println!("  steps (true flow; rise 10-90 %, overshoot of the step, settling to +-max(2 %, 1 slm), steady-state error over the last 0.5 s, IAE over the level):");
-            let mut from = run.start;
-            for (m, to) in sc.steps.iter().zip(&sc.levels) {
-                match m {
-                    Some(m) => println!(
-                        "    {:6.2} -> {:6.2} slm: rise {}, overshoot {:5.1} %, settling {}, steady-state error {:+.3} slm, IAE {:.3} slm s",
-                        from,
-                        to,
-                        m.rise_s.map_or("  n/a  ".into(), |v| format!("{v:.3} s")),
-                        m.overshoot_pct,
-                        m.settling_s.map_or("  n/a  ".into(), |v| format!("{v:.3} s")),
-                        m.ss_error,
-                        m.iae
-                    ),
-                    None => println!("    {from:6.2} -> {to:6.2} slm: n/a"),
-                }
-                from = *to;
-            }
-            let peak = ridge_pump_firmware::setpoint::DEMO_BREATH.peak;
-            println!(
-                "  breaths 2-6 (square, 20/min, peak {} slm): RMS error {:.3} slm = {:.1} % of peak",
-                peak,
-                sc.breath_rms,
-                pump_sim::baseline::table::breath_pct(sc.breath_rms)
-            );
-            println!("  duty total variation {:.0} %/s", 100.0 * sc.duty_tv);
-        }
-        None if vent.is_some() => {}
-        None => println!(
-            "  run mode too short to score ({} intervals; the demo needs {})",
-            run.trace.setpoint.len(),
-            run_ticks()
-        ),
-    }
-    let step = ridge_id::control::StepResponse {
-        ts: 0.01,
-        r: run.trace.setpoint.clone(),
-        y: run.trace.flow.clone(),
-        u: run
-            .trace
-            .duty
-            .iter()
-            .map(|&d| f64::from(d) / 10_000.0)
-            .collect(),
-        limits: run.limits,
-    };
-    if let Some(dir) = args.track_png.parent() {
-        let _ = std::fs::create_dir_all(dir);
-    }
-    let title = format!(
-        "ATmega2560 in simavr, {}: setpoint vs true flow (slm), duty below",
-        args.plant.describe()
-    );
-    match ridge_id::plot::write_control_png(
-        &args.track_png,
-        &ridge_id::plot::Axes::pump(),
-        &title,
-        &step,
-    ) {
-        Ok(()) => println!("  plot: {}", args.track_png.display()),
-        Err(e) => println!("  plot failed: {e}"),
-    }
-    if let Some(path) = &args.trace {
-        match run.write_csv(path) {
-            Ok(()) => println!("  trace: {} ({} ticks)", path.display(), run.rows.len()),
-            Err(e) => {
-                println!("  trace failed: {e}");
-                return false;
-            }
-        }
-    }
-    true
 }

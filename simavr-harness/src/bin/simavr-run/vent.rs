@@ -7,7 +7,7 @@ use pump_sim::PlantArgs;
 use ridge_pump_firmware::event::Event;
 use simavr_harness::bench::LungChange;
 use simavr_harness::session::TICK_CYCLES;
-use simavr_harness::tracking::RunTrace;
+use simavr_harness::tracking;
 use simavr_harness::ventilation::{within, BreathRow, VentOutcome};
 
 /// What run mode does after the controller design.
@@ -275,7 +275,7 @@ pub fn print(out: &VentOutcome, command: &str, breaths: u32) -> bool {
         println!("  only {} of {breaths} breaths ran", rows.len());
         ok = false;
     }
-    match RunTrace::ventilated(bench, *b) {
+    match tracking::run_trace_ventilated(bench, *b) {
         Ok(run) => {
             let same = run
                 .replayed
