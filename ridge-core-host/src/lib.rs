@@ -42,6 +42,8 @@ pub mod model;
 pub mod normal;
 #[path = "../../ridge-core/src/real.rs"]
 pub mod real;
+#[path = "../../ridge-core/src/ridge_m.rs"]
+pub mod ridge_m;
 #[path = "../../ridge-core/src/rls.rs"]
 pub mod rls;
 #[path = "../../ridge-core/src/search.rs"]

@@ -52,6 +52,7 @@ pub mod model;
 pub mod normal;
 pub mod real;
 pub mod reid;
+pub mod ridge_m;
 pub mod rls;
 pub mod search;
 pub mod structure;

@@ -69,9 +69,9 @@
 use crate::cholesky::packed;
 use crate::eigen::{self, Columns, COLS_MAX, HEAD_COLS, ROWS, STORAGE};
 use crate::error::{Error, Result};
-use crate::estimate::RidgeM;
 use crate::normal::{Factor, System};
 use crate::real::Real;
+use crate::ridge_m::RidgeM;
 use crate::PARAMS_MAX;
 
 /// Ridge-M on `system` given its least-squares factor `ls` (`system.factor(0)`). `f` and `ls`
