@@ -44,34 +44,49 @@ pub(crate) fn factor_in_place<T: Real>(
         return Err(Error::InvalidStructure);
     }
     for i in first..n {
-        for j in first..=i {
-            let mut s = a[packed(i, j)];
-            for k in first..j {
-                s -= a[packed(i, k)] * a[packed(j, k)];
+        factor_row(a, i, first, strict, tol)?;
+    }
+    Ok(())
+}
+
+/// Row `i` of [`factor_in_place`]: factors it in place, rows `first..i` already factored (the
+/// same pivot rule: rows before `strict` strict, later ones clamped at zero). The caller
+/// checks that `a` holds row `i` (`packed_len(i + 1)` elements).
+#[inline(always)]
+pub(crate) fn factor_row<T: Real>(
+    a: &mut [T],
+    i: usize,
+    first: usize,
+    strict: usize,
+    tol: T,
+) -> Result<()> {
+    for j in first..=i {
+        let mut s = a[packed(i, j)];
+        for k in first..j {
+            s -= a[packed(i, k)] * a[packed(j, k)];
+        }
+        if i == j {
+            let diag = a[packed(i, i)];
+            if !s.is_finite() {
+                return Err(Error::NotPositiveDefinite);
             }
-            if i == j {
-                let diag = a[packed(i, i)];
-                if !s.is_finite() {
+            let d = if i < strict {
+                if s <= tol * diag || s <= T::ZERO {
                     return Err(Error::NotPositiveDefinite);
                 }
-                let d = if i < strict {
-                    if s <= tol * diag || s <= T::ZERO {
-                        return Err(Error::NotPositiveDefinite);
-                    }
-                    s.sqrt()
-                } else if s > T::ZERO {
-                    s.sqrt()
-                } else {
-                    T::ZERO
-                };
-                a[packed(i, i)] = d;
+                s.sqrt()
+            } else if s > T::ZERO {
+                s.sqrt()
             } else {
-                let v = s / a[packed(j, j)];
-                if !v.is_finite() {
-                    return Err(Error::NotPositiveDefinite);
-                }
-                a[packed(i, j)] = v;
+                T::ZERO
+            };
+            a[packed(i, i)] = d;
+        } else {
+            let v = s / a[packed(j, j)];
+            if !v.is_finite() {
+                return Err(Error::NotPositiveDefinite);
             }
+            a[packed(i, j)] = v;
         }
     }
     Ok(())

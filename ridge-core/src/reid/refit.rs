@@ -1,6 +1,6 @@
 //! [`Refit`]: Ridge-M on a [`Window`]'s statistics, in slices of bounded work.
 
-use crate::cholesky::{backward, forward, packed};
+use crate::cholesky::{self, backward, forward, packed};
 use crate::error::{Error, Result};
 use crate::estimate::RidgeM;
 use crate::gram::Scale;
@@ -281,36 +281,7 @@ fn factor_row<T: Real>(a: &mut [T], i: usize, n: usize, tol: T) -> Result<()> {
     if i > n || a.len() < packed(i, i) + 1 {
         return Err(Error::InvalidStructure);
     }
-    for j in 0..=i {
-        let mut s = a[packed(i, j)];
-        for k in 0..j {
-            s -= a[packed(i, k)] * a[packed(j, k)];
-        }
-        if i == j {
-            let diag = a[packed(i, i)];
-            if !s.is_finite() {
-                return Err(Error::NotPositiveDefinite);
-            }
-            let d = if i < n {
-                if s <= tol * diag || s <= T::ZERO {
-                    return Err(Error::NotPositiveDefinite);
-                }
-                s.sqrt()
-            } else if s > T::ZERO {
-                s.sqrt()
-            } else {
-                T::ZERO
-            };
-            a[packed(i, i)] = d;
-        } else {
-            let v = s / a[packed(j, j)];
-            if !v.is_finite() {
-                return Err(Error::NotPositiveDefinite);
-            }
-            a[packed(i, j)] = v;
-        }
-    }
-    Ok(())
+    cholesky::factor_row(a, i, 0, n, tol)
 }
 
 #[cfg(test)]
