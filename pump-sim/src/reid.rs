@@ -26,10 +26,10 @@ use ridge_core::control::{Controller, Design};
 use ridge_core::input_map::MapTable;
 use ridge_core::reid::{window_len, Acceptance, Holdout, Refit, RefitStep, Rejection, Window};
 use ridge_core::{ArxModel, RidgeM};
-use ridge_pump_firmware::selfid::{preview_ticks, REFERENCE_POLE};
+use ridge_pump_firmware::selfid::{duty_for_flow, preview_ticks, REFERENCE_POLE};
 use ridge_pump_firmware::setpoint::{self, BreathWave, Program, DEMO_BREATH};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, MODEL_SCALE, SLM_PER_COUNT};
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, MODEL_SCALE, SLM_PER_COUNT};
 
 use crate::baseline::experiment::{
     firmware_design, identify, ExperimentError, Switchover, EXPERIMENT_CONFIG,
@@ -595,18 +595,14 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
         // the rate limit, and the controller is told the map's flow of the duty applied.
         let c = &EXPERIMENT_CONFIG.control;
         let v = running.ctrl.output(ahead, y);
-        let duty = if v.is_finite() {
-            let lo = applied.saturating_sub(c.duty_step).max(c.duty_min);
-            let hi = applied
-                .saturating_add(c.duty_step)
-                .min(c.duty_max.min(DUTY_FULL_SCALE));
-            table
-                .inverse((v * f32::from(FLOW_SCALE)) as i16)
-                .max(lo)
-                .min(hi)
-        } else {
-            applied
-        };
+        let duty = duty_for_flow(
+            &table,
+            v,
+            applied,
+            c.duty_min,
+            c.duty_max.min(DUTY_FULL_SCALE),
+            c.duty_step,
+        );
         let vk_counts = table.at(duty);
         let uk = f32::from(vk_counts) * SLM_PER_COUNT;
         running.ctrl.commit(uk);

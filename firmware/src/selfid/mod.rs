@@ -107,7 +107,7 @@ pub use config::{Config, ControlConfig, Defaults, Records, Settings, DEFAULT_CON
 pub use design::{REFERENCE_POLE, SLOWDOWN};
 pub use guard::Guard;
 pub use recording::{absolute_model, SETTLE_MEAN_TICKS};
-pub use run::preview_ticks;
+pub use run::{duty_for_flow, preview_ticks};
 pub use scan::RESPONSE_COUNTS;
 pub use search::{SearchJob, SearchOutcome};
 

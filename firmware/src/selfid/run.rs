@@ -138,15 +138,14 @@ impl RunMode {
         self.breath = self.setpoint.volume_phase();
         self.next = self.setpoint.advance();
         let v = self.ctrl.output(ahead, y);
-        if !v.is_finite() {
-            return applied;
-        }
-        let lo = applied.saturating_sub(self.duty_step).max(self.duty_min);
-        let hi = applied.saturating_add(self.duty_step).min(self.duty_max);
-        // `as` saturates: a flow beyond the i16 counts lands on the duty limits.
-        let counts = (v * f32::from(FLOW_SCALE)) as i16;
-        // Not `clamp`: it panics when lo > hi (a start below the lowest duty's step).
-        self.table.inverse(counts).max(lo).min(hi)
+        duty_for_flow(
+            &self.table,
+            v,
+            applied,
+            self.duty_min,
+            self.duty_max,
+            self.duty_step,
+        )
     }
 
     /// The part of a tick after the PWM write of `written` (the duty [`control`](Self::control)
@@ -239,4 +238,27 @@ fn ventilation_for(program: Program) -> Ventilation {
 /// ([`Design::mean_delay`]): rounded, within 0..=255 (`as` saturates), 0 when NaN.
 pub fn preview_ticks(delay: f32) -> u8 {
     (delay + 0.5) as u8
+}
+
+/// Run mode's duty for the controller's output `v` (the map's flow, slm): the map's inverse at
+/// `v`, within `duty_min..=duty_max` (1/10 000) and at most `duty_step` from `applied`;
+/// `applied` again when `v` is not finite. The host's studies of run mode call it too.
+#[inline(always)]
+pub fn duty_for_flow(
+    table: &MapTable,
+    v: f32,
+    applied: u16,
+    duty_min: u16,
+    duty_max: u16,
+    duty_step: u16,
+) -> u16 {
+    if !v.is_finite() {
+        return applied;
+    }
+    let lo = applied.saturating_sub(duty_step).max(duty_min);
+    let hi = applied.saturating_add(duty_step).min(duty_max);
+    // `as` saturates: a flow beyond the i16 counts lands on the duty limits.
+    let counts = (v * f32::from(FLOW_SCALE)) as i16;
+    // Not `clamp`: it panics when lo > hi (a start below the lowest duty's step).
+    table.inverse(counts).max(lo).min(hi)
 }

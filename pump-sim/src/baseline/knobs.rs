@@ -18,10 +18,12 @@
 //! `pump-sim/tests/baseline.rs`).
 
 use ridge_core::control::{design_slower_on_failure, Controller, Design, Limits};
-use ridge_pump_firmware::selfid::{preview_ticks, ControlConfig, REFERENCE_POLE, SLOWDOWN};
+use ridge_pump_firmware::selfid::{
+    duty_for_flow, preview_ticks, ControlConfig, REFERENCE_POLE, SLOWDOWN,
+};
 use ridge_pump_firmware::setpoint;
 use ridge_pump_firmware::sfm3300::raw_to_counts;
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, FLOW_SCALE, SLM_PER_COUNT};
+use ridge_pump_firmware::units::{DUTY_FULL_SCALE, SLM_PER_COUNT};
 
 use super::experiment::{
     firmware_design, noise_free_sensor, run_loop, score, Scores, Switchover, Trace,
@@ -115,16 +117,7 @@ pub fn run_design(
         // The firmware's conversion: the sensor word to counts, counts to slm in f32.
         let y = f32::from(raw_to_counts(raw)) * SLM_PER_COUNT;
         let v = ctrl.output(ahead, y);
-        let duty = if v.is_finite() {
-            let lo = applied.saturating_sub(c.duty_step).max(c.duty_min);
-            let hi = applied.saturating_add(c.duty_step).min(duty_max);
-            table
-                .inverse((v * f32::from(FLOW_SCALE)) as i16)
-                .max(lo)
-                .min(hi)
-        } else {
-            applied
-        };
+        let duty = duty_for_flow(&table, v, applied, c.duty_min, duty_max, c.duty_step);
         ctrl.commit(slm(duty));
         applied = duty;
         Ok(duty)
