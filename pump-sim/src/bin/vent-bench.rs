@@ -1,0 +1,445 @@
+//! Prints the ventilation benchmark (issue 32, *Targets*; docs/ventilation.md): ISO rows ×
+//! {square, ramp} × {adaptive, frozen, SIMC PI, ZN PID}, the lung changes, and the adaptive
+//! controller's swap rule.
+//!
+//! ```text
+//! cargo run --release -p pump-sim --bin vent-bench
+//! cargo run --release -p pump-sim --bin vent-bench -- --table changes --seeds 5
+//! ```
+//!
+//! The computations live in `pump_sim::vent_bench` (and `pump_sim::reid` for the study's demo
+//! breaths); this binary only runs them and prints.
+
+use clap::{Parser, ValueEnum};
+use pump_sim::iso::{iso_row, IsoRow, ISO_ROWS};
+use pump_sim::reid::{self, breaths_in, mean_sd, Study};
+use pump_sim::vent_bench::{
+    last_outside, power_up, row_lung, run_cell, score, zn_for, Cell, CellRun, ChangeAt, Ctrl,
+    LungChange, PowerUp,
+};
+use pump_sim::LungParams;
+use ridge_pump_firmware::setpoint::Shape;
+
+/// Which tables to print.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum Table {
+    /// ISO rows × waves × controllers.
+    Bench,
+    /// Lung changes on row 1's breath.
+    Changes,
+    /// The adaptive controller's swap rule.
+    Swap,
+    /// All three.
+    All,
+}
+
+/// Runs the benchmark and prints its tables.
+#[derive(Debug, Parser)]
+#[command(name = "vent-bench")]
+struct Args {
+    /// Noise seeds per cell (1, 2, …).
+    #[arg(long, default_value_t = 3)]
+    seeds: u64,
+    /// Breaths per cell of the benchmark table.
+    #[arg(long, default_value_t = 12)]
+    breaths: u32,
+    /// The ISO rows of the benchmark table (default 1-8).
+    #[arg(long, value_delimiter = ',')]
+    rows: Vec<u8>,
+    /// Which table.
+    #[arg(long, value_enum, default_value = "all")]
+    table: Table,
+}
+
+/// The power-ups of `lung` for `seeds`, with their ZN tuning; failures printed and skipped.
+fn power_ups(lung: &LungParams, seeds: u64) -> Vec<PowerUp> {
+    let zn = match zn_for(lung) {
+        Ok(z) => z,
+        Err(e) => {
+            eprintln!(
+                "ZN tuning, C {} R {}: {e}",
+                lung.compliance, lung.resistance
+            );
+            return Vec::new();
+        }
+    };
+    (1..=seeds)
+        .filter_map(|seed| match power_up(lung, seed, &zn) {
+            Ok(p) => Some(p),
+            Err(e) => {
+                eprintln!(
+                    "power-up C {} R {} seed {seed}: {e}",
+                    lung.compliance, lung.resistance
+                );
+                None
+            }
+        })
+        .collect()
+}
+
+/// `cell` from every power-up; failures printed and skipped.
+fn runs(ups: &[PowerUp], cell: &Cell) -> Vec<CellRun> {
+    ups.iter()
+        .filter_map(|p| match run_cell(p, cell) {
+            Ok(r) => Some(r),
+            Err(e) => {
+                eprintln!(
+                    "row {} {:?} {} seed {}: {e}",
+                    cell.row.row,
+                    cell.wave,
+                    cell.ctrl.name(),
+                    p.seed
+                );
+                None
+            }
+        })
+        .collect()
+}
+
+fn max(v: impl IntoIterator<Item = f64>) -> f64 {
+    v.into_iter().fold(f64::NEG_INFINITY, f64::max)
+}
+
+fn wave_name(w: Shape) -> &'static str {
+    match w {
+        Shape::Square => "square",
+        Shape::Ramp => "ramp",
+    }
+}
+
+fn bench(args: &Args) {
+    let rows: Vec<IsoRow> = if args.rows.is_empty() {
+        ISO_ROWS.to_vec()
+    } else {
+        args.rows.iter().filter_map(|&n| iso_row(n)).collect()
+    };
+    println!(
+        "## Benchmark: {} breaths, seeds 1-{}, default blower, SFM3300 noise on, trim on\n",
+        args.breaths, args.seeds
+    );
+    println!(
+        "| row | wave | controller | worst \\|error\\| breaths ≥ 3 (%) | ±(4 mL + 5 %) from 3 (seeds) | ±(4 mL + 15 %) from 3 | breath 1 error (%, mean) | peak pressure rise, max (cmH₂O) | \\|PEEP error\\| max (cmH₂O) | tracking RMS (slm) | swaps |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for row in rows {
+        let ups = power_ups(&row_lung(&row, 0.0), args.seeds);
+        for wave in [Shape::Square, Shape::Ramp] {
+            for ctrl in Ctrl::ALL {
+                let cell = Cell {
+                    breaths: args.breaths,
+                    ..Cell::new(row, wave, ctrl)
+                };
+                let all = runs(&ups, &cell);
+                let s: Vec<_> = all.iter().map(|r| score(r, 3)).collect();
+                let first: Vec<f64> = all
+                    .iter()
+                    .filter_map(|r| r.breaths.first().map(|b| b.error_pct()))
+                    .collect();
+                let swaps: usize = all.iter().map(CellRun::swaps).sum();
+                println!(
+                    "| {} | {} | {} | {:.1} | {}/{} | {}/{} | {:+.1} | {:+.1} | {:.2} | {:.2} | {} |",
+                    row.row,
+                    wave_name(wave),
+                    ctrl.name(),
+                    max(s.iter().map(|s| s.worst_pct)),
+                    s.iter().filter(|s| s.pass5).count(),
+                    s.len(),
+                    s.iter().filter(|s| s.pass15).count(),
+                    s.len(),
+                    mean_sd(&first).0,
+                    max(s.iter().map(|s| s.peak_rise)),
+                    max(s.iter().map(|s| s.peep_err)),
+                    mean_sd(&s.iter().map(|s| s.rms).collect::<Vec<_>>()).0,
+                    if ctrl == Ctrl::Adaptive {
+                        swaps.to_string()
+                    } else {
+                        "–".into()
+                    },
+                );
+            }
+        }
+    }
+    println!();
+}
+
+/// The breath of the lung-change table: row 1's.
+const CHANGE_BREATH: u32 = 6;
+/// Breaths run in the lung-change table.
+const CHANGE_RUN: u32 = 14;
+
+fn lung(c: f64, r: f64) -> LungParams {
+    LungParams {
+        compliance: c,
+        resistance: r,
+        ..row_lung(&iso_row(1).unwrap_or(ISO_ROWS[0]), ISO_ROWS[0].peep)
+    }
+}
+
+fn changes(args: &Args) {
+    let row = ISO_ROWS[0];
+    let cases = [
+        ("C 50 → 10", (50.0, 5.0), (10.0, 5.0)),
+        ("R 5 → 50", (50.0, 5.0), (50.0, 50.0)),
+        ("C 50 → 10 and R 5 → 50", (50.0, 5.0), (10.0, 50.0)),
+        ("C 10 → 50", (10.0, 5.0), (50.0, 5.0)),
+        ("R 50 → 5", (50.0, 50.0), (50.0, 5.0)),
+        ("C 10 → 50 and R 50 → 5", (10.0, 50.0), (50.0, 5.0)),
+    ];
+    println!(
+        "## Lung changes: row 1's breath (500 mL, 20 /min, Ti 1 s, PEEP 5, square, trim on), \
+         power-up into the first lung, change in breath {CHANGE_BREATH} of {CHANGE_RUN}, seeds 1-{}\n",
+        args.seeds
+    );
+    println!("Counts from the change breath (= 1): the last breath outside the band (0: none).\n");
+    println!(
+        "| change | at | controller | last outside ±(4 mL + 15 %) | last outside ±(4 mL + 5 %) | worst breath error (%) | peak pressure vs previous breath, max (cmH₂O) | peak pressure before → after (cmH₂O) | \\|PEEP error\\| max (cmH₂O) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for (name, from, to) in cases {
+        let ups = power_ups(
+            &LungParams {
+                peep: 0.0,
+                ..lung(from.0, from.1)
+            },
+            args.seeds,
+        );
+        for at in [ChangeAt::Boundary, ChangeAt::Mid] {
+            for ctrl in Ctrl::ALL {
+                let cell = Cell {
+                    breaths: CHANGE_RUN,
+                    changes: vec![LungChange {
+                        breath: CHANGE_BREATH,
+                        at,
+                        lung: lung(to.0, to.1),
+                    }],
+                    ..Cell::new(row, Shape::Square, ctrl)
+                };
+                // The cell's own lung at power-up is `from`, not row 1's.
+                let all = runs(
+                    &ups,
+                    &Cell {
+                        row: with_lung(row, from),
+                        ..cell
+                    },
+                );
+                let n15 = all
+                    .iter()
+                    .map(|r| last_outside(r, CHANGE_BREATH, 0.15))
+                    .max();
+                let n5 = all
+                    .iter()
+                    .map(|r| last_outside(r, CHANGE_BREATH, 0.05))
+                    .max();
+                let s: Vec<_> = all.iter().map(|r| score(r, CHANGE_BREATH)).collect();
+                let before = max(all.iter().filter_map(|r| {
+                    r.breaths
+                        .iter()
+                        .find(|b| b.number == CHANGE_BREATH - 1)
+                        .map(|b| b.peak_pressure)
+                }));
+                let after = max(all.iter().filter_map(|r| {
+                    r.breaths
+                        .iter()
+                        .filter(|b| b.number >= CHANGE_BREATH)
+                        .map(|b| b.peak_pressure)
+                        .reduce(f64::max)
+                }));
+                println!(
+                    "| {name} | {} | {} | {} | {} | {:.1} | {:+.1} | {:.1} → {:.1} | {:.2} |",
+                    match at {
+                        ChangeAt::Boundary => "boundary",
+                        ChangeAt::Mid => "mid-inspiration",
+                    },
+                    ctrl.name(),
+                    n15.map_or("–".into(), |n| n.to_string()),
+                    n5.map_or("–".into(), |n| n.to_string()),
+                    max(s.iter().map(|s| s.worst_pct)),
+                    max(s.iter().map(|s| s.peak_rise)),
+                    before,
+                    after,
+                    max(s.iter().map(|s| s.peep_err)),
+                );
+            }
+        }
+    }
+    println!();
+}
+
+/// Row 1's breath on the lung `(C, R)`.
+fn with_lung(row: IsoRow, (c, r): (f64, f64)) -> IsoRow {
+    IsoRow {
+        compliance: c,
+        resistance: r,
+        ..row
+    }
+}
+
+/// The swap rule's thresholds: always, then percent.
+const SWAP_RULES: [Option<f64>; 5] = [None, Some(90.0), Some(85.0), Some(80.0), Some(70.0)];
+
+fn rule_name(x: Option<f64>) -> String {
+    x.map_or("always".into(), |x| format!("below {x} %"))
+}
+
+fn swap(args: &Args) {
+    let row = ISO_ROWS[0];
+    let adult = lung(50.0, 5.0);
+    let stiff = lung(10.0, 50.0);
+    println!(
+        "## Swap rule, volume breaths: adaptive, row 1's breath (square, trim on), C 10 R 50 from \
+         breath 11, row 1's lung again from breath 31, 50 breaths, seeds 1-{}\n",
+        args.seeds
+    );
+    println!("| swap when the running model's held-out fit is | phase | tracking RMS (slm) | \\|volume error\\| mean (worst) (%) |");
+    println!("|---|---|---|---|");
+    let ups = power_ups(
+        &LungParams {
+            peep: 0.0,
+            ..adult.clone()
+        },
+        args.seeds,
+    );
+    let phases: [(&str, u32, u32); 5] = [
+        ("adult, breaths 3-10", 3, 11),
+        ("C10 R50, breaths 11-14 (after the change)", 11, 15),
+        ("C10 R50, breaths 21-30", 21, 31),
+        ("adult again, breaths 31-34", 31, 35),
+        ("adult again, breaths 41-50", 41, 51),
+    ];
+    for x in SWAP_RULES {
+        let cell = Cell {
+            breaths: 50,
+            changes: vec![
+                LungChange {
+                    breath: 11,
+                    at: ChangeAt::Boundary,
+                    lung: stiff.clone(),
+                },
+                LungChange {
+                    breath: 31,
+                    at: ChangeAt::Boundary,
+                    lung: adult.clone(),
+                },
+            ],
+            swap_below_fit: x,
+            ..Cell::new(row, Shape::Square, Ctrl::Adaptive)
+        };
+        let all = runs(&ups, &cell);
+        for (label, from, to) in phases {
+            let b: Vec<_> = all
+                .iter()
+                .flat_map(|r| {
+                    r.breaths
+                        .iter()
+                        .filter(|b| b.number >= from && b.number < to)
+                })
+                .collect();
+            let rms: Vec<f64> = b.iter().map(|b| b.rms).collect();
+            let vol: Vec<f64> = b.iter().map(|b| b.error_pct().abs()).collect();
+            println!(
+                "| {} | {label} | {:.2} | {:.1} ({:.1}) |",
+                rule_name(x),
+                mean_sd(&rms).0,
+                mean_sd(&vol).0,
+                max(vol.iter().copied())
+            );
+        }
+        let swaps: usize = all.iter().map(CellRun::swaps).sum();
+        let held: usize = all
+            .iter()
+            .map(|r| r.estimates.iter().filter(|e| e.held).count())
+            .sum();
+        let early: usize = all
+            .iter()
+            .map(|r| {
+                r.estimates
+                    .iter()
+                    .filter(|e| e.swapped_at.is_some_and(|b| b < 10))
+                    .count()
+            })
+            .sum();
+        println!(
+            "| {} | swaps (on the adult lung before the change) / held by the rule | {swaps} ({early}) / {held} | |",
+            rule_name(x)
+        );
+    }
+    println!();
+    println!(
+        "## Swap rule, the study's demo breaths (`reid-study`'s scenario: square 10 → 60 slm, \
+         adult → C 10 R 50 at breath 10 → adult at breath 30, from 0), seeds 1-{}\n",
+        args.seeds
+    );
+    println!("| swap when the running model's held-out fit is | phase | tracking RMS (slm) | \\|volume error\\| mean (worst) (%) |");
+    println!("|---|---|---|---|");
+    let demo_phases: [(&str, u32, u32); 5] = [
+        ("adult, breaths 1-9", 1, 10),
+        ("C10 R50, breaths 10-13", 10, 14),
+        ("C10 R50, breaths 20-29", 20, 30),
+        ("adult again, breaths 30-33", 30, 34),
+        ("adult again, breaths 40-49", 40, 50),
+    ];
+    for x in SWAP_RULES {
+        let all: Vec<_> = (1..=args.seeds)
+            .filter_map(|seed| {
+                reid::run(&Study {
+                    swap_below_fit: x,
+                    ..Study::lung_change(seed)
+                })
+                .map_err(|e| eprintln!("seed {seed}: {e}"))
+                .ok()
+            })
+            .collect();
+        for (label, from, to) in demo_phases {
+            let b: Vec<_> = all.iter().flat_map(|r| breaths_in(r, from, to)).collect();
+            let rms: Vec<f64> = b.iter().map(|b| b.rms).collect();
+            let vol: Vec<f64> = b.iter().map(|b| b.volume_error_pct().abs()).collect();
+            println!(
+                "| {} | {label} | {:.2} | {:.1} ({:.1}) |",
+                rule_name(x),
+                mean_sd(&rms).0,
+                mean_sd(&vol).0,
+                max(vol.iter().copied())
+            );
+        }
+        let swaps: usize = all
+            .iter()
+            .map(|r| {
+                r.estimates
+                    .iter()
+                    .filter(|e| e.swapped_at.is_some())
+                    .count()
+            })
+            .sum();
+        let early: usize = all
+            .iter()
+            .map(|r| {
+                r.estimates
+                    .iter()
+                    .filter(|e| e.swapped_at.is_some_and(|b| b < 10))
+                    .count()
+            })
+            .sum();
+        let held: usize = all
+            .iter()
+            .map(|r| r.estimates.iter().filter(|e| e.held).count())
+            .sum();
+        println!(
+            "| {} | swaps (before the change) / held by the rule | {swaps} ({early}) / {held} | |",
+            rule_name(x)
+        );
+    }
+    println!();
+}
+
+fn main() {
+    let args = Args::parse();
+    if matches!(args.table, Table::Bench | Table::All) {
+        bench(&args);
+    }
+    if matches!(args.table, Table::Changes | Table::All) {
+        changes(&args);
+    }
+    if matches!(args.table, Table::Swap | Table::All) {
+        swap(&args);
+    }
+}
