@@ -365,17 +365,8 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
     for k in 0..cell.breaths * period {
         let b = k / period + 1;
         let phase = k % period;
-        for c in cell.changes.iter().filter(|c| c.breath == b) {
-            let at = match c.at {
-                ChangeAt::Boundary => 0,
-                ChangeAt::Mid => insp / 2,
-            };
-            if phase == at {
-                if let Some(l) = rig.lung.as_mut() {
-                    l.set_params(c.lung.clone());
-                }
-            }
-        }
+        // The breath boundary: the last breath's figures (before a change of the lung at this
+        // boundary moves its pressure), the re-estimation's boundary.
         if phase == 0 {
             if b > 1 {
                 let (_, p_end, _) = lung_of(&rig).unwrap_or_default();
@@ -394,6 +385,17 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
             (sq, peak) = (0.0, 0.0);
             if let Some(r) = reest.as_mut() {
                 r.boundary(b - 1);
+            }
+        }
+        for c in cell.changes.iter().filter(|c| c.breath == b) {
+            let at = match c.at {
+                ChangeAt::Boundary => 0,
+                ChangeAt::Mid => insp / 2,
+            };
+            if phase == at {
+                if let Some(l) = rig.lung.as_mut() {
+                    l.set_params(c.lung.clone());
+                }
             }
         }
         let counts = raw_to_counts(raw);
@@ -458,6 +460,13 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         if let (Loop::Rst(running), Some(r)) = (&ctrl, reest.as_mut()) {
             r.after_pwm(v_counts, raw_to_counts(raw), &running.model);
         }
+    }
+    // The next tick's bookkeeping: the last breath's `BREATH` figures.
+    let mut event = None;
+    let vphase = sp.volume_phase().map_or(0, |(_, p)| p);
+    vent.after_pwm(&mut sp, vphase, raw_to_counts(raw), ended, &mut event);
+    if let Some(Event::Breath(s)) = event {
+        reported.push((s.number, f64::from(s.delivered), f64::from(s.command)));
     }
     let (_, p_end, _) = lung_of(&rig).unwrap_or_default();
     breaths.push(Breath {
@@ -532,4 +541,77 @@ pub fn last_outside(run: &CellRun, at: u32, rel: f64) -> u32 {
         .map(|b| b.number - at + 1)
         .max()
         .unwrap_or(0)
+}
+
+/// The breaths a volume-controlled square breath needs to reach its set volume after a change
+/// of the lung when the peak airway pressure may rise by at most `rise` cmH₂O a breath (issue
+/// 32's "+5 cmH₂O on the previous breath"), on the ideal single-compartment lung: the peak of a
+/// square breath of `V` mL over `ti` s is `PEEP + V / C + R · V / (1000 · ti)` (no bias flow,
+/// no rise time). Before the change it is that of the set volume `vt`; breath `n` after it
+/// (the change breath is 1, changed at its boundary) may deliver at most the volume whose peak
+/// is the old peak plus `n · rise`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PressureLimited {
+    /// Peak airway pressure of the set volume on the lung before, cmH₂O.
+    pub peak_before: f64,
+    /// The same on the lung after, cmH₂O.
+    pub peak_after: f64,
+    /// Volume error of the change breath under the limit, percent.
+    pub first_pct: f64,
+    /// The breath (change breath = 1) from which the volume is within `±(4 mL + 15 %)`.
+    pub within15: u32,
+    /// The same for `±(4 mL + 5 %)`.
+    pub within5: u32,
+}
+
+/// [`PressureLimited`] for the set volume `vt` (mL), inspiration `ti` (s), PEEP `peep`
+/// (cmH₂O), the lung `(C, R)` before and after (mL/cmH₂O, cmH₂O/(L/s)) and the allowed rise
+/// `rise` (cmH₂O a breath, positive).
+pub fn pressure_limited(
+    vt: f64,
+    ti: f64,
+    peep: f64,
+    before: (f64, f64),
+    after: (f64, f64),
+    rise: f64,
+) -> PressureLimited {
+    // cmH₂O per mL of the square breath.
+    let slope = |(c, r): (f64, f64)| 1.0 / c + r / (1000.0 * ti);
+    let peak_before = peep + vt * slope(before);
+    let peak_after = peep + vt * slope(after);
+    let volume = |n: u32| ((peak_before + f64::from(n) * rise - peep) / slope(after)).min(vt);
+    let within = |rel: f64| {
+        (1..=10_000)
+            .find(|&n| vt - volume(n) <= ventilation::BAND_ML as f64 + rel * vt)
+            .unwrap_or(u32::MAX)
+    };
+    PressureLimited {
+        peak_before,
+        peak_after,
+        first_pct: 100.0 * (volume(1) - vt) / vt,
+        within15: within(0.15),
+        within5: within(0.05),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Row 1's breath (500 mL in 1 s, PEEP 5) from C 50 R 5 to C 10 R 5, by hand: the peak is
+    /// 5 + 500 · (1/50 + 5/1000) = 17.5 before and 5 + 500 · 0.105 = 57.5 after; breath `n`
+    /// may deliver (12.5 + 5 n) / 0.105 mL: 166.7 (−66.7 %) on the first, 404.8 on the sixth,
+    /// 452.4 (≥ 421 mL, the 15 % band) on the seventh, 500 (≥ 471 mL, the 5 % band) on the
+    /// eighth.
+    #[test]
+    fn pressure_limited_by_hand() {
+        let p = pressure_limited(500.0, 1.0, 5.0, (50.0, 5.0), (10.0, 5.0), 5.0);
+        assert!((p.peak_before - 17.5).abs() < 1e-9);
+        assert!((p.peak_after - 57.5).abs() < 1e-9);
+        assert!((p.first_pct - (100.0 * (17.5 / 0.105 - 500.0) / 500.0)).abs() < 1e-9);
+        assert_eq!((p.within15, p.within5), (7, 8));
+        // A change that lowers the peak is within at once.
+        let p = pressure_limited(500.0, 1.0, 5.0, (10.0, 5.0), (50.0, 5.0), 5.0);
+        assert_eq!((p.first_pct, p.within15, p.within5), (0.0, 1, 1));
+    }
 }

@@ -12,10 +12,10 @@
 
 use clap::{Parser, ValueEnum};
 use pump_sim::iso::{iso_row, IsoRow, ISO_ROWS};
-use pump_sim::reid::{self, breaths_in, mean_sd, Study};
+use pump_sim::reid::{self, breaths_in, mean_sd, Mode, Study};
 use pump_sim::vent_bench::{
-    last_outside, power_up, row_lung, run_cell, score, zn_for, Cell, CellRun, ChangeAt, Ctrl,
-    LungChange, PowerUp,
+    last_outside, power_up, pressure_limited, row_lung, run_cell, score, zn_for, Cell, CellRun,
+    ChangeAt, Ctrl, LungChange, PowerUp,
 };
 use pump_sim::LungParams;
 use ridge_pump_firmware::setpoint::Shape;
@@ -263,6 +263,29 @@ fn changes(args: &Args) {
         }
     }
     println!();
+    println!(
+        "### What the ideal lung allows: peak pressure +5 cmH₂O a breath against volume back in the band\n"
+    );
+    println!(
+        "Square breath of 500 mL in 1 s, PEEP 5, on the single-compartment lung (peak = PEEP + V/C + \
+         R·V/Ti; no bias flow, no rise): the change breath = 1.\n"
+    );
+    println!("| change | elastic pressure VT/C before → after (cmH₂O) | peak before → after (cmH₂O) | change breath's volume under +5 cmH₂O (%) | breath within ±(4 mL + 15 %) | breath within ±(4 mL + 5 %) |");
+    println!("|---|---|---|---|---|---|");
+    for (name, from, to) in cases {
+        let p = pressure_limited(row.tidal, row.ti(), row.peep, from, to, 5.0);
+        println!(
+            "| {name} | {:.0} → {:.0} | {:.1} → {:.1} | {:+.1} | {} | {} |",
+            row.tidal / from.0,
+            row.tidal / to.0,
+            p.peak_before,
+            p.peak_after,
+            p.first_pct,
+            p.within15,
+            p.within5
+        );
+    }
+    println!();
 }
 
 /// Row 1's breath on the lung `(C, R)`.
@@ -306,7 +329,11 @@ fn swap(args: &Args) {
         ("adult again, breaths 31-34", 31, 35),
         ("adult again, breaths 41-50", 41, 51),
     ];
-    for x in SWAP_RULES {
+    for (x, ctrl) in SWAP_RULES
+        .iter()
+        .map(|&x| (x, Ctrl::Adaptive))
+        .chain([(None, Ctrl::Frozen)])
+    {
         let cell = Cell {
             breaths: 50,
             changes: vec![
@@ -322,7 +349,12 @@ fn swap(args: &Args) {
                 },
             ],
             swap_below_fit: x,
-            ..Cell::new(row, Shape::Square, Ctrl::Adaptive)
+            ..Cell::new(row, Shape::Square, ctrl)
+        };
+        let name = if ctrl == Ctrl::Frozen {
+            "(frozen, for reference)".to_string()
+        } else {
+            rule_name(x)
         };
         let all = runs(&ups, &cell);
         for (label, from, to) in phases {
@@ -337,12 +369,14 @@ fn swap(args: &Args) {
             let rms: Vec<f64> = b.iter().map(|b| b.rms).collect();
             let vol: Vec<f64> = b.iter().map(|b| b.error_pct().abs()).collect();
             println!(
-                "| {} | {label} | {:.2} | {:.1} ({:.1}) |",
-                rule_name(x),
+                "| {name} | {label} | {:.2} | {:.1} ({:.1}) |",
                 mean_sd(&rms).0,
                 mean_sd(&vol).0,
                 max(vol.iter().copied())
             );
+        }
+        if ctrl == Ctrl::Frozen {
+            continue;
         }
         let swaps: usize = all.iter().map(CellRun::swaps).sum();
         let held: usize = all
@@ -358,9 +392,17 @@ fn swap(args: &Args) {
                     .count()
             })
             .sum();
+        let refused: usize = all
+            .iter()
+            .map(|r| {
+                r.estimates
+                    .iter()
+                    .filter(|e| matches!(e.verdict, Some(Err(_))))
+                    .count()
+            })
+            .sum();
         println!(
-            "| {} | swaps (on the adult lung before the change) / held by the rule | {swaps} ({early}) / {held} | |",
-            rule_name(x)
+            "| {name} | swaps (before the change) / held by the rule / refused | {swaps} ({early}) / {held} / {refused} | |"
         );
     }
     println!();
@@ -378,11 +420,21 @@ fn swap(args: &Args) {
         ("adult again, breaths 30-33", 30, 34),
         ("adult again, breaths 40-49", 40, 50),
     ];
-    for x in SWAP_RULES {
+    for (x, mode) in SWAP_RULES
+        .iter()
+        .map(|&x| (x, Mode::Adapt))
+        .chain([(None, Mode::Frozen)])
+    {
+        let name = if mode == Mode::Frozen {
+            "(frozen, for reference)".to_string()
+        } else {
+            rule_name(x)
+        };
         let all: Vec<_> = (1..=args.seeds)
             .filter_map(|seed| {
                 reid::run(&Study {
                     swap_below_fit: x,
+                    mode,
                     ..Study::lung_change(seed)
                 })
                 .map_err(|e| eprintln!("seed {seed}: {e}"))
@@ -394,12 +446,14 @@ fn swap(args: &Args) {
             let rms: Vec<f64> = b.iter().map(|b| b.rms).collect();
             let vol: Vec<f64> = b.iter().map(|b| b.volume_error_pct().abs()).collect();
             println!(
-                "| {} | {label} | {:.2} | {:.1} ({:.1}) |",
-                rule_name(x),
+                "| {name} | {label} | {:.2} | {:.1} ({:.1}) |",
                 mean_sd(&rms).0,
                 mean_sd(&vol).0,
                 max(vol.iter().copied())
             );
+        }
+        if mode == Mode::Frozen {
+            continue;
         }
         let swaps: usize = all
             .iter()
@@ -423,10 +477,7 @@ fn swap(args: &Args) {
             .iter()
             .map(|r| r.estimates.iter().filter(|e| e.held).count())
             .sum();
-        println!(
-            "| {} | swaps (before the change) / held by the rule | {swaps} ({early}) / {held} | |",
-            rule_name(x)
-        );
+        println!("| {name} | swaps (before the change) / held by the rule | {swaps} ({early}) / {held} | |");
     }
     println!();
 }
