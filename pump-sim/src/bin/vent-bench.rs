@@ -118,7 +118,7 @@ fn bench(args: &Args) {
         args.breaths, args.seeds
     );
     println!(
-        "| row | wave | controller | worst \\|error\\| breaths ≥ 3 (%) | ±(4 mL + 5 %) from 3 (seeds) | ±(4 mL + 15 %) from 3 | breath 1 error (%, mean) | peak pressure rise, max (cmH₂O) | \\|PEEP error\\| max (cmH₂O) | tracking RMS (slm) | swaps |"
+        "| row | wave | controller | worst \\|error\\| breaths ≥ 3 (%) | ±(4 mL + 5 %) from 3 (seeds) | ±(4 mL + 15 %) from 3 | breath 1 error (%, mean) | peak pressure rise on the breath before, max: breaths ≥ 3 / breath 2 (cmH₂O) | \\|PEEP error\\| max (cmH₂O) | tracking RMS (slm) | swaps |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for row in rows {
@@ -137,7 +137,7 @@ fn bench(args: &Args) {
                     .collect();
                 let swaps: usize = all.iter().map(CellRun::swaps).sum();
                 println!(
-                    "| {} | {} | {} | {:.1} | {}/{} | {}/{} | {:+.1} | {:+.1} | {:.2} | {:.2} | {} |",
+                    "| {} | {} | {} | {:.1} | {}/{} | {}/{} | {:+.1} | {:+.1} / {:+.1} | {:.2} | {:.2} | {} |",
                     row.row,
                     wave_name(wave),
                     ctrl.name(),
@@ -148,6 +148,10 @@ fn bench(args: &Args) {
                     s.len(),
                     mean_sd(&first).0,
                     max(s.iter().map(|s| s.peak_rise)),
+                    max(all.iter().filter_map(|r| {
+                        let b = &r.breaths;
+                        Some(b.get(1)?.peak_pressure - b.first()?.peak_pressure)
+                    })),
                     max(s.iter().map(|s| s.peep_err)),
                     mean_sd(&s.iter().map(|s| s.rms).collect::<Vec<_>>()).0,
                     if ctrl == Ctrl::Adaptive {
@@ -304,6 +308,73 @@ fn rule_name(x: Option<f64>) -> String {
     x.map_or("always".into(), |x| format!("below {x} %"))
 }
 
+/// One table cell of the swap-rule tables: mean tracking RMS (slm), mean |volume error| and
+/// the worst (percent) of `breaths` (RMS, volume error in percent).
+fn phase_cell(breaths: &[(f64, f64)]) -> String {
+    let rms: Vec<f64> = breaths.iter().map(|b| b.0).collect();
+    let vol: Vec<f64> = breaths.iter().map(|b| b.1.abs()).collect();
+    format!(
+        "{:.2} / {:.1} ({:.1})",
+        mean_sd(&rms).0,
+        mean_sd(&vol).0,
+        max(vol.iter().copied())
+    )
+}
+
+/// The header of a swap-rule table with the phases `labels`.
+fn swap_header(labels: &[&str]) {
+    println!(
+        "Each phase: tracking RMS (slm) / mean \\|volume error\\| (worst) (%).\n\n\
+         | swap when the running model's held-out fit is | {} | swaps (before the change) / held by the rule / refused |",
+        labels.join(" | ")
+    );
+    println!("|---|{}---|", "---|".repeat(labels.len()));
+}
+
+/// Counts of `estimates`: swaps, swaps at a breath before `change` (from 0), held by the
+/// rule, refused.
+fn swap_counts<'a>(estimates: impl Iterator<Item = &'a reid::Estimate>, change: u32) -> String {
+    let (mut swaps, mut early, mut held, mut refused) = (0, 0, 0, 0);
+    for e in estimates {
+        if let Some(b) = e.swapped_at {
+            swaps += 1;
+            if b < change {
+                early += 1;
+            }
+        }
+        held += usize::from(e.held);
+        refused += usize::from(matches!(e.verdict, Some(Err(_))));
+    }
+    format!("{swaps} ({early}) / {held} / {refused}")
+}
+
+/// The held-out free-run fits (running model, candidate; percent) of the re-estimates
+/// snapshot at least two breaths before `change` (breath from 0; a hold-out runs into the
+/// breath after its fit) while the power-up model still ran (up to the first swap).
+fn power_up_fits(estimates: &[reid::Estimate], change: u32) -> Vec<(f32, f32)> {
+    let mut out = Vec::new();
+    for e in estimates.iter().filter(|e| e.breath + 2 < change) {
+        match e.verdict {
+            Some(Ok((c, r))) => out.push((r, c)),
+            Some(Err(ridge_core::reid::Rejection::Fit { candidate, running })) => {
+                out.push((running, candidate))
+            }
+            _ => {}
+        }
+        if e.swapped_at.is_some() {
+            break;
+        }
+    }
+    out
+}
+
+/// `min…max` of `v`.
+fn range(v: impl Iterator<Item = f32> + Clone) -> String {
+    let lo = v.clone().fold(f32::INFINITY, f32::min);
+    let hi = v.fold(f32::NEG_INFINITY, f32::max);
+    format!("{lo:.0}…{hi:.0}")
+}
+
 fn swap(args: &Args) {
     let row = ISO_ROWS[0];
     let adult = lung(50.0, 5.0);
@@ -313,8 +384,15 @@ fn swap(args: &Args) {
          breath 11, row 1's lung again from breath 31, 50 breaths, seeds 1-{}\n",
         args.seeds
     );
-    println!("| swap when the running model's held-out fit is | phase | tracking RMS (slm) | \\|volume error\\| mean (worst) (%) |");
-    println!("|---|---|---|---|");
+    let phases: [(&str, u32, u32); 5] = [
+        ("adult, breaths 3-10", 3, 11),
+        ("C10 R50, breaths 11-14", 11, 15),
+        ("C10 R50, breaths 21-30", 21, 31),
+        ("adult again, breaths 31-34", 31, 35),
+        ("adult again, breaths 41-50", 41, 51),
+    ];
+    swap_header(&phases.map(|p| p.0));
+    let mut fits = Vec::new();
     let ups = power_ups(
         &LungParams {
             peep: 0.0,
@@ -322,13 +400,6 @@ fn swap(args: &Args) {
         },
         args.seeds,
     );
-    let phases: [(&str, u32, u32); 5] = [
-        ("adult, breaths 3-10", 3, 11),
-        ("C10 R50, breaths 11-14 (after the change)", 11, 15),
-        ("C10 R50, breaths 21-30", 21, 31),
-        ("adult again, breaths 31-34", 31, 35),
-        ("adult again, breaths 41-50", 41, 51),
-    ];
     for (x, ctrl) in SWAP_RULES
         .iter()
         .map(|&x| (x, Ctrl::Adaptive))
@@ -351,85 +422,61 @@ fn swap(args: &Args) {
             swap_below_fit: x,
             ..Cell::new(row, Shape::Square, ctrl)
         };
-        let name = if ctrl == Ctrl::Frozen {
-            "(frozen, for reference)".to_string()
-        } else {
-            rule_name(x)
-        };
         let all = runs(&ups, &cell);
-        for (label, from, to) in phases {
-            let b: Vec<_> = all
+        let cells: Vec<String> = phases
+            .iter()
+            .map(|&(_, from, to)| {
+                let b: Vec<(f64, f64)> = all
+                    .iter()
+                    .flat_map(|r| r.breaths.iter())
+                    .filter(|b| b.number >= from && b.number < to)
+                    .map(|b| (b.rms, b.error_pct()))
+                    .collect();
+                phase_cell(&b)
+            })
+            .collect();
+        let (name, counts) = if ctrl == Ctrl::Frozen {
+            ("(frozen, for reference)".to_string(), "–".to_string())
+        } else {
+            (
+                rule_name(x),
+                swap_counts(all.iter().flat_map(|r| r.estimates.iter()), 10),
+            )
+        };
+        println!("| {name} | {} | {counts} |", cells.join(" | "));
+        if x.is_none() && ctrl == Ctrl::Adaptive {
+            fits = all
                 .iter()
-                .flat_map(|r| {
-                    r.breaths
-                        .iter()
-                        .filter(|b| b.number >= from && b.number < to)
-                })
+                .flat_map(|r| power_up_fits(&r.estimates, 10))
                 .collect();
-            let rms: Vec<f64> = b.iter().map(|b| b.rms).collect();
-            let vol: Vec<f64> = b.iter().map(|b| b.error_pct().abs()).collect();
-            println!(
-                "| {name} | {label} | {:.2} | {:.1} ({:.1}) |",
-                mean_sd(&rms).0,
-                mean_sd(&vol).0,
-                max(vol.iter().copied())
-            );
         }
-        if ctrl == Ctrl::Frozen {
-            continue;
-        }
-        let swaps: usize = all.iter().map(CellRun::swaps).sum();
-        let held: usize = all
-            .iter()
-            .map(|r| r.estimates.iter().filter(|e| e.held).count())
-            .sum();
-        let early: usize = all
-            .iter()
-            .map(|r| {
-                r.estimates
-                    .iter()
-                    .filter(|e| e.swapped_at.is_some_and(|b| b < 10))
-                    .count()
-            })
-            .sum();
-        let refused: usize = all
-            .iter()
-            .map(|r| {
-                r.estimates
-                    .iter()
-                    .filter(|e| matches!(e.verdict, Some(Err(_))))
-                    .count()
-            })
-            .sum();
-        println!(
-            "| {name} | swaps (before the change) / held by the rule / refused | {swaps} ({early}) / {held} / {refused} | |"
-        );
     }
-    println!();
+    println!(
+        "\nOn the adult lung, until the first swap: the power-up model's own held-out fit {} %, \
+         the re-estimates' {} % ({} verdicts).\n",
+        range(fits.iter().map(|f| f.0)),
+        range(fits.iter().map(|f| f.1)),
+        fits.len()
+    );
     println!(
         "## Swap rule, the study's demo breaths (`reid-study`'s scenario: square 10 → 60 slm, \
-         adult → C 10 R 50 at breath 10 → adult at breath 30, from 0), seeds 1-{}\n",
+         adult lung → C 10 R 50 at breath 10 → adult at breath 30, breaths from 0), seeds 1-{}\n",
         args.seeds
     );
-    println!("| swap when the running model's held-out fit is | phase | tracking RMS (slm) | \\|volume error\\| mean (worst) (%) |");
-    println!("|---|---|---|---|");
-    let demo_phases: [(&str, u32, u32); 5] = [
+    let phases: [(&str, u32, u32); 5] = [
         ("adult, breaths 1-9", 1, 10),
         ("C10 R50, breaths 10-13", 10, 14),
         ("C10 R50, breaths 20-29", 20, 30),
         ("adult again, breaths 30-33", 30, 34),
         ("adult again, breaths 40-49", 40, 50),
     ];
+    swap_header(&phases.map(|p| p.0));
+    let mut fits = Vec::new();
     for (x, mode) in SWAP_RULES
         .iter()
         .map(|&x| (x, Mode::Adapt))
         .chain([(None, Mode::Frozen)])
     {
-        let name = if mode == Mode::Frozen {
-            "(frozen, for reference)".to_string()
-        } else {
-            rule_name(x)
-        };
         let all: Vec<_> = (1..=args.seeds)
             .filter_map(|seed| {
                 reid::run(&Study {
@@ -441,45 +488,40 @@ fn swap(args: &Args) {
                 .ok()
             })
             .collect();
-        for (label, from, to) in demo_phases {
-            let b: Vec<_> = all.iter().flat_map(|r| breaths_in(r, from, to)).collect();
-            let rms: Vec<f64> = b.iter().map(|b| b.rms).collect();
-            let vol: Vec<f64> = b.iter().map(|b| b.volume_error_pct().abs()).collect();
-            println!(
-                "| {name} | {label} | {:.2} | {:.1} ({:.1}) |",
-                mean_sd(&rms).0,
-                mean_sd(&vol).0,
-                max(vol.iter().copied())
-            );
-        }
-        if mode == Mode::Frozen {
-            continue;
-        }
-        let swaps: usize = all
+        let cells: Vec<String> = phases
             .iter()
-            .map(|r| {
-                r.estimates
+            .map(|&(_, from, to)| {
+                let b: Vec<(f64, f64)> = all
                     .iter()
-                    .filter(|e| e.swapped_at.is_some())
-                    .count()
+                    .flat_map(|r| breaths_in(r, from, to))
+                    .map(|b| (b.rms, b.volume_error_pct()))
+                    .collect();
+                phase_cell(&b)
             })
-            .sum();
-        let early: usize = all
-            .iter()
-            .map(|r| {
-                r.estimates
-                    .iter()
-                    .filter(|e| e.swapped_at.is_some_and(|b| b < 10))
-                    .count()
-            })
-            .sum();
-        let held: usize = all
-            .iter()
-            .map(|r| r.estimates.iter().filter(|e| e.held).count())
-            .sum();
-        println!("| {name} | swaps (before the change) / held by the rule | {swaps} ({early}) / {held} | |");
+            .collect();
+        let (name, counts) = if mode == Mode::Frozen {
+            ("(frozen, for reference)".to_string(), "–".to_string())
+        } else {
+            (
+                rule_name(x),
+                swap_counts(all.iter().flat_map(|r| r.estimates.iter()), 10),
+            )
+        };
+        println!("| {name} | {} | {counts} |", cells.join(" | "));
+        if x.is_none() && mode == Mode::Adapt {
+            fits = all
+                .iter()
+                .flat_map(|r| power_up_fits(&r.estimates, 10))
+                .collect();
+        }
     }
-    println!();
+    println!(
+        "\nOn the adult lung, until the first swap: the power-up model's own held-out fit {} %, \
+         the re-estimates' {} % ({} verdicts).\n",
+        range(fits.iter().map(|f| f.0)),
+        range(fits.iter().map(|f| f.1)),
+        fits.len()
+    );
 }
 
 fn main() {
