@@ -492,6 +492,41 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
     })
 }
 
+/// What became of re-estimates: counts by outcome.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Outcomes {
+    /// Swapped in.
+    pub swapped: usize,
+    /// Accepted, the swap rule kept the running model.
+    pub held: usize,
+    /// Accepted, the design refused the model.
+    pub design_refused: usize,
+    /// Refused: held-out fit below the minimum or below the running model's.
+    pub fit: usize,
+    /// Refused: the model check (stability, static gain range).
+    pub model: usize,
+    /// Refused otherwise (too little excitation, too few held-out samples, the fit failed).
+    pub other: usize,
+}
+
+/// [`Outcomes`] of `estimates`.
+pub fn outcomes<'a>(estimates: impl IntoIterator<Item = &'a Estimate>) -> Outcomes {
+    use ridge_core::reid::Rejection;
+    let mut o = Outcomes::default();
+    for e in estimates {
+        o.swapped += usize::from(e.swapped_at.is_some());
+        o.held += usize::from(e.held);
+        o.design_refused += usize::from(e.design_refused);
+        match (&e.model, &e.verdict) {
+            (_, Some(Err(Rejection::Fit { .. }))) => o.fit += 1,
+            (_, Some(Err(Rejection::Model(_)))) => o.model += 1,
+            (_, Some(Err(_))) | (Some(Err(_)), _) => o.other += 1,
+            _ => {}
+        }
+    }
+    o
+}
+
 /// The figures of one cell over its breaths `from..` (from 1): the worst |volume error|
 /// (percent), whether every breath is within `±(4 mL + rel · VT)`, the largest rise of the
 /// peak pressure from the breath before (cmH₂O, breaths `from..` against their previous ones,

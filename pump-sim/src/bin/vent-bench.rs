@@ -14,8 +14,8 @@ use clap::{Parser, ValueEnum};
 use pump_sim::iso::{iso_row, IsoRow, ISO_ROWS};
 use pump_sim::reid::{self, breaths_in, mean_sd, Mode, Study};
 use pump_sim::vent_bench::{
-    last_outside, power_up, pressure_limited, row_lung, run_cell, score, zn_for, Cell, CellRun,
-    ChangeAt, Ctrl, LungChange, PowerUp,
+    last_outside, outcomes, power_up, pressure_limited, row_lung, run_cell, score, zn_for, Cell,
+    CellRun, ChangeAt, Ctrl, LungChange, Outcomes, PowerUp,
 };
 use pump_sim::LungParams;
 use ridge_pump_firmware::setpoint::Shape;
@@ -29,6 +29,8 @@ enum Table {
     Changes,
     /// The adaptive controller's swap rule.
     Swap,
+    /// One lung change's breaths, one seed (`--change`, `--at`, `--seed`).
+    Breaths,
     /// All three.
     All,
 }
@@ -49,6 +51,24 @@ struct Args {
     /// Which table.
     #[arg(long, value_enum, default_value = "all")]
     table: Table,
+    /// `--table breaths`: the change (1-6, the lung-change table's order).
+    #[arg(long, default_value_t = 1)]
+    change: usize,
+    /// `--table breaths`: where in its breath the lung changes.
+    #[arg(long, value_enum, default_value = "boundary")]
+    at: At,
+    /// `--table breaths`: the seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+/// Where in its breath the lung changes (`--at`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum At {
+    /// At the breath boundary.
+    Boundary,
+    /// Half-way through the inspiration.
+    Mid,
 }
 
 /// The power-ups of `lung` for `seeds`, with their ZN tuning; failures printed and skipped.
@@ -118,7 +138,7 @@ fn bench(args: &Args) {
         args.breaths, args.seeds
     );
     println!(
-        "| row | wave | controller | worst \\|error\\| breaths ≥ 3 (%) | ±(4 mL + 5 %) from 3 (seeds) | ±(4 mL + 15 %) from 3 | breath 1 error (%, mean) | peak pressure rise on the breath before, max: breaths ≥ 3 / breath 2 (cmH₂O) | \\|PEEP error\\| max (cmH₂O) | tracking RMS (slm) | swaps |"
+        "| row | wave | controller | worst \\|error\\| breaths ≥ 3 (%) | ±(4 mL + 5 %) from 3 (seeds) | ±(4 mL + 15 %) from 3 | breath 1 error (%, mean) | peak pressure rise on the breath before, max: breaths ≥ 3 / breath 2 (cmH₂O) | \\|PEEP error\\| max (cmH₂O) | tracking RMS (slm) | swaps / refused: fit, model, other, design |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for row in rows {
@@ -135,7 +155,7 @@ fn bench(args: &Args) {
                     .iter()
                     .filter_map(|r| r.breaths.first().map(|b| b.error_pct()))
                     .collect();
-                let swaps: usize = all.iter().map(CellRun::swaps).sum();
+                let o = outcomes(all.iter().flat_map(|r| r.estimates.iter()));
                 println!(
                     "| {} | {} | {} | {:.1} | {}/{} | {}/{} | {:+.1} | {:+.1} / {:+.1} | {:.2} | {:.2} | {} |",
                     row.row,
@@ -155,7 +175,7 @@ fn bench(args: &Args) {
                     max(s.iter().map(|s| s.peep_err)),
                     mean_sd(&s.iter().map(|s| s.rms).collect::<Vec<_>>()).0,
                     if ctrl == Ctrl::Adaptive {
-                        swaps.to_string()
+                        format!("{} / {}", o.swapped, refused(&o))
                     } else {
                         "–".into()
                     },
@@ -165,6 +185,19 @@ fn bench(args: &Args) {
     }
     println!();
 }
+
+/// The lung changes: name, `(C, R)` before and after.
+type Change = (&'static str, (f64, f64), (f64, f64));
+
+/// The changes of the lung-change table.
+const CASES: [Change; 6] = [
+    ("C 50 → 10", (50.0, 5.0), (10.0, 5.0)),
+    ("R 5 → 50", (50.0, 5.0), (50.0, 50.0)),
+    ("C 50 → 10 and R 5 → 50", (50.0, 5.0), (10.0, 50.0)),
+    ("C 10 → 50", (10.0, 5.0), (50.0, 5.0)),
+    ("R 50 → 5", (50.0, 50.0), (50.0, 5.0)),
+    ("C 10 → 50 and R 50 → 5", (10.0, 50.0), (50.0, 5.0)),
+];
 
 /// The breath of the lung-change table: row 1's.
 const CHANGE_BREATH: u32 = 6;
@@ -181,14 +214,6 @@ fn lung(c: f64, r: f64) -> LungParams {
 
 fn changes(args: &Args) {
     let row = ISO_ROWS[0];
-    let cases = [
-        ("C 50 → 10", (50.0, 5.0), (10.0, 5.0)),
-        ("R 5 → 50", (50.0, 5.0), (50.0, 50.0)),
-        ("C 50 → 10 and R 5 → 50", (50.0, 5.0), (10.0, 50.0)),
-        ("C 10 → 50", (10.0, 5.0), (50.0, 5.0)),
-        ("R 50 → 5", (50.0, 50.0), (50.0, 5.0)),
-        ("C 10 → 50 and R 50 → 5", (10.0, 50.0), (50.0, 5.0)),
-    ];
     println!(
         "## Lung changes: row 1's breath (500 mL, 20 /min, Ti 1 s, PEEP 5, square, trim on), \
          power-up into the first lung, change in breath {CHANGE_BREATH} of {CHANGE_RUN}, seeds 1-{}\n",
@@ -199,7 +224,7 @@ fn changes(args: &Args) {
         "| change | at | controller | last outside ±(4 mL + 15 %) | last outside ±(4 mL + 5 %) | worst breath error (%) | peak pressure vs previous breath, max (cmH₂O) | peak pressure before → after (cmH₂O) | \\|PEEP error\\| max (cmH₂O) |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
-    for (name, from, to) in cases {
+    for (name, from, to) in CASES {
         let ups = power_ups(
             &LungParams {
                 peep: 0.0,
@@ -276,7 +301,7 @@ fn changes(args: &Args) {
     );
     println!("| change | elastic pressure VT/C before → after (cmH₂O) | peak before → after (cmH₂O) | change breath's volume under +5 cmH₂O (%) | breath within ±(4 mL + 15 %) | breath within ±(4 mL + 5 %) |");
     println!("|---|---|---|---|---|---|");
-    for (name, from, to) in cases {
+    for (name, from, to) in CASES {
         let p = pressure_limited(row.tidal, row.ti(), row.peep, from, to, 5.0);
         println!(
             "| {name} | {:.0} → {:.0} | {:.1} → {:.1} | {:+.1} | {} | {} |",
@@ -325,27 +350,28 @@ fn phase_cell(breaths: &[(f64, f64)]) -> String {
 fn swap_header(labels: &[&str]) {
     println!(
         "Each phase: tracking RMS (slm) / mean \\|volume error\\| (worst) (%).\n\n\
-         | swap when the running model's held-out fit is | {} | swaps (before the change) / held by the rule / refused |",
+         | swap when the running model's held-out fit is | {} | swaps (before the change) / held by the rule / refused: fit, model, other, design |",
         labels.join(" | ")
     );
     println!("|---|{}---|", "---|".repeat(labels.len()));
 }
 
 /// Counts of `estimates`: swaps, swaps at a breath before `change` (from 0), held by the
-/// rule, refused.
-fn swap_counts<'a>(estimates: impl Iterator<Item = &'a reid::Estimate>, change: u32) -> String {
-    let (mut swaps, mut early, mut held, mut refused) = (0, 0, 0, 0);
-    for e in estimates {
-        if let Some(b) = e.swapped_at {
-            swaps += 1;
-            if b < change {
-                early += 1;
-            }
-        }
-        held += usize::from(e.held);
-        refused += usize::from(matches!(e.verdict, Some(Err(_))));
-    }
-    format!("{swaps} ({early}) / {held} / {refused}")
+/// rule, refused (by the hold-out's fit, the model check, otherwise; the design).
+fn swap_counts<'a>(
+    estimates: impl Iterator<Item = &'a reid::Estimate> + Clone,
+    change: u32,
+) -> String {
+    let o = outcomes(estimates.clone());
+    let early = estimates
+        .filter(|e| e.swapped_at.is_some_and(|b| b < change))
+        .count();
+    format!("{} ({early}) / {} / {}", o.swapped, o.held, refused(&o))
+}
+
+/// The refusals of `o`: `fit, model, other, design`.
+fn refused(o: &Outcomes) -> String {
+    format!("{}, {}, {}, {}", o.fit, o.model, o.other, o.design_refused)
 }
 
 /// The held-out free-run fits (running model, candidate; percent) of the re-estimates
@@ -524,6 +550,82 @@ fn swap(args: &Args) {
     );
 }
 
+/// One lung change's breaths under every controller, one seed.
+fn breaths(args: &Args) {
+    let Some(&(name, from, to)) = args.change.checked_sub(1).and_then(|i| CASES.get(i)) else {
+        eprintln!("--change: 1 to {}", CASES.len());
+        return;
+    };
+    let at = match args.at {
+        At::Boundary => ChangeAt::Boundary,
+        At::Mid => ChangeAt::Mid,
+    };
+    let row = with_lung(ISO_ROWS[0], from);
+    let ups = power_ups(
+        &LungParams {
+            peep: 0.0,
+            ..lung(from.0, from.1)
+        },
+        args.seed,
+    );
+    let Some(p) = ups.iter().find(|p| p.seed == args.seed) else {
+        return;
+    };
+    println!(
+        "## {name} in breath {CHANGE_BREATH} ({:?}), row 1's breath, seed {}\n",
+        args.at, args.seed
+    );
+    println!("Per controller: delivered volume mL (error %) / programmed volume mL / peak pressure cmH₂O.\n");
+    println!("| breath | {} |", Ctrl::ALL.map(Ctrl::name).join(" | "));
+    println!("|---|{}", "---|".repeat(Ctrl::ALL.len()));
+    let all: Vec<CellRun> = Ctrl::ALL
+        .iter()
+        .filter_map(|&ctrl| {
+            let cell = Cell {
+                breaths: CHANGE_RUN,
+                changes: vec![LungChange {
+                    breath: CHANGE_BREATH,
+                    at,
+                    lung: lung(to.0, to.1),
+                }],
+                ..Cell::new(row, Shape::Square, ctrl)
+            };
+            run_cell(p, &cell)
+                .map_err(|e| eprintln!("{}: {e}", ctrl.name()))
+                .ok()
+        })
+        .collect();
+    for n in 1..=CHANGE_RUN {
+        let cells: Vec<String> = all
+            .iter()
+            .map(|r| match r.breaths.iter().find(|b| b.number == n) {
+                Some(b) => format!(
+                    "{:.0} ({:+.1}) / {:.0} / {:.1}",
+                    b.delivered_ml,
+                    b.error_pct(),
+                    b.command_ml,
+                    b.peak_pressure
+                ),
+                None => "–".into(),
+            })
+            .collect();
+        println!("| {n} | {} |", cells.join(" | "));
+    }
+    if let Some(r) = all.first() {
+        let swaps: Vec<String> = r
+            .estimates
+            .iter()
+            .filter_map(|e| e.swapped_at.map(|b| (b + 1).to_string()))
+            .collect();
+        let o = outcomes(r.estimates.iter());
+        println!(
+            "\nAdaptive: new controllers from the start of breaths {}; refused: fit, model, other, design {}.\n",
+            if swaps.is_empty() { "none".to_string() } else { swaps.join(", ") },
+            refused(&o)
+        );
+    }
+}
+
 fn main() {
     let args = Args::parse();
     if matches!(args.table, Table::Bench | Table::All) {
@@ -534,5 +636,8 @@ fn main() {
     }
     if matches!(args.table, Table::Swap | Table::All) {
         swap(&args);
+    }
+    if args.table == Table::Breaths {
+        breaths(&args);
     }
 }
