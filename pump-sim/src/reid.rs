@@ -11,6 +11,10 @@
 //!   [`secant_through_map`]: the same as the model sees it, after the power-up's map.
 //! - [`run`]: one closed-loop run ([`Study`]) with the per-breath figures ([`BreathFigures`])
 //!   and every re-estimate ([`Estimate`]).
+//! - The loop's two sides, which the ventilation benchmark ([`crate::vent_bench`]) runs too:
+//!   [`Running`], the firmware's controller through the static map ([`Running::tick`]: run
+//!   mode's step; [`Running::swapped`]: the bumpless swap), and [`Reestimation`], the window,
+//!   the re-estimate, its hold-out and verdict, and the swap rule ([`swap_allowed`]).
 //!
 //! # Timing
 //! As in [`crate::baseline::experiment`]: tick `k` reads the flow at the end of interval
