@@ -422,6 +422,32 @@ pub fn design(model: &ArxModel<f32>) -> Option<Design<f32>> {
     Some(d)
 }
 
+/// [`design`] with the regulation loop's speed `tau` (s) given instead of taken from the
+/// model's slow pole (`Spec::tau`, the firmware's retries, each 1.5 times slower), and the
+/// firmware's reference model on the setpoint all the same (a re-design at the power-up
+/// design's `Design::tau`: the same loop speed and setpoint response, new `R`, `S` for the
+/// new model); `None` as [`design`] when `tau` is `None`.
+pub fn design_at(model: &ArxModel<f32>, tau: Option<f32>) -> Option<Design<f32>> {
+    let Some(tau) = tau else {
+        return design(model);
+    };
+    let c = &EXPERIMENT_CONFIG.control;
+    let spec = ridge_core::control::Spec {
+        tau: Some(tau),
+        ..c.spec()
+    };
+    let (d, _) = ridge_core::control::design_slower_on_failure(
+        model,
+        &spec,
+        c.tries,
+        ridge_pump_firmware::selfid::SLOWDOWN,
+        || {},
+    );
+    let mut d = d.ok()?;
+    d.set_reference(REFERENCE_POLE).ok()?;
+    Some(d)
+}
+
 /// The firmware's running controller (run mode through the static map) with its model (the
 /// dynamics from the map's flow) and preview.
 #[derive(Clone, Debug)]
@@ -463,13 +489,26 @@ impl Running {
         table: &MapTable,
         y: f32,
     ) -> Option<Self> {
+        self.swapped_at(model, mode, table, y, None).map(|(r, _)| r)
+    }
+
+    /// [`swapped`](Self::swapped) with the new design's regulation speed `tau` (s;
+    /// [`design_at`]), and the design's `tau` as resolved (s).
+    pub fn swapped_at(
+        &self,
+        model: ArxModel<f32>,
+        mode: Mode,
+        table: &MapTable,
+        y: f32,
+        tau: Option<f32>,
+    ) -> Option<(Self, f32)> {
         let model = if mode == Mode::Restart {
             self.model
         } else {
             model
         };
-        let d = design(&model)?;
-        Some(Running::new(model, &d, table, self.ctrl.last(), y))
+        let d = design_at(&model, tau)?;
+        Some((Running::new(model, &d, table, self.ctrl.last(), y), d.tau))
     }
 
     /// One control tick of run mode through the map (as `firmware/src/selfid/run.rs`): the
@@ -704,6 +743,14 @@ impl<'a> Reestimation<'a> {
             }
             Job::Idle => Job::Idle,
         };
+    }
+
+    /// Estimate `i` was accepted but the caller's swap policy kept the running controller
+    /// (counted as held, as by [`Rules::swap_below_fit`]).
+    pub fn hold(&mut self, i: usize) {
+        if let Some(e) = self.estimates.get_mut(i) {
+            e.held = true;
+        }
     }
 
     /// Every re-estimate so far, in order.

@@ -123,6 +123,53 @@ pub struct Cell {
     /// The adaptive controller's swap rule ([`crate::reid::swap_allowed`]), percent; `None`:
     /// always.
     pub swap_below_fit: Option<f64>,
+    /// The adaptive controller's swap policy (study knobs; [`Policy::ALWAYS`], today's, by
+    /// default).
+    pub policy: Policy,
+}
+
+/// When an accepted re-estimate is swapped in, and how the new controller is designed: the
+/// candidate firmware policies of docs/ventilation.md (*Why the re-designed controller loses
+/// volume*). Applies to [`Ctrl::Adaptive`] only.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Policy {
+    /// The condition at the swap point (the breath boundary as the controller sees it).
+    pub when: SwapWhen,
+    /// Re-design at the power-up design's regulation speed (its `Design::tau`) instead of the
+    /// speed the default design takes from the new model's slow pole.
+    pub fixed_speed: bool,
+    /// Forgetting shift `k` of the window (`λ = 1 − 2^{−k}` per breath; 2 today).
+    pub shift: u8,
+    /// Study only (the bench knows when the lung changed, the firmware does not): after a lung
+    /// change, swap only estimates whose window holds at least this many breaths of the new
+    /// lung (0: no wait; an estimate from before the change is held too).
+    pub settle: u32,
+}
+
+impl Policy {
+    /// Today's: every accepted estimate swapped in, re-designed at its own speed, `k` = 2.
+    pub const ALWAYS: Policy = Policy {
+        when: SwapWhen::Always,
+        fixed_speed: false,
+        shift: 2,
+        settle: 0,
+    };
+}
+
+/// The condition on which an accepted re-estimate is swapped in ([`Policy::when`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SwapWhen {
+    /// Always (today).
+    Always,
+    /// Never: the re-estimates are made, judged and reported, the power-up controller runs
+    /// (monitor only).
+    Never,
+    /// Only while the firmware's volume alarm is raised (`Ventilation::alarm`: 2 breaths in a
+    /// row outside ±(4 mL + 15 %)).
+    VolumeAlarm,
+    /// Only when the last reported breath's tracking RMS (the firmware's `BREATH` figure:
+    /// setpoint minus reading over the breath) is above this, slm.
+    RmsAbove(f32),
 }
 
 impl Cell {
@@ -136,6 +183,7 @@ impl Cell {
             changes: Vec::new(),
             trim: true,
             swap_below_fit: None,
+            policy: Policy::ALWAYS,
         }
     }
 }
@@ -270,6 +318,10 @@ pub struct CellRun {
     pub breaths: Vec<Breath>,
     /// The adaptive controller's re-estimates (empty for the others).
     pub estimates: Vec<Estimate>,
+    /// The adaptive controller's swaps: the breath (from 1) the new controller took over at
+    /// and its design's regulation time constant `Design::tau`, s; the power-up design's first
+    /// at breath 0.
+    pub designs: Vec<(u32, f32)>,
 }
 
 impl CellRun {
@@ -300,9 +352,11 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         });
     }
     let table = sw.map.table();
+    let mut designs = Vec::new();
     let mut ctrl = match cell.ctrl {
         Ctrl::Adaptive | Ctrl::Frozen => {
             let d0 = design(&sw.model).ok_or(ExperimentError::Score)?;
+            designs.push((0, d0.tau));
             Loop::Rst(Box::new(Running::new(
                 sw.model,
                 &d0,
@@ -344,7 +398,12 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
     };
     let mut store: WindowStore = [0; window_len(ridge_core::PARAMS_MAX)];
     let mut reest = match cell.ctrl {
-        Ctrl::Adaptive => Some(Reestimation::new(&sw.model, 2, rules, &mut store)?),
+        Ctrl::Adaptive => Some(Reestimation::new(
+            &sw.model,
+            cell.policy.shift,
+            rules,
+            &mut store,
+        )?),
         _ => None,
     };
     let program = Program::Volume(vb);
@@ -357,6 +416,12 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
     let mut reported: Vec<(u32, f64, f64)> = Vec::new();
     let (mut sq, mut peak, mut volume_at_close) = (0.0, 0.0f64, 0.0);
     let mut delivered = f64::NAN;
+    let fixed_tau = designs
+        .first()
+        .map(|d| d.1)
+        .filter(|_| cell.policy.fixed_speed);
+    // The last reported breath's tracking RMS, slm (the policy's `RmsAbove`).
+    let mut last_rms = 0.0f32;
     let lung_of = |rig: &Rig| {
         rig.lung
             .as_ref()
@@ -404,12 +469,36 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         if let (Loop::Rst(running), Some(r)) = (&mut ctrl, reest.as_mut()) {
             if (k + running.preview) % period == 0 {
                 if let Some((model, i)) = r.take_pending() {
-                    match running.swapped(model, Mode::Adapt, &table, y) {
-                        Some(n) => {
-                            **running = n;
-                            r.swapped(i, Some(k.div_ceil(period)));
+                    // The estimate's window ends with breath `snapshot − 1` (from 1); the last
+                    // change up to the breath this swap starts.
+                    let snapshot = r.estimates().get(i).map_or(0, |e| e.breath + 1);
+                    let settled = cell.policy.settle == 0
+                        || cell
+                            .changes
+                            .iter()
+                            .filter(|c| c.breath <= b + 1)
+                            .map(|c| c.breath)
+                            .max()
+                            .is_none_or(|c| snapshot >= c + cell.policy.settle);
+                    let allowed = settled
+                        && match cell.policy.when {
+                            SwapWhen::Always => true,
+                            SwapWhen::Never => false,
+                            SwapWhen::VolumeAlarm => vent.alarm(),
+                            SwapWhen::RmsAbove(x) => last_rms > x,
+                        };
+                    if !allowed {
+                        r.hold(i);
+                    } else {
+                        match running.swapped_at(model, Mode::Adapt, &table, y, fixed_tau) {
+                            Some((n, tau)) => {
+                                **running = n;
+                                let at = k.div_ceil(period);
+                                r.swapped(i, Some(at));
+                                designs.push((at + 1, tau));
+                            }
+                            None => r.swapped(i, None),
                         }
-                        None => r.swapped(i, None),
                     }
                 }
             }
@@ -455,6 +544,7 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         vent.after_pwm(&mut sp, vphase, counts, ended, &mut event);
         if let Some(Event::Breath(s)) = event {
             reported.push((s.number, f64::from(s.delivered), f64::from(s.command)));
+            last_rms = (s.sum_sq / f32::from(s.samples.max(1))).sqrt();
         }
         ended = next;
         if let (Loop::Rst(running), Some(r)) = (&ctrl, reest.as_mut()) {
@@ -489,6 +579,7 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
     Ok(CellRun {
         breaths,
         estimates: reest.map(Reestimation::into_estimates).unwrap_or_default(),
+        designs,
     })
 }
 
@@ -576,6 +667,49 @@ pub fn last_outside(run: &CellRun, at: u32, rel: f64) -> u32 {
         .map(|b| b.number - at + 1)
         .max()
         .unwrap_or(0)
+}
+
+/// A run against the targets after a lung change in breath `at` (from 1; the
+/// change breath counts 1): back within ±(4 mL + 15 %) within 2 breaths, within ±(4 mL + 5 %)
+/// within 4, no breath outside ±35 %.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChangeVerdict {
+    /// The count of the last breath outside ±(4 mL + 15 %) ([`last_outside`]; 0: none).
+    pub last15: u32,
+    /// The same for ±(4 mL + 5 %).
+    pub last5: u32,
+    /// Worst |volume error| from the change breath on, percent.
+    pub worst_pct: f64,
+    /// Largest peak airway pressure from the change breath on, cmH₂O.
+    pub peak_pressure: f64,
+}
+
+impl ChangeVerdict {
+    /// Back within ±(4 mL + 15 %) from the change's 2nd breath.
+    pub fn meets15(&self) -> bool {
+        self.last15 <= 1
+    }
+
+    /// Back within ±(4 mL + 5 %) from the change's 4th breath.
+    pub fn meets5(&self) -> bool {
+        self.last5 <= 3
+    }
+
+    /// No breath outside ±35 %.
+    pub fn meets35(&self) -> bool {
+        self.worst_pct <= 35.0
+    }
+}
+
+/// [`ChangeVerdict`] of `run` for a change in breath `at` (from 1).
+pub fn change_verdict(run: &CellRun, at: u32) -> ChangeVerdict {
+    let after = || run.breaths.iter().filter(|b| b.number >= at);
+    ChangeVerdict {
+        last15: last_outside(run, at, 0.15),
+        last5: last_outside(run, at, 0.05),
+        worst_pct: after().map(|b| b.error_pct().abs()).fold(0.0, f64::max),
+        peak_pressure: after().map(|b| b.peak_pressure).fold(0.0, f64::max),
+    }
 }
 
 /// The breaths a volume-controlled square breath needs to reach its set volume after a change

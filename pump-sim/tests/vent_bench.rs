@@ -6,8 +6,8 @@
 use pump_sim::iso::iso_row;
 use pump_sim::reid::{self, Study};
 use pump_sim::vent_bench::{
-    power_up, pressure_limited, row_lung, run_cell, score, zn_for, Cell, CellRun, ChangeAt, Ctrl,
-    LungChange, PowerUp,
+    change_verdict, power_up, pressure_limited, row_lung, run_cell, score, zn_for, Cell, CellRun,
+    ChangeAt, Ctrl, LungChange, Policy, PowerUp, SwapWhen,
 };
 use pump_sim::LungParams;
 use ridge_pump_firmware::setpoint::Shape;
@@ -154,4 +154,100 @@ fn the_swap_rule_keeps_the_power_up_controller_on_the_adult_lung() {
     assert!(swaps(None) > 0);
     assert_eq!(swaps(Some(90.0)), 0);
     assert_eq!(swaps(Some(100.0)), swaps(None));
+}
+
+/// Row 1's breath on `from` (power-up there, seed `seed`), the lung `to` from breath 6's
+/// boundary, 14 breaths, under `policy` (adaptive) or the frozen design (`None`).
+fn change_run(seed: u64, from: (f64, f64), to: (f64, f64), policy: Option<Policy>) -> CellRun {
+    let row1 = iso_row(1).expect("row");
+    let lung = |(c, r): (f64, f64)| LungParams {
+        compliance: c,
+        resistance: r,
+        ..row_lung(&row1, row1.peep)
+    };
+    let first = LungParams {
+        peep: 0.0,
+        ..lung(from)
+    };
+    let p = power_up(&first, seed, &zn_for(&first).expect("ZN")).expect("power-up");
+    let cell = Cell {
+        breaths: 14,
+        changes: vec![LungChange {
+            breath: 6,
+            at: ChangeAt::Boundary,
+            lung: lung(to),
+        }],
+        policy: policy.unwrap_or(Policy::ALWAYS),
+        ..Cell::new(
+            pump_sim::iso::IsoRow {
+                compliance: from.0,
+                resistance: from.1,
+                ..row1
+            },
+            Shape::Square,
+            if policy.is_some() {
+                Ctrl::Adaptive
+            } else {
+                Ctrl::Frozen
+            },
+        )
+    };
+    run_cell(&p, &cell).expect("run")
+}
+
+/// The recommended swap policy (docs/ventilation.md, *Why the re-designed controller loses
+/// volume*): an accepted re-estimate is swapped in only while the volume alarm is raised.
+/// After R 5 → 50 and after C 50 → 10 with R 5 → 50 (breath 6's boundary; seeds 1, 6 and 9)
+/// every breath from the change's 2nd is within ±(4 mL + 15 %) and from its 4th within
+/// ±(4 mL + 5 %), on the lung's own delivered volume; swapping always misses the 5 % band in
+/// some of these runs (seed 9: a controller re-designed from the adult lung's volume breaths,
+/// swapped in the breath after the change, delivers −23.7 %).
+#[test]
+fn swapping_only_on_the_volume_alarm_keeps_the_volume_after_a_lung_change() {
+    let alarm = Policy {
+        when: SwapWhen::VolumeAlarm,
+        ..Policy::ALWAYS
+    };
+    let mut always_missed = 0;
+    for to in [(50.0, 50.0), (10.0, 50.0)] {
+        for seed in [1, 6, 9] {
+            let run = change_run(seed, (50.0, 5.0), to, Some(alarm));
+            let v = change_verdict(&run, 6);
+            assert!(v.meets15() && v.meets5(), "{to:?} seed {seed}: {v:?}");
+            let today = change_run(seed, (50.0, 5.0), to, Some(Policy::ALWAYS));
+            always_missed += usize::from(!change_verdict(&today, 6).meets5());
+        }
+    }
+    assert!(always_missed > 0);
+}
+
+/// Without a change the recommended policy is never worse than the frozen power-up design by
+/// more than 1 % of the set volume on any breath from 3 (rows 1, 4 and 7, square, seeds 1-2).
+#[test]
+fn swapping_only_on_the_volume_alarm_costs_nothing_on_an_unchanged_lung() {
+    let alarm = Policy {
+        when: SwapWhen::VolumeAlarm,
+        ..Policy::ALWAYS
+    };
+    for row in [1, 4, 7] {
+        for p in &ups(row, &[1, 2]) {
+            let frozen = run_cell(p, &cell(row, Ctrl::Frozen)).expect("run");
+            let ours = run_cell(
+                p,
+                &Cell {
+                    policy: alarm,
+                    ..cell(row, Ctrl::Adaptive)
+                },
+            )
+            .expect("run");
+            for (a, f) in ours.breaths.iter().zip(&frozen.breaths).skip(2) {
+                assert!(
+                    a.error_pct().abs() <= f.error_pct().abs() + 1.0,
+                    "row {row} seed {}: breath {} {a:?} frozen {f:?}",
+                    p.seed,
+                    a.number
+                );
+            }
+        }
+    }
 }

@@ -14,8 +14,9 @@ use clap::{Parser, ValueEnum};
 use pump_sim::iso::{iso_row, IsoRow, ISO_ROWS};
 use pump_sim::reid::{self, breaths_in, mean_sd, Mode, Study};
 use pump_sim::vent_bench::{
-    last_outside, outcomes, power_up, pressure_limited, row_lung, run_cell, score, zn_for, Cell,
-    CellRun, ChangeAt, Ctrl, LungChange, Outcomes, PowerUp,
+    change_verdict, last_outside, outcomes, power_up, power_up_plant, pressure_limited, row_lung,
+    run_cell, score, zn_for, Cell, CellRun, ChangeAt, Ctrl, LungChange, Outcomes, Policy, PowerUp,
+    SwapWhen,
 };
 use pump_sim::LungParams;
 use ridge_pump_firmware::setpoint::Shape;
@@ -31,6 +32,9 @@ enum Table {
     Swap,
     /// One lung change's breaths, one seed (`--change`, `--at`, `--seed`).
     Breaths,
+    /// The adaptive controller's candidate swap policies on the lung changes and on rows 1-8
+    /// (`--rms-above`).
+    Policy,
     /// All three.
     All,
 }
@@ -60,6 +64,73 @@ struct Args {
     /// `--table breaths`: the seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// `--table changes|breaths`: the per-breath volume trim (`on`, the firmware's default).
+    #[arg(long, default_value = "on")]
+    trim: OnOff,
+    /// `--table changes|breaths`: when the adaptive controller swaps an accepted re-estimate in.
+    #[arg(long, value_enum, default_value = "always")]
+    swap_when: When,
+    /// `--swap-when rms`: the last reported breath's tracking RMS above which it swaps, slm.
+    #[arg(long, default_value_t = 6.0)]
+    rms_above: f32,
+    /// `--table changes|breaths`: re-design at the power-up design's regulation speed.
+    #[arg(long)]
+    fixed_speed: bool,
+    /// `--table changes|breaths`: the window's forgetting shift `k`.
+    #[arg(long, default_value_t = 2)]
+    shift: u8,
+    /// `--table changes|breaths`: swap only estimates with at least this many breaths of the
+    /// changed lung in their window (the bench knows the change; study only).
+    #[arg(long, default_value_t = 0)]
+    settle: u32,
+}
+
+/// On or off.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum OnOff {
+    /// On.
+    On,
+    /// Off.
+    Off,
+}
+
+/// The adaptive controller's swap condition (`--swap-when`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum When {
+    /// Every accepted re-estimate (today).
+    Always,
+    /// Never (monitor only).
+    Never,
+    /// While the volume alarm is raised.
+    Alarm,
+    /// When the last breath's tracking RMS is above `--rms-above`.
+    Rms,
+}
+
+impl Args {
+    /// The adaptive controller's policy of these flags.
+    fn policy(&self) -> Policy {
+        Policy {
+            when: match self.swap_when {
+                When::Always => SwapWhen::Always,
+                When::Never => SwapWhen::Never,
+                When::Alarm => SwapWhen::VolumeAlarm,
+                When::Rms => SwapWhen::RmsAbove(self.rms_above),
+            },
+            fixed_speed: self.fixed_speed,
+            shift: self.shift,
+            settle: self.settle,
+        }
+    }
+
+    /// `cell` with these flags' trim and policy.
+    fn study(&self, cell: Cell) -> Cell {
+        Cell {
+            trim: self.trim == OnOff::On,
+            policy: self.policy(),
+            ..cell
+        }
+    }
 }
 
 /// Where in its breath the lung changes (`--at`).
@@ -246,10 +317,10 @@ fn changes(args: &Args) {
                 // The cell's own lung at power-up is `from`, not row 1's.
                 let all = runs(
                     &ups,
-                    &Cell {
+                    &args.study(Cell {
                         row: with_lung(row, from),
                         ..cell
-                    },
+                    }),
                 );
                 let n15 = all
                     .iter()
@@ -590,7 +661,7 @@ fn breaths(args: &Args) {
                 }],
                 ..Cell::new(row, Shape::Square, ctrl)
             };
-            run_cell(p, &cell)
+            run_cell(p, &args.study(cell))
                 .map_err(|e| eprintln!("{}: {e}", ctrl.name()))
                 .ok()
         })
@@ -623,6 +694,7 @@ fn breaths(args: &Args) {
             if swaps.is_empty() { "none".to_string() } else { swaps.join(", ") },
             refused(&o)
         );
+        estimates_table(p, r, (from, to));
     }
 }
 
@@ -640,4 +712,274 @@ fn main() {
     if args.table == Table::Breaths {
         breaths(&args);
     }
+    if args.table == Table::Policy {
+        policies(&args);
+    }
 }
+
+/// A candidate policy of the policy table: name, trim on, the policy; `None`: the frozen
+/// design (for reference).
+type Candidate = (&'static str, bool, Option<Policy>);
+
+/// The candidates of `--table policy`: the diagnosis's knobs, then the firmware's options.
+fn candidates(rms_above: f32) -> Vec<Candidate> {
+    let p = Policy::ALWAYS;
+    vec![
+        ("(iv) swap always (today)", true, Some(p)),
+        ("swap always, trim off", false, Some(p)),
+        ("frozen, trim off", false, None),
+        ("swap always, k = 1", true, Some(Policy { shift: 1, ..p })),
+        ("swap always, k = 3", true, Some(Policy { shift: 3, ..p })),
+        (
+            "swap always after 2 breaths of the new lung",
+            true,
+            Some(Policy { settle: 2, ..p }),
+        ),
+        (
+            "swap always after 4 breaths of the new lung",
+            true,
+            Some(Policy { settle: 4, ..p }),
+        ),
+        (
+            "(iii) swap always, power-up speed",
+            true,
+            Some(Policy {
+                fixed_speed: true,
+                ..p
+            }),
+        ),
+        (
+            "(iii) swap always, power-up speed, trim off",
+            false,
+            Some(Policy {
+                fixed_speed: true,
+                ..p
+            }),
+        ),
+        (
+            "(ii) swap on the volume alarm",
+            true,
+            Some(Policy {
+                when: SwapWhen::VolumeAlarm,
+                ..p
+            }),
+        ),
+        (
+            "(ii) swap on the volume alarm, power-up speed",
+            true,
+            Some(Policy {
+                when: SwapWhen::VolumeAlarm,
+                fixed_speed: true,
+                ..p
+            }),
+        ),
+        (
+            "(ii) swap when the tracking RMS is above --rms-above",
+            true,
+            Some(Policy {
+                when: SwapWhen::RmsAbove(rms_above),
+                ..p
+            }),
+        ),
+        (
+            "(i) monitor only (never swap)",
+            true,
+            Some(Policy {
+                when: SwapWhen::Never,
+                ..p
+            }),
+        ),
+        ("frozen (for reference)", true, None),
+    ]
+}
+
+/// The candidate policies on the 12 lung changes and on rows 1-8 (square, no change).
+fn policies(args: &Args) {
+    let row = ISO_ROWS[0];
+    let cands = candidates(args.rms_above);
+    println!(
+        "## Swap policies: the 12 lung changes of the lung-change table (row 1's breath, change \
+         in breath {CHANGE_BREATH} of {CHANGE_RUN}), seeds 1-{}\n",
+        args.seeds
+    );
+    println!(
+        "Changes missing a target in any seed: back within ±(4 mL + 15 %) by the 2nd breath, \
+         ±(4 mL + 5 %) by the 4th, no breath outside ±35 %.\n"
+    );
+    println!(
+        "| policy | missed 15 % by 2nd | missed 5 % by 4th | a breath outside 35 % | worst breath (%) | peak pressure max (cmH₂O) | swaps / held / refused: fit, model, other, design |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    // Power-ups once per first lung.
+    let ups: Vec<Vec<PowerUp>> = CASES
+        .iter()
+        .map(|(_, from, _)| {
+            power_ups(
+                &LungParams {
+                    peep: 0.0,
+                    ..lung(from.0, from.1)
+                },
+                args.seeds,
+            )
+        })
+        .collect();
+    for (name, trim, policy) in &cands {
+        let (mut m15, mut m5, mut m35, mut worst, mut peak) = (0, 0, 0, 0.0f64, 0.0f64);
+        let mut est = Vec::new();
+        for ((_, from, to), ups) in CASES.iter().zip(&ups) {
+            for at in [ChangeAt::Boundary, ChangeAt::Mid] {
+                let cell = Cell {
+                    breaths: CHANGE_RUN,
+                    changes: vec![LungChange {
+                        breath: CHANGE_BREATH,
+                        at,
+                        lung: lung(to.0, to.1),
+                    }],
+                    trim: *trim,
+                    policy: policy.unwrap_or(Policy::ALWAYS),
+                    ..Cell::new(
+                        with_lung(row, *from),
+                        Shape::Square,
+                        if policy.is_some() {
+                            Ctrl::Adaptive
+                        } else {
+                            Ctrl::Frozen
+                        },
+                    )
+                };
+                let all = runs(ups, &cell);
+                let v: Vec<_> = all
+                    .iter()
+                    .map(|r| change_verdict(r, CHANGE_BREATH))
+                    .collect();
+                m15 += usize::from(!v.iter().all(|v| v.meets15()));
+                m5 += usize::from(!v.iter().all(|v| v.meets5()));
+                m35 += usize::from(!v.iter().all(|v| v.meets35()));
+                worst = worst.max(max(v.iter().map(|v| v.worst_pct)));
+                peak = peak.max(max(v.iter().map(|v| v.peak_pressure)));
+                est.extend(all.into_iter().flat_map(|r| r.estimates));
+            }
+        }
+        let o = outcomes(est.iter());
+        println!(
+            "| {name} | {m15} | {m5} | {m35} | {worst:.1} | {peak:.1} | {} |",
+            if policy.is_some() {
+                format!("{} / {} / {}", o.swapped, o.held, refused(&o))
+            } else {
+                "–".into()
+            }
+        );
+    }
+    println!();
+    println!(
+        "## Swap policies on rows 1-8 (square, {} breaths, no change), seeds 1-{}\n",
+        args.breaths, args.seeds
+    );
+    println!(
+        "Per row: worst \\|error\\| of breaths ≥ 3 (%), seeds within ±(4 mL + 5 %) from breath 3; swaps.\n"
+    );
+    let rows: Vec<IsoRow> = if args.rows.is_empty() {
+        ISO_ROWS.to_vec()
+    } else {
+        args.rows.iter().filter_map(|&n| iso_row(n)).collect()
+    };
+    println!(
+        "| policy | {} |",
+        rows.iter()
+            .map(|r| format!("row {}", r.row))
+            .collect::<Vec<_>>()
+            .join(" | ")
+    );
+    println!("|---|{}", "---|".repeat(rows.len()));
+    let ups: Vec<Vec<PowerUp>> = rows
+        .iter()
+        .map(|r| power_ups(&row_lung(r, 0.0), args.seeds))
+        .collect();
+    for (name, trim, policy) in cands.iter().filter(|c| c.1) {
+        let cells: Vec<String> = rows
+            .iter()
+            .zip(&ups)
+            .map(|(row, ups)| {
+                let cell = Cell {
+                    breaths: args.breaths,
+                    trim: *trim,
+                    policy: policy.unwrap_or(Policy::ALWAYS),
+                    ..Cell::new(
+                        *row,
+                        Shape::Square,
+                        if policy.is_some() {
+                            Ctrl::Adaptive
+                        } else {
+                            Ctrl::Frozen
+                        },
+                    )
+                };
+                let all = runs(ups, &cell);
+                let s: Vec<_> = all.iter().map(|r| score(r, 3)).collect();
+                let swaps: usize = all.iter().map(|r| r.swaps()).sum();
+                format!(
+                    "{:.1}, {}/{}, {}",
+                    max(s.iter().map(|s| s.worst_pct)),
+                    s.iter().filter(|s| s.pass5).count(),
+                    s.len(),
+                    swaps
+                )
+            })
+            .collect();
+        println!("| {name} | {} |", cells.join(" | "));
+    }
+    println!();
+}
+
+/// The adaptive run `r`'s re-estimates against the truth (`--table breaths`).
+fn estimates_table(p: &PowerUp, r: &CellRun, (from, to): ((f64, f64), (f64, f64))) {
+    let table = p.switchover.map.table();
+    let truth = |(c, rr): (f64, f64)| {
+        let l = lung(c, rr);
+        let lin = reid::linearisation(&power_up_plant(&l), &l, INSPIRATION_FLOW);
+        let t = reid::through_map(&lin, &table);
+        (t.gain, reid::rise63(&t.step).unwrap_or(0))
+    };
+    let (g0, r0) = truth(from);
+    let (g1, r1) = truth(to);
+    let m = &p.switchover.model;
+    println!(
+        "Truth at {INSPIRATION_FLOW} slm through the power-up map (valve open, PEEP 5): before \
+         gain {g0:.3}, 63 % rise {r0} ticks; after {g1:.3}, {r1}. Power-up model: gain {:.3}, \
+         rise {} ticks. Designs (breath from 1: τ s): {}.\n",
+        m.static_gain(),
+        reid::rise63(&reid::model_step(m, reid::STEP_TICKS)).unwrap_or(0),
+        r.designs
+            .iter()
+            .map(|(b, t)| format!("{b}: {t:.3}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    println!("| snapshot after breath | gain | 63 % rise (ticks) | verdict (fit: estimate / running %) | swapped at |");
+    println!("|---|---|---|---|---|");
+    for e in &r.estimates {
+        let (g, rise) = match &e.model {
+            Some(Ok(m)) => (
+                format!("{:.3}", m.static_gain()),
+                reid::rise63(&reid::model_step(m, reid::STEP_TICKS))
+                    .map_or("–".into(), |v| v.to_string()),
+            ),
+            _ => ("–".into(), "–".into()),
+        };
+        let verdict = match &e.verdict {
+            Some(Ok((c, run))) => format!("accepted {c:.0} / {run:.0}"),
+            Some(Err(why)) => format!("{why:?}"),
+            None => "–".into(),
+        };
+        println!(
+            "| {} | {g} | {rise} | {verdict} | {} |",
+            e.breath,
+            e.swapped_at.map_or("–".into(), |b| (b + 1).to_string())
+        );
+    }
+    println!();
+}
+
+/// The flow of the truth's linearisation in `--table breaths`: row 1's square inspiration,
+/// 500 mL in 1 s above the 5 slm bias, slm.
+const INSPIRATION_FLOW: f64 = 35.0;
