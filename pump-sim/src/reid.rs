@@ -77,6 +77,30 @@ fn settled(plant: &PlantArgs, lung: &LungParams, duty: f64) -> Rig {
 /// The true linearisation of `plant`'s blower behind `lung` at the steady flow `flow` (slm):
 /// the duty found by bisection on the settled flow, then `±DELTA` steps from there.
 pub fn linearisation(plant: &PlantArgs, lung: &LungParams, flow: f64) -> Linearisation {
+    let duty = steady_duty(plant, lung, flow);
+    let base = settled(plant, lung, duty);
+    let run = |d: f64| {
+        let mut rig = base.clone();
+        (0..STEP_TICKS).map(|_| rig.flow_at(d)).collect::<Vec<_>>()
+    };
+    let (up, down) = (run(duty + DELTA), run(duty - DELTA));
+    let step: Vec<f64> = up
+        .iter()
+        .zip(&down)
+        .map(|(a, b)| (a - b) / (2.0 * DELTA))
+        .collect();
+    let gain = step.last().copied().unwrap_or(0.0);
+    Linearisation {
+        flow,
+        duty,
+        step,
+        gain,
+    }
+}
+
+/// The duty (fraction) that holds the steady flow `flow` (slm) of `plant`'s blower behind
+/// `lung` with the exhalation valve open, by bisection on the settled flow.
+fn steady_duty(plant: &PlantArgs, lung: &LungParams, flow: f64) -> f64 {
     let (mut lo, mut hi) = (0.0, 1.0);
     for _ in 0..30 {
         let mid = 0.5 * (lo + hi);
@@ -87,11 +111,30 @@ pub fn linearisation(plant: &PlantArgs, lung: &LungParams, flow: f64) -> Lineari
             hi = mid;
         }
     }
-    let duty = 0.5 * (lo + hi);
-    let base = settled(plant, lung, duty);
+    0.5 * (lo + hi)
+}
+
+/// The small-signal response of a volume breath's inspiration, the plant the adaptive loop
+/// identifies in ventilation: the noise-free blower behind `lung` settled at the steady flow
+/// `from` (slm, the bias flow) with the valve open, then the valve closed and the duty stepped
+/// to the one that holds `flow` (slm) with the valve open, `±DELTA`; `step` is the flow's
+/// difference over `2 DELTA` tick by tick (slm per duty fraction) while the lung fills, `gain`
+/// its value after `ticks` ticks (the inspiration's end). With the valve closed there is no
+/// steady flow: the response rises with the blower's lag and falls as the lung's pressure
+/// builds.
+pub fn closed_valve_step(
+    plant: &PlantArgs,
+    lung: &LungParams,
+    from: f64,
+    flow: f64,
+    ticks: usize,
+) -> Linearisation {
+    let base = settled(plant, lung, steady_duty(plant, lung, from));
+    let duty = steady_duty(plant, lung, flow);
     let run = |d: f64| {
         let mut rig = base.clone();
-        (0..STEP_TICKS).map(|_| rig.flow_at(d)).collect::<Vec<_>>()
+        rig.valve = crate::Valve::Closed;
+        (0..ticks).map(|_| rig.flow_at(d)).collect::<Vec<_>>()
     };
     let (up, down) = (run(duty + DELTA), run(duty - DELTA));
     let step: Vec<f64> = up

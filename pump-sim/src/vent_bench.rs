@@ -140,6 +140,13 @@ pub struct Policy {
     pub fixed_speed: bool,
     /// Forgetting shift `k` of the window (`λ = 1 − 2^{−k}` per breath; 2 today).
     pub shift: u8,
+    /// Restart the trim at each swap: the next breath programmed for the set volume, the
+    /// trim's corrections from there on. The firmware's `Ventilation` has no setter for its
+    /// programmed volume, so the bench emulates it: the trim's law is incremental (the next
+    /// volume is the last plus half the error), and the bench adds the offset `set − programmed`
+    /// at the swap to what the trim programs from then on (the sum within the trim's ±25 %;
+    /// the firmware's own bound still applies to its part, which may then bind first).
+    pub trim_reset: bool,
     /// Study only (the bench knows when the lung changed, the firmware does not): after a lung
     /// change, swap only estimates whose window holds at least this many breaths of the new
     /// lung (0: no wait; an estimate from before the change is held too).
@@ -152,6 +159,7 @@ impl Policy {
         when: SwapWhen::Always,
         fixed_speed: false,
         shift: 2,
+        trim_reset: false,
         settle: 0,
     };
 }
@@ -422,6 +430,11 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         .filter(|_| cell.policy.fixed_speed);
     // The last reported breath's tracking RMS, slm (the policy's `RmsAbove`).
     let mut last_rms = 0.0f32;
+    // `Policy::trim_reset`: the offset added to the trim's programmed volume (mL), and the one
+    // in force at each breath's start.
+    let mut trim_offset = 0.0f32;
+    let mut offsets: Vec<(u32, f32)> = Vec::new();
+    let span = vb.tidal * f32::from(ventilation::TRIM_PERCENT) / 100.0;
     let lung_of = |rig: &Rig| {
         rig.lung
             .as_ref()
@@ -448,6 +461,7 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
                 });
             }
             (sq, peak) = (0.0, 0.0);
+            offsets.push((b, trim_offset));
             if let Some(r) = reest.as_mut() {
                 r.boundary(b - 1);
             }
@@ -496,6 +510,10 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
                                 let at = k.div_ceil(period);
                                 r.swapped(i, Some(at));
                                 designs.push((at + 1, tau));
+                                if cell.policy.trim_reset && vb.trim {
+                                    trim_offset = vb.tidal - vent.command();
+                                    sp.set_amplitude(vb.wave.amplitude_for(vb.tidal));
+                                }
                             }
                             None => r.swapped(i, None),
                         }
@@ -542,6 +560,11 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         // the re-estimation.
         let mut event = None;
         vent.after_pwm(&mut sp, vphase, counts, ended, &mut event);
+        if trim_offset != 0.0 && vphase == insp {
+            // The trim moved at the inspiration's end: its volume and the offset.
+            let v = (vent.command() + trim_offset).clamp(vb.tidal - span, vb.tidal + span);
+            sp.set_amplitude(vb.wave.amplitude_for(v));
+        }
         if let Some(Event::Breath(s)) = event {
             reported.push((s.number, f64::from(s.delivered), f64::from(s.command)));
             last_rms = (s.sum_sq / f32::from(s.samples.max(1))).sqrt();
@@ -571,9 +594,10 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         rms: (sq / f64::from(period)).sqrt(),
     });
     for (n, vd, cmd) in reported {
+        let offset = offsets.iter().find(|o| o.0 == n).map_or(0.0, |o| o.1);
         if let Some(b) = breaths.iter_mut().find(|b| b.number == n) {
             b.measured_ml = vd;
-            b.command_ml = cmd;
+            b.command_ml = f64::from((cmd as f32 + offset).clamp(vb.tidal - span, vb.tidal + span));
         }
     }
     Ok(CellRun {

@@ -35,6 +35,8 @@ enum Table {
     /// The adaptive controller's candidate swap policies on the lung changes and on rows 1-8
     /// (`--rms-above`).
     Policy,
+    /// The adaptive controller's re-estimates on the lung changes against the truth.
+    Estimates,
     /// All three.
     All,
 }
@@ -76,6 +78,10 @@ struct Args {
     /// `--table changes|breaths`: re-design at the power-up design's regulation speed.
     #[arg(long)]
     fixed_speed: bool,
+    /// `--table changes|breaths`: restart the trim at each swap (emulated, see
+    /// `vent_bench::Policy::trim_reset`).
+    #[arg(long)]
+    trim_reset: bool,
     /// `--table changes|breaths`: the window's forgetting shift `k`.
     #[arg(long, default_value_t = 2)]
     shift: u8,
@@ -119,6 +125,7 @@ impl Args {
             },
             fixed_speed: self.fixed_speed,
             shift: self.shift,
+            trim_reset: self.trim_reset,
             settle: self.settle,
         }
     }
@@ -715,6 +722,9 @@ fn main() {
     if args.table == Table::Policy {
         policies(&args);
     }
+    if args.table == Table::Estimates {
+        estimates(&args);
+    }
 }
 
 /// A candidate policy of the policy table: name, trim on, the policy; `None`: the frozen
@@ -728,6 +738,14 @@ fn candidates(rms_above: f32) -> Vec<Candidate> {
         ("(iv) swap always (today)", true, Some(p)),
         ("swap always, trim off", false, Some(p)),
         ("frozen, trim off", false, None),
+        (
+            "swap always, trim restarted at each swap",
+            true,
+            Some(Policy {
+                trim_reset: true,
+                ..p
+            }),
+        ),
         ("swap always, k = 1", true, Some(Policy { shift: 1, ..p })),
         ("swap always, k = 3", true, Some(Policy { shift: 3, ..p })),
         (
@@ -942,6 +960,25 @@ fn estimates_table(p: &PowerUp, r: &CellRun, (from, to): ((f64, f64), (f64, f64)
     };
     let (g0, r0) = truth(from);
     let (g1, r1) = truth(to);
+    let closed = |(c, rr): (f64, f64)| {
+        let l = lung(c, rr);
+        let lin = reid::closed_valve_step(&power_up_plant(&l), &l, 5.0, INSPIRATION_FLOW, 100);
+        let t = reid::through_map(&lin, &table);
+        let peak = t.step.iter().copied().fold(0.0, f64::max);
+        let at_peak = t.step.iter().position(|&v| v >= peak).unwrap_or(0);
+        let at = |k: usize| t.step.get(k).copied().unwrap_or(f64::NAN);
+        format!(
+            "peak {peak:.3} at tick {at_peak}, {:.3} at 50, {:.3} at 100",
+            at(49),
+            at(99)
+        )
+    };
+    println!(
+        "Truth with the valve closed from the 5 slm bias flow, the duty of {INSPIRATION_FLOW} slm \
+         held (through the map): before {}; after {}.\n",
+        closed(from),
+        closed(to)
+    );
     let m = &p.switchover.model;
     println!(
         "Truth at {INSPIRATION_FLOW} slm through the power-up map (valve open, PEEP 5): before \
@@ -983,3 +1020,127 @@ fn estimates_table(p: &PowerUp, r: &CellRun, (from, to): ((f64, f64), (f64, f64)
 /// The flow of the truth's linearisation in `--table breaths`: row 1's square inspiration,
 /// 500 mL in 1 s above the 5 slm bias, slm.
 const INSPIRATION_FLOW: f64 = 35.0;
+
+/// The truth of row 1's breath on the lung `(C, R)` as the model sees it through `table`: the
+/// valve-open linearisation at [`INSPIRATION_FLOW`] (gain, 63 % rise in ticks) and the
+/// closed-valve response after 50 and 100 ticks.
+fn truth_of(table: &ridge_core::input_map::MapTable, (c, r): (f64, f64)) -> (f64, usize, f64, f64) {
+    let l = lung(c, r);
+    let plant = power_up_plant(&l);
+    let open = reid::through_map(&reid::linearisation(&plant, &l, INSPIRATION_FLOW), table);
+    let closed = reid::through_map(
+        &reid::closed_valve_step(&plant, &l, 5.0, INSPIRATION_FLOW, 100),
+        table,
+    );
+    let at = |k: usize| closed.step.get(k).copied().unwrap_or(f64::NAN);
+    (
+        open.gain,
+        reid::rise63(&open.step).unwrap_or(0),
+        at(49),
+        at(99),
+    )
+}
+
+/// The adaptive (swap always) runs' re-estimates on the lung changes at the boundary, by where
+/// their window lies, against the truth; the regulation speed of the designs swapped in.
+fn estimates(args: &Args) {
+    println!(
+        "## Re-estimates on volume breaths (adaptive, swap always, row 1's breath, change at \
+         breath {CHANGE_BREATH}'s boundary), seeds 1-{}\n",
+        args.seeds
+    );
+    println!(
+        "Model: static gain through the map (slm/slm) mean ± sd, 63 % rise (ticks) mean; truth \
+         (seed 1's map): valve open at {INSPIRATION_FLOW} slm gain / rise, valve closed from \
+         the bias flow after 50 / 100 ticks. τ: the swapped-in designs' regulation time constant \
+         (s), min-max; the power-up design's in brackets.\n"
+    );
+    println!("| change | window | models (accepted) | gain | 63 % rise | truth: open gain / rise, closed at 50 / 100 | designs swapped in: τ (power-up) |");
+    println!("|---|---|---|---|---|---|---|");
+    let row = ISO_ROWS[0];
+    for &(name, from, to) in CASES.iter().take(3) {
+        let ups = power_ups(
+            &LungParams {
+                peep: 0.0,
+                ..lung(from.0, from.1)
+            },
+            args.seeds,
+        );
+        let Some(table) = ups.first().map(|p| p.switchover.map.table()) else {
+            continue;
+        };
+        let cell = Cell {
+            breaths: CHANGE_RUN,
+            changes: vec![LungChange {
+                breath: CHANGE_BREATH,
+                at: ChangeAt::Boundary,
+                lung: lung(to.0, to.1),
+            }],
+            ..Cell::new(with_lung(row, from), Shape::Square, Ctrl::Adaptive)
+        };
+        let all = runs(&ups, &cell);
+        // Windows: the old lung only (snapshot before the change), both (1-2 breaths of the
+        // new lung), the new lung from its 3rd breath (old lung weighted (3/4)^3 = 42 % or
+        // less).
+        let windows: [(&str, u32, u32, (f64, f64)); 3] = [
+            ("old lung only", 0, CHANGE_BREATH, from),
+            ("both lungs", CHANGE_BREATH, CHANGE_BREATH + 2, to),
+            (
+                "3+ breaths of the new lung",
+                CHANGE_BREATH + 2,
+                u32::MAX,
+                to,
+            ),
+        ];
+        for (wname, lo, hi, lung_now) in windows {
+            // `e.breath`: the last breath (from 1) in the window.
+            let es: Vec<_> = all
+                .iter()
+                .flat_map(|r| r.estimates.iter().map(move |e| (r, e)))
+                .filter(|(_, e)| e.breath + 1 > lo && e.breath < hi)
+                .collect();
+            let models: Vec<_> = es
+                .iter()
+                .filter_map(|(_, e)| e.model.and_then(Result::ok))
+                .collect();
+            let gains: Vec<f64> = models.iter().map(|m| f64::from(m.static_gain())).collect();
+            let rises: Vec<f64> = models
+                .iter()
+                .filter_map(|m| reid::rise63(&reid::model_step(m, reid::STEP_TICKS)))
+                .map(|v| v as f64)
+                .collect();
+            let accepted = es
+                .iter()
+                .filter(|(_, e)| matches!(e.verdict, Some(Ok(_))))
+                .count();
+            let taus: Vec<f64> = es
+                .iter()
+                .filter_map(|(r, e)| {
+                    let at = e.swapped_at? + 1;
+                    r.designs.iter().find(|d| d.0 == at).map(|d| f64::from(d.1))
+                })
+                .collect();
+            let t0: Vec<f64> = all
+                .iter()
+                .filter_map(|r| r.designs.first().map(|d| f64::from(d.1)))
+                .collect();
+            let (g, gs) = mean_sd(&gains);
+            let (tg, tr, c50, c100) = truth_of(&table, lung_now);
+            let lo_hi = |v: &[f64]| {
+                format!(
+                    "{:.3}-{:.3}",
+                    v.iter().copied().fold(f64::INFINITY, f64::min),
+                    v.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+                )
+            };
+            println!(
+                "| {name} | {wname} | {} ({accepted}) | {g:.3} ± {gs:.3} | {:.1} | {tg:.3} / {tr}, {c50:.3} / {c100:.3} | {} ({}) |",
+                models.len(),
+                mean_sd(&rises).0,
+                if taus.is_empty() { "none".into() } else { format!("{} s: {}", taus.len(), lo_hi(&taus)) },
+                lo_hi(&t0)
+            );
+        }
+    }
+    println!();
+}
