@@ -8,12 +8,14 @@
 //!
 //! - [`linearisation`]: the truth, the noise-free plant's small-signal step response and static
 //!   gain at a steady flow (central differences of `±δ` duty steps); [`through_map`] and
-//!   [`secant_through_map`]: the same as the model sees it, after the power-up's map.
+//!   [`secant_through_map`]: the same as the model sees it, after the power-up's map;
+//!   [`closed_valve_step`]: a volume breath's inspiration, the exhalation valve closed.
 //! - [`run`]: one closed-loop run ([`Study`]) with the per-breath figures ([`BreathFigures`])
 //!   and every re-estimate ([`Estimate`]).
 //! - The loop's two sides, which the ventilation benchmark ([`crate::vent_bench`]) runs too:
 //!   [`Running`], the firmware's controller through the static map ([`Running::tick`]: run
-//!   mode's step; [`Running::swapped`]: the bumpless swap), and [`Reestimation`], the window,
+//!   mode's step; [`Running::swapped`]: the bumpless swap, [`Running::swapped_at`] with a given
+//!   regulation speed, [`design_at`]), and [`Reestimation`], the window,
 //!   the re-estimate, its hold-out and verdict, and the swap rule ([`swap_allowed`]).
 //!
 //! # Timing

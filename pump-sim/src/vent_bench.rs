@@ -30,7 +30,11 @@
 //!   tick), the lung pressure at the end of the expiration (the PEEP), and the firmware's own
 //!   `BREATH` figures beside them.
 //! - **lung changes** ([`LungChange`]): at a breath boundary or half-way through a breath's
-//!   inspiration.
+//!   inspiration; [`change_verdict`]: a run against the targets after one.
+//! - **the swap policy** of the adaptive controller ([`Policy`], study knobs; today's by
+//!   default): when an accepted re-estimate is swapped in ([`SwapWhen`]: always, never, on the
+//!   volume alarm, above a tracking RMS), at which regulation speed it is re-designed, the
+//!   window's forgetting, the trim restarted at a swap, a wait for breaths of the new lung.
 //!
 //! [`Setpoint`]: ridge_pump_firmware::setpoint::Setpoint
 //! [`VolumeWave`]: ridge_pump_firmware::setpoint::VolumeWave

@@ -729,37 +729,45 @@ fn main() {
 
 /// A candidate policy of the policy table: name, trim on, the policy; `None`: the frozen
 /// design (for reference).
-type Candidate = (&'static str, bool, Option<Policy>);
+type Candidate = (String, bool, Option<Policy>);
 
 /// The candidates of `--table policy`: the diagnosis's knobs, then the firmware's options.
 fn candidates(rms_above: f32) -> Vec<Candidate> {
     let p = Policy::ALWAYS;
     vec![
-        ("(iv) swap always (today)", true, Some(p)),
-        ("swap always, trim off", false, Some(p)),
-        ("frozen, trim off", false, None),
+        ("(iv) swap always (today)".to_string(), true, Some(p)),
+        ("swap always, trim off".to_string(), false, Some(p)),
+        ("frozen, trim off".to_string(), false, None),
         (
-            "swap always, trim restarted at each swap",
+            "swap always, trim restarted at each swap".to_string(),
             true,
             Some(Policy {
                 trim_reset: true,
                 ..p
             }),
         ),
-        ("swap always, k = 1", true, Some(Policy { shift: 1, ..p })),
-        ("swap always, k = 3", true, Some(Policy { shift: 3, ..p })),
         (
-            "swap always after 2 breaths of the new lung",
+            "swap always, k = 1".to_string(),
+            true,
+            Some(Policy { shift: 1, ..p }),
+        ),
+        (
+            "swap always, k = 3".to_string(),
+            true,
+            Some(Policy { shift: 3, ..p }),
+        ),
+        (
+            "swap always after 2 breaths of the new lung".to_string(),
             true,
             Some(Policy { settle: 2, ..p }),
         ),
         (
-            "swap always after 4 breaths of the new lung",
+            "swap always after 4 breaths of the new lung".to_string(),
             true,
             Some(Policy { settle: 4, ..p }),
         ),
         (
-            "(iii) swap always, power-up speed",
+            "(iii) swap always, power-up speed".to_string(),
             true,
             Some(Policy {
                 fixed_speed: true,
@@ -767,7 +775,7 @@ fn candidates(rms_above: f32) -> Vec<Candidate> {
             }),
         ),
         (
-            "(iii) swap always, power-up speed, trim off",
+            "(iii) swap always, power-up speed, trim off".to_string(),
             false,
             Some(Policy {
                 fixed_speed: true,
@@ -775,7 +783,7 @@ fn candidates(rms_above: f32) -> Vec<Candidate> {
             }),
         ),
         (
-            "(ii) swap on the volume alarm",
+            "(ii) swap on the volume alarm".to_string(),
             true,
             Some(Policy {
                 when: SwapWhen::VolumeAlarm,
@@ -783,7 +791,7 @@ fn candidates(rms_above: f32) -> Vec<Candidate> {
             }),
         ),
         (
-            "(ii) swap on the volume alarm, power-up speed",
+            "(ii) swap on the volume alarm, power-up speed".to_string(),
             true,
             Some(Policy {
                 when: SwapWhen::VolumeAlarm,
@@ -792,7 +800,7 @@ fn candidates(rms_above: f32) -> Vec<Candidate> {
             }),
         ),
         (
-            "(ii) swap when the tracking RMS is above --rms-above",
+            format!("(ii) swap when the last breath's tracking RMS is above {rms_above} slm"),
             true,
             Some(Policy {
                 when: SwapWhen::RmsAbove(rms_above),
@@ -800,14 +808,14 @@ fn candidates(rms_above: f32) -> Vec<Candidate> {
             }),
         ),
         (
-            "(i) monitor only (never swap)",
+            "(i) monitor only (never swap)".to_string(),
             true,
             Some(Policy {
                 when: SwapWhen::Never,
                 ..p
             }),
         ),
-        ("frozen (for reference)", true, None),
+        ("frozen (for reference)".to_string(), true, None),
     ]
 }
 
