@@ -833,9 +833,9 @@ fn policies(args: &Args) {
          ±(4 mL + 5 %) by the 4th, no breath outside ±35 %.\n"
     );
     println!(
-        "| policy | missed 15 % by 2nd | missed 5 % by 4th | a breath outside 35 % | worst breath (%) | peak pressure max (cmH₂O) | swaps / held / refused: fit, model, other, design |"
+        "| policy | missed 15 % by 2nd | missed 5 % by 4th | a breath outside 35 % | worst breath (%) | peak pressure max (cmH₂O) | swaps / held / refused: fit, model, other, design | designs swapped in: τ / power-up τ, min-median-max (above 1.4) |"
     );
-    println!("|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|");
     // Power-ups once per first lung.
     let ups: Vec<Vec<PowerUp>> = CASES
         .iter()
@@ -852,6 +852,7 @@ fn policies(args: &Args) {
     for (name, trim, policy) in &cands {
         let (mut m15, mut m5, mut m35, mut worst, mut peak) = (0, 0, 0, 0.0f64, 0.0f64);
         let mut est = Vec::new();
+        let mut ratios: Vec<f64> = Vec::new();
         for ((_, from, to), ups) in CASES.iter().zip(&ups) {
             for at in [ChangeAt::Boundary, ChangeAt::Mid] {
                 let cell = Cell {
@@ -883,12 +884,25 @@ fn policies(args: &Args) {
                 m35 += usize::from(!v.iter().all(|v| v.meets35()));
                 worst = worst.max(max(v.iter().map(|v| v.worst_pct)));
                 peak = peak.max(max(v.iter().map(|v| v.peak_pressure)));
+                for r in &all {
+                    if let Some(&(_, t0)) = r.designs.first() {
+                        ratios.extend(r.designs.iter().skip(1).map(|d| f64::from(d.1 / t0)));
+                    }
+                }
                 est.extend(all.into_iter().flat_map(|r| r.estimates));
             }
         }
         let o = outcomes(est.iter());
+        ratios.sort_by(f64::total_cmp);
+        let spread = match (ratios.first(), ratios.get(ratios.len() / 2), ratios.last()) {
+            (Some(lo), Some(mid), Some(hi)) => format!(
+                "{lo:.2}-{mid:.2}-{hi:.2} ({})",
+                ratios.iter().filter(|&&r| r > 1.4).count()
+            ),
+            _ => "–".into(),
+        };
         println!(
-            "| {name} | {m15} | {m5} | {m35} | {worst:.1} | {peak:.1} | {} |",
+            "| {name} | {m15} | {m5} | {m35} | {worst:.1} | {peak:.1} | {} | {spread} |",
             if policy.is_some() {
                 format!("{} / {} / {}", o.swapped, o.held, refused(&o))
             } else {
