@@ -27,6 +27,13 @@
 //! so the amplitude for a volume `V` (mL) is `amp = (V / ML_PER_SLM_TICK − bias · N_i) / S`
 //! ([`VolumeWave::amplitude_for`]): the program delivers `V` over the inspiration's ticks.
 //!
+//! **Lead-in**: a volume program starts at the phase `N_i`, the end of an inspiration, so its
+//! first `N − N_i` ticks are an expiration (the bias flow, the exhalation valve open, the PEEP
+//! valve already set) before breath 1's inspiration at phase 0. The lung, whatever it held
+//! before, fills towards the PEEP (by `bias · (N − N_i)` at most: 167 mL at 5 slm over 2 s) or
+//! empties to it, so that breath 1 starts near where every later breath starts, not from the
+//! pressure the flow before `VENT` left (docs/ventilation.md measures what is left).
+//!
 //! Every setpoint is a function of the tick count
 //! ([`value`]): the sequence is exactly repeatable, and a host tool regenerates it from the
 //! same code. [`Setpoint`] produces the same values incrementally (a phase counter instead of a
@@ -167,8 +174,9 @@ pub enum Program {
     /// The demonstration: 2 s holding the start flow, [`DEMO_STEPS`] once, then
     /// [`DEMO_BREATH`] for ever.
     Demo,
-    /// Volume-controlled breaths, repeated from the first tick (the `VENT` command; the
-    /// per-breath bookkeeping is [`crate::ventilation`]'s).
+    /// Volume-controlled breaths, repeated from the first tick after a lead-in of one
+    /// expiration (module docs; the `VENT` command; the per-breath bookkeeping is
+    /// [`crate::ventilation`]'s).
     Volume(VolumeBreath),
 }
 
@@ -447,6 +455,15 @@ fn demo_steps_ticks() -> u32 {
     total
 }
 
+/// The phase a program's breaths start at: a volume program's lead-in (module docs) starts at
+/// the end of the inspiration, every other at 0.
+fn first_phase(wave: &Wave) -> u32 {
+    match wave {
+        Wave::Volume(w) => u32::from(w.insp),
+        Wave::Profile(_) => 0,
+    }
+}
+
 /// The program's breaths and the tick they start at (`u32::MAX`: none).
 fn breaths(program: Program) -> (Wave, u32) {
     match program {
@@ -470,7 +487,7 @@ impl Setpoint {
             tick: 0,
             wave,
             breath_from,
-            phase: 0,
+            phase: first_phase(&wave),
         }
     }
 
@@ -518,7 +535,8 @@ impl Setpoint {
 
     /// For a volume program: whether the coming tick's interval is in the inspiration (the
     /// exhalation valve closed), and its phase in the breath (ticks since the breath
-    /// started). `None` for every other program. Read before [`advance`](Self::advance).
+    /// started; the lead-in before breath 1 runs the phases from `N_i` on, module docs).
+    /// `None` for every other program. Read before [`advance`](Self::advance).
     pub fn volume_phase(&self) -> Option<(bool, u32)> {
         match &self.wave {
             Wave::Volume(w) if self.tick >= self.breath_from => {
@@ -553,7 +571,9 @@ pub fn value(program: Program, start: f32, tick: u32) -> f32 {
     if tick < from {
         return before_breaths(program, start, tick);
     }
-    wave.at_phase((tick - from) % wave.period())
+    let n = wave.period();
+    let p = (tick - from) % n + first_phase(&wave);
+    wave.at_phase(if p >= n { p - n } else { p })
 }
 
 /// [`value`] before the program's breaths.

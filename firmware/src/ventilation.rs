@@ -33,13 +33,17 @@
 //! - in the middle of the expiration the lung has emptied to the PEEP and the bias flow holds:
 //!   the **no-flow check** of the tick's faults expects from this operating point on (the
 //!   guard's law, its slope kept, moved through it, [`Anchor`]); it is paused from the
-//!   program's first tick until then, and run mode gives it no flow from the static map while
+//!   program's first tick (through the lead-in, whose lung is still filling towards the PEEP)
+//!   until breath 1's, and run mode gives it no flow from the static map while
 //!   a volume program runs, since neither the settled operating point nor the map of the
 //!   identification had the PEEP valve's and the lung's back pressure (at 10 cmH₂O the blower
 //!   needs about 40 % duty before any flow);
 //! - at the start of the next breath the breath is complete: its `BREATH` line (number, set
 //!   volume and PEEP, delivered volume, the volume it was programmed for, peak flow, tracking
 //!   RMS over the breath). This tick is the **breath boundary**.
+//!
+//! Before breath 1 the program's lead-in (one expiration, [`crate::setpoint`]'s module docs)
+//! brings the lung to the PEEP: nothing is counted, no line, the breath number stays 0.
 //!
 //! All of it runs after the tick's PWM write ([`Ventilation::after_pwm`]); before it run mode
 //! only evaluates the program and reads the valve's state.
@@ -203,8 +207,9 @@ pub fn within_band(delivered: f32, tidal: f32) -> bool {
 /// What the tick's fault checks take from a volume program ([`Ventilation::after_pwm`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Anchor {
-    /// The program's first tick: pause the no-flow check (its expected flow comes from an
-    /// operating point without the PEEP valve's back pressure).
+    /// Every tick before breath 1 (the lead-in) and breath 1's first: pause the no-flow
+    /// check (its expected flow comes from an operating point without the PEEP valve's back
+    /// pressure, and the lead-in's lung is still filling).
     Pause,
     /// Mid-expiration with the bias flow held (the reading within `1 slm + 15 %` of it):
     /// the pump demonstrably gives this tick's reading at the duty of the interval that ended
@@ -302,7 +307,10 @@ impl Ventilation {
         // Mid-expiration: the lung has emptied to the PEEP, and the preview of the next
         // breath has not yet raised the flow.
         let period = u32::from(b.wave.period());
-        if phase == insp + (period - insp) / 2 {
+        if self.number == 0 {
+            // The lead-in and breath 1's first tick.
+            anchor = Some(Anchor::Pause);
+        } else if phase == insp + (period - insp) / 2 {
             let bias = b.wave.bias();
             let e = f32::from(y) * crate::units::SLM_PER_COUNT - bias;
             let band = 1.0 + 0.15 * bias;
@@ -313,9 +321,6 @@ impl Ventilation {
             });
         }
         if phase == 0 {
-            if self.number == 0 {
-                anchor = Some(Anchor::Pause);
-            }
             if self.number > 0 {
                 self.add_error(ended, y);
                 self.last = BreathSummary {

@@ -241,7 +241,9 @@ fn inspiration_sums_to_the_volume() {
 
 /// Setpoint, program and bookkeeping driven as run mode drives them (phase read before the
 /// program advances, the bookkeeping after), with the reading of each tick from `reading(tick,
-/// ended setpoint)`. Returns the events and the readings.
+/// ended setpoint)`, ticks counted from breath 1's first. The lead-in before it (one
+/// expiration) is checked on the way: the bias flow with the valve open, the phases from the
+/// inspiration's end, no event, the breath number 0. Returns the events and the readings.
 fn ventilate(
     b: VolumeBreath,
     ticks: u32,
@@ -250,7 +252,17 @@ fn ventilate(
     let program = Program::Volume(b);
     let mut sp = Setpoint::new(program, 0.0);
     let mut vent = Ventilation::new(b.tidal);
-    let (mut ended, mut events, mut ys) = (0.0f32, Vec::new(), Vec::new());
+    let (period, insp) = (u32::from(b.wave.period()), u32::from(b.wave.inspiration()));
+    let mut ended = 0.0f32;
+    for k in insp..period {
+        assert_eq!(sp.volume_phase(), Some((false, k)));
+        assert_eq!(sp.advance(), b.wave.bias());
+        let mut event = None;
+        vent.after_pwm(&mut sp, k, counts(ended), ended, &mut event);
+        assert_eq!((event, vent.breath()), (None, 0), "lead-in tick {k}");
+        ended = b.wave.bias();
+    }
+    let (mut events, mut ys) = (Vec::new(), Vec::new());
     for t in 0..ticks {
         let (_, phase) = sp.volume_phase().unwrap();
         let y = reading(t, ended);
@@ -400,7 +412,8 @@ fn volume_program_setpoint_equals_value() {
     for k in 0..1500 {
         assert_eq!(sp.ahead(9).to_bits(), value(program, 3.0, k + 9).to_bits());
         let (insp, phase) = sp.volume_phase().unwrap();
-        assert_eq!(phase, k % 500);
+        // From the lead-in's phase 100 (the inspiration's end).
+        assert_eq!(phase, (k + 100) % 500);
         assert_eq!(insp, phase < 100);
         assert_eq!(sp.advance().to_bits(), value(program, 3.0, k).to_bits());
     }
@@ -411,9 +424,10 @@ fn volume_program_setpoint_equals_value() {
     );
 }
 
-/// The fault checks' anchors: a pause at the program's first tick, then mid-expiration (phase
-/// 200 of 300, 100 of inspiration) `Hold` when the reading is within 1 slm + 15 % of the bias
-/// flow, `Keep` when not; nothing on the other ticks.
+/// The fault checks' anchors: a pause at every tick of the lead-in (200 ticks) and breath 1's
+/// first, then mid-expiration (phase 200 of 300, 100 of inspiration) `Hold` when the reading
+/// is within 1 slm + 15 % of the bias flow, `Keep` when not; nothing on the other ticks (not
+/// in the lead-in's middle: its lung is still filling).
 #[test]
 fn breath_boundaries_anchor_the_fault_checks() {
     let b = check(args(500_000, 20_000)).unwrap(); // bias 5 slm: band 1.75 slm
@@ -427,7 +441,7 @@ fn breath_boundaries_anchor_the_fault_checks() {
         let mut sp = Setpoint::new(Program::Volume(b), 0.0);
         let mut v = Ventilation::new(500.0);
         let mut anchors = Vec::new();
-        for t in 0..601u32 {
+        for t in 0..801u32 {
             let (_, phase) = sp.volume_phase().unwrap();
             sp.advance();
             let y = if phase == 200 {
@@ -439,10 +453,8 @@ fn breath_boundaries_anchor_the_fault_checks() {
                 anchors.push((t, a));
             }
         }
-        assert_eq!(
-            anchors,
-            vec![(0, Anchor::Pause), (200, want), (500, want)],
-            "{bias_reading}"
-        );
+        let mut expected: Vec<(u32, Anchor)> = (0..=200).map(|t| (t, Anchor::Pause)).collect();
+        expected.extend([(400, want), (700, want)]);
+        assert_eq!(anchors, expected, "{bias_reading}");
     }
 }

@@ -191,8 +191,10 @@ impl RunTrace {
                 .find(|(_, closed)| *closed)
                 .ok_or("VENT sent, but the valve never closed")?;
             let j = tick_of(closed.0).ok_or("valve closed before the first tick")?;
+            // The program started a lead-in (one expiration) before the valve first closed.
+            let lead = usize::from(b.wave.period() - b.wave.inspiration());
             let k0 = j
-                .checked_sub(first_tick)
+                .checked_sub(first_tick + lead)
                 .ok_or("valve closed before run mode")?;
             vent_tick = Some(k0);
             let reading = |k: usize| frame_of(first_tick + k).map(|(raw, _)| raw_to_counts(raw));

@@ -299,6 +299,9 @@ pub struct Breath {
     pub peak_pressure: f64,
     /// Lung pressure at the end of the breath's expiration, cmH₂O.
     pub end_pressure: f64,
+    /// Lung pressure when the breath starts (its inspiration's first tick), cmH₂O: breath 1's
+    /// is what the firmware's lead-in left.
+    pub start_pressure: f64,
     /// Set PEEP, cmH₂O.
     pub peep: f64,
     /// RMS of the true flow minus the program's setpoint (as trimmed) over the breath, slm.
@@ -428,6 +431,7 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
     let mut reported: Vec<(u32, f64, f64)> = Vec::new();
     let (mut sq, mut peak, mut volume_at_close) = (0.0, 0.0f64, 0.0);
     let mut delivered = f64::NAN;
+    let mut start_pressure = f64::NAN;
     let fixed_tau = designs
         .first()
         .map(|d| d.1)
@@ -444,12 +448,16 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
             .as_ref()
             .map(|l| (l.volume(), l.pressure(), l.airway_pressure()))
     };
-    for k in 0..cell.breaths * period {
-        let b = k / period + 1;
-        let phase = k % period;
+    // The firmware's lead-in (one expiration before breath 1, `setpoint`'s module docs): its
+    // ticks are breath 0, counted nowhere.
+    let lead = period - insp;
+    for k in 0..lead + cell.breaths * period {
+        let kb = k.checked_sub(lead);
+        let b = kb.map_or(0, |kb| kb / period + 1);
+        let phase = kb.map_or(insp + k, |kb| kb % period);
         // The breath boundary: the last breath's figures (before a change of the lung at this
         // boundary moves its pressure), the re-estimation's boundary.
-        if phase == 0 {
+        if kb.is_some() && phase == 0 {
             if b > 1 {
                 let (_, p_end, _) = lung_of(&rig).unwrap_or_default();
                 breaths.push(Breath {
@@ -460,11 +468,13 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
                     command_ml: f64::NAN,
                     peak_pressure: peak,
                     end_pressure: p_end,
+                    start_pressure,
                     peep: f64::from(vb.peep),
                     rms: (sq / f64::from(period)).sqrt(),
                 });
             }
             (sq, peak) = (0.0, 0.0);
+            start_pressure = lung_of(&rig).map_or(f64::NAN, |l| l.1);
             offsets.push((b, trim_offset));
             if let Some(r) = reest.as_mut() {
                 r.boundary(b - 1);
@@ -485,7 +495,10 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         let y = f32::from(counts) * SLM_PER_COUNT;
         // The swap at the boundary as the controller sees the program (crate::reid::run).
         if let (Loop::Rst(running), Some(r)) = (&mut ctrl, reest.as_mut()) {
-            if (k + running.preview) % period == 0 {
+            if (k + running.preview)
+                .checked_sub(lead)
+                .is_some_and(|j| j % period == 0)
+            {
                 if let Some((model, i)) = r.take_pending() {
                     // The estimate's window ends with breath `snapshot − 1` (from 1); the last
                     // change up to the breath this swap starts.
@@ -511,7 +524,7 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
                         match running.swapped_at(model, Mode::Adapt, &table, y, fixed_tau) {
                             Some((n, tau)) => {
                                 **running = n;
-                                let at = k.div_ceil(period);
+                                let at = kb.unwrap_or(0).div_ceil(period);
                                 r.swapped(i, Some(at));
                                 designs.push((at + 1, tau));
                                 if cell.policy.trim_reset && vb.trim {
@@ -574,7 +587,7 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
             last_rms = (s.sum_sq / f32::from(s.samples.max(1))).sqrt();
         }
         ended = next;
-        if let (Loop::Rst(running), Some(r)) = (&ctrl, reest.as_mut()) {
+        if let (Loop::Rst(running), Some(r), Some(_)) = (&ctrl, reest.as_mut(), kb) {
             r.after_pwm(v_counts, raw_to_counts(raw), &running.model);
         }
     }
@@ -594,6 +607,7 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         command_ml: f64::NAN,
         peak_pressure: peak,
         end_pressure: p_end,
+        start_pressure,
         peep: f64::from(vb.peep),
         rms: (sq / f64::from(period)).sqrt(),
     });

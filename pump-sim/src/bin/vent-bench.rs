@@ -216,9 +216,9 @@ fn bench(args: &Args) {
         args.breaths, args.seeds
     );
     println!(
-        "| row | wave | controller | worst \\|error\\| breaths ≥ 3 (%) | ±(4 mL + 5 %) from 3 (seeds) | ±(4 mL + 15 %) from 3 | breath 1 error (%, mean) | peak pressure rise on the breath before, max: breaths ≥ 3 / breath 2 (cmH₂O) | \\|PEEP error\\| max (cmH₂O) | tracking RMS (slm) | swaps / refused: fit, model, other, design |"
+        "| row | wave | controller | worst \\|error\\| breaths ≥ 3 (%) | ±(4 mL + 5 %) from 3 (seeds) | ±(4 mL + 15 %) from 3 | breath 1 error (%, mean) | lung at breath 1's start − PEEP (cmH₂O, mean) | peak pressure rise on the breath before, max: breaths ≥ 3 / breath 2 (cmH₂O) | \\|PEEP error\\| max (cmH₂O) | tracking RMS (slm) | swaps / refused: fit, model, other, design |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for row in rows {
         let ups = power_ups(&row_lung(&row, 0.0), args.seeds);
         for wave in [Shape::Square, Shape::Ramp] {
@@ -233,9 +233,13 @@ fn bench(args: &Args) {
                     .iter()
                     .filter_map(|r| r.breaths.first().map(|b| b.error_pct()))
                     .collect();
+                let start: Vec<f64> = all
+                    .iter()
+                    .filter_map(|r| r.breaths.first().map(|b| b.start_pressure - b.peep))
+                    .collect();
                 let o = outcomes(all.iter().flat_map(|r| r.estimates.iter()));
                 println!(
-                    "| {} | {} | {} | {:.1} | {}/{} | {}/{} | {:+.1} | {:+.1} / {:+.1} | {:.2} | {:.2} | {} |",
+                    "| {} | {} | {} | {:.1} | {}/{} | {}/{} | {:+.1} | {:+.1} | {:+.1} / {:+.1} | {:.2} | {:.2} | {} |",
                     row.row,
                     wave_name(wave),
                     ctrl.name(),
@@ -245,6 +249,7 @@ fn bench(args: &Args) {
                     s.iter().filter(|s| s.pass15).count(),
                     s.len(),
                     mean_sd(&first).0,
+                    mean_sd(&start).0,
                     max(s.iter().map(|s| s.peak_rise)),
                     max(all.iter().filter_map(|r| {
                         let b = &r.breaths;
