@@ -8,7 +8,9 @@
 //!   the inspiration's 100 ticks each breath; the firmware's `BREATH` lines number the
 //!   breaths the lung saw and their volumes equal the firmware's own code replayed on the host
 //!   from the frames it was served, within 2 mL + 2 % of the truth (the sensor's offset and
-//!   noise); no fault, no overrun, the control tick < 1.6 ms.
+//!   noise); no fault, no overrun, the control tick < 1.6 ms. The firmware's lead-in: the valve
+//!   first closes one expiration after `OK vent`, the lung then within ±2 cmH₂O of the PEEP,
+//!   and breath 2's peak pressure at most breath 1's + 5 cmH₂O.
 //! - A sudden lung change (row 1's lung to row 7's C and R at a breath boundary): back within
 //!   ±(4 mL + 15 %) within 2 breaths.
 //! - The valve opens on every fault path: a sensor fault, a stall, `STOP`, the panic handler,
@@ -137,6 +139,33 @@ fn check_run(what: &str, o: &VentOutcome, breaths: u32) {
         }
     }
     println!("{what}: breaths 3-{breaths} within ±(4 mL + 5 %): {in5}/{n}");
+    // The lead-in: the valve first closes one expiration after `OK vent` (the line leaves the
+    // UART within a few ms of the tick that took the command), the lung then within ±2 cmH₂O of
+    // the PEEP, and breath 2 peaks at most 5 cmH₂O above breath 1 (the targets).
+    let expiration = f64::from(o.breath.wave.period() - o.breath.wave.inspiration()) / 100.0;
+    let ok = bench.lines.iter().find(|l| l.text == "OK vent").map(|l| l.cycle);
+    if let (Some(ok), Some(b1)) = (ok, rows.first()) {
+        let lead = (b1.truth.start as f64 - ok as f64) / 16e6;
+        println!(
+            "{what}: lead-in {lead:.3} s (one expiration {expiration:.2} s), lung at breath 1's start {:.2} cmH2O (PEEP {})",
+            b1.truth.peep, o.breath.peep
+        );
+        if (lead - expiration).abs() > 0.05 {
+            bad.push(format!("lead-in {lead:.3} s, not {expiration} s"));
+        }
+        if (b1.truth.peep - f64::from(o.breath.peep)).abs() > 2.0 {
+            bad.push(format!("breath 1 starts at {:.2} cmH2O", b1.truth.peep));
+        }
+    } else {
+        bad.push("no OK vent line or no breath".into());
+    }
+    if let [b1, b2, ..] = rows.as_slice() {
+        let rise = b2.truth.peak_pressure - b1.truth.peak_pressure;
+        println!("{what}: peak pressure breath 1 -> 2: {rise:+.1} cmH2O");
+        if rise > 5.0 {
+            bad.push(format!("breath 2 peaks {rise:+.1} cmH2O above breath 1"));
+        }
+    }
     match simavr_harness::tracking::run_trace_ventilated(bench, o.breath) {
         Ok(run) => {
             let fw: Vec<(f64, f64)> = rows
@@ -372,11 +401,14 @@ fn valve_opens_on_stop_until_start() {
     b.send_now("STOP\n");
     let i = run_to_line(&mut b, 0.5, "OK stop");
     assert_safe_after(&mut b, i, "STOP", 3.0);
-    // START: the stored model runs again, with its volume program from breath 1.
+    // START: the stored model runs again, with its volume program from breath 1 after the
+    // lead-in (one expiration, 2 s on row 1: the valve stays open for it).
     b.send_now("START\n");
     run_to_line(&mut b, 0.5, "OK start");
     let n = b.breaths.len();
     run_to_line(&mut b, 5.0, "CTRL");
+    b.run_for(1.5);
+    assert_eq!(b.breaths.len(), n, "closed in the lead-in:\n{}", transcript(&b));
     b.run_for(1.0);
     assert_eq!(b.breaths.len(), n + 1, "{}", transcript(&b));
 }
