@@ -143,7 +143,11 @@ fn check_run(what: &str, o: &VentOutcome, breaths: u32) {
     // UART within a few ms of the tick that took the command), the lung then within ±2 cmH₂O of
     // the PEEP, and breath 2 peaks at most 5 cmH₂O above breath 1 (the targets).
     let expiration = f64::from(o.breath.wave.period() - o.breath.wave.inspiration()) / 100.0;
-    let ok = bench.lines.iter().find(|l| l.text == "OK vent").map(|l| l.cycle);
+    let ok = bench
+        .lines
+        .iter()
+        .find(|l| l.text == "OK vent")
+        .map(|l| l.cycle);
     if let (Some(ok), Some(b1)) = (ok, rows.first()) {
         let lead = (b1.truth.start as f64 - ok as f64) / 16e6;
         println!(
@@ -408,7 +412,12 @@ fn valve_opens_on_stop_until_start() {
     let n = b.breaths.len();
     run_to_line(&mut b, 5.0, "CTRL");
     b.run_for(1.5);
-    assert_eq!(b.breaths.len(), n, "closed in the lead-in:\n{}", transcript(&b));
+    assert_eq!(
+        b.breaths.len(),
+        n,
+        "closed in the lead-in:\n{}",
+        transcript(&b)
+    );
     b.run_for(1.0);
     assert_eq!(b.breaths.len(), n + 1, "{}", transcript(&b));
 }
