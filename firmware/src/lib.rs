@@ -40,6 +40,9 @@ pub mod monitor;
 pub mod numfmt;
 pub mod persist;
 pub mod pump;
+// Not on the ATmega2560: its flash has no room for it (docs/control.md).
+#[cfg(not(target_arch = "avr"))]
+pub mod reid;
 pub mod resets;
 // The one module with `unsafe`: a lock-free SPSC byte queue for UART interrupts.
 #[allow(unsafe_code)]

@@ -661,7 +661,7 @@ impl<S: Settings> SelfIdentification<S> {
     /// expiration, then expecting from the bias flow held in the middle of each expiration.
     pub fn after_pwm(&mut self, event: &mut Option<Event>) {
         if let Phase::Run(run) = &mut self.phase {
-            match run.after_pwm(self.last_counts, event) {
+            match run.after_pwm(self.last_counts, self.drift, event) {
                 Some((Anchor::Pause, _)) => self.guard.pause_expectation(),
                 Some((Anchor::Hold, applied)) => {
                     self.guard.move_operating_point(applied, self.last_counts)
@@ -669,6 +669,8 @@ impl<S: Settings> SelfIdentification<S> {
                 Some((Anchor::Keep, _)) => self.guard.resume_expectation(),
                 None => {}
             }
+            #[cfg(not(target_arch = "avr"))]
+            self.redesign(event);
         }
     }
 
