@@ -408,7 +408,7 @@ pub enum Event {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ReidVerdict {
     /// `accepted`: it passed every check and the running model no longer describes the lung
-    /// (its held-out fit below [`crate::reid::SWAP_BELOW_FIT`], off by default): swapped in at
+    /// (its held-out fit below `crate::reid::ReidConfig::swap_below_fit`, off by default): swapped in at
     /// the next breath boundary.
     Accepted,
     /// `kept`: it passed every check, but the running model still describes the lung: reported,

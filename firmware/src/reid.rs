@@ -9,17 +9,17 @@
 //!   ended with the reading `y` (what the controller's memory takes); forgetting at each
 //!   breath's start by [`SHIFT`] (`λ = 3/4` a breath).
 //! - **Trigger**: at a breath boundary with no re-estimate running, when the monitor raised
-//!   `DRIFT`, a volume or tracking alarm is on, or [`EVERY`] breaths passed since the last
-//!   start.
+//!   `DRIFT`, a volume or tracking alarm is on, or [`ReidConfig::every`] breaths passed since
+//!   the last start.
 //! - **Fit**: [`Refit::start`] (the snapshot) at the boundary, then one unit
 //!   ([`Refit::step`]`(1)`) a tick.
 //! - **Checks**: [`Acceptance::check_estimate`] (the window excited, the design's model check),
 //!   then the breath after the snapshot held out ([`Holdout`]): the estimate's free-run fit at
 //!   least `min_fit` and at least the running model's ([`Acceptance::judge`]).
 //! - **Swap rule**: an estimate that passes replaces the running model only when the running
-//!   model's own held-out fit is below [`SWAP_BELOW_FIT`] (it no longer describes the lung);
+//!   model's own held-out fit is below [`ReidConfig::swap_below_fit`] (it no longer describes the lung);
 //!   otherwise it is reported (`kept`) and the running controller stays. The rule is off
-//!   (`None`, see there for the measurement): every passing estimate is `kept`. The re-designed
+//!   by default (`None`, see there for the measurement): every passing estimate is `kept`. The re-designed
 //!   controller tracks worse than the power-up one on the lung the power-up saw
 //!   (docs/control.md), so a better fit alone is no reason to swap.
 //!
@@ -42,23 +42,35 @@ use crate::units::{MODEL_SCALE, SLM_PER_COUNT};
 /// `λ = 7/8`).
 pub const SHIFT: u8 = 2;
 
-/// A re-estimate starts at least every this many breaths (and at once on a drift or an
-/// alarm); the study (docs/control.md) re-estimated every breath.
-pub const EVERY: u32 = 1;
+/// The re-identification's settings ([`Config::reid`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReidConfig {
+    /// A re-estimate starts at least every this many breaths (and at once on a drift or an
+    /// alarm); default 1, as the study (docs/control.md) re-estimated.
+    pub every: u32,
+    /// The smallest RMS of the window's input (the map's flow) about its mean, slm (default
+    /// 5): square breaths move it by 22 slm RMS on the adult lung, a constant setpoint by
+    /// 2.3–2.7 (the sensor noise fed back), whose estimates rise 20 % too fast
+    /// (docs/control.md).
+    pub min_input_response: f32,
+    /// The swap rule: a passing estimate replaces the running model only when the running
+    /// model's free-run fit on the held-out breath is below this, percent; `None` (the
+    /// default): never, the estimates are reported (`kept`) and the power-up controller runs
+    /// on. Off because on the STM32F411 image (`stm32-harness/tests/reid.rs`, docs/control.md
+    /// "What the firmware does") the power-up model's held-out fit on the adult lung's breaths
+    /// was −23 to −11 % (identified without the PEEP and exhalation valves): no threshold
+    /// keeps the adult lung's controller and swaps on the stiff one.
+    pub swap_below_fit: Option<f32>,
+}
 
-/// The smallest RMS of the window's input (the map's flow) about its mean, slm: square breaths
-/// move it by 22 slm RMS on the adult lung, a constant setpoint by 2.3–2.7 (the sensor noise
-/// fed back), whose estimates rise 20 % too fast (docs/control.md).
-pub const MIN_INPUT_RESPONSE: f32 = 5.0;
-
-/// The swap rule: a passing estimate replaces the running model only when the running model's
-/// free-run fit on the held-out breath is below this, percent; `None`: never (the estimates are
-/// reported, `kept`, and the power-up controller runs on). Off: measured on the STM32F411 image
-/// (`stm32-harness/tests/reid.rs`, docs/control.md "What the firmware does"), the power-up
-/// model's held-out fit on the adult lung's breaths was −19 to 79 % (identified without the
-/// PEEP and exhalation valves), so no threshold keeps the adult lung's controller and swaps on
-/// the stiff one.
-pub const SWAP_BELOW_FIT: Option<f32> = None;
+impl ReidConfig {
+    /// The defaults (see each field).
+    pub const DEFAULT: ReidConfig = ReidConfig {
+        every: 1,
+        min_input_response: 5.0,
+        swap_below_fit: None,
+    };
+}
 
 /// Where the current re-estimate stands.
 // One of the two at a time, in run mode's static storage.
@@ -93,6 +105,9 @@ pub struct Reid {
     running: ArxModel<f32>,
     /// Breaths since the last re-estimate started.
     since: u32,
+    /// Re-estimate at least every this many breaths, and the swap rule ([`ReidConfig`]).
+    every: u32,
+    swap_below_fit: Option<f32>,
     /// A report waiting for a tick without another event.
     due: Option<ReidReport>,
 }
@@ -118,12 +133,14 @@ impl Reid {
             accept: Acceptance {
                 model: cfg.control.model,
                 min_response: cfg.min_response,
-                min_input_response: MIN_INPUT_RESPONSE,
+                min_input_response: cfg.reid.min_input_response,
                 min_fit: cfg.min_fit,
                 holdout_min: holdout,
             },
             running,
             since: 0,
+            every: cfg.reid.every,
+            swap_below_fit: cfg.reid.swap_below_fit,
             due: None,
         }
     }
@@ -186,7 +203,7 @@ impl Reid {
         if let Some(breath) = boundary {
             self.since = self.since.saturating_add(1);
             swap = self.judge();
-            if matches!(self.job, Job::Idle) && (trigger || self.since >= EVERY) {
+            if matches!(self.job, Job::Idle) && (trigger || self.since >= self.every) {
                 // A window too short for the structure starts nothing (the next boundary tries).
                 let started = Window::attach(state, &mut self.store)
                     .and_then(|w| Refit::start(&w, self.method, &MODEL_SCALE));
@@ -283,7 +300,9 @@ impl Reid {
         }
         match self.accept.judge(holdout) {
             Ok(v) => {
-                let swap = SWAP_BELOW_FIT.is_some_and(|below| v.running.fit < below);
+                let swap = self
+                    .swap_below_fit
+                    .is_some_and(|below| v.running.fit < below);
                 self.due = Some(ReidReport {
                     breath,
                     verdict: if swap {

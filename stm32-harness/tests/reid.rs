@@ -5,7 +5,7 @@
 //!
 //! What it shows (numbers printed with `--nocapture`): `REID` lines every other breath on
 //! both lungs; on the adult lung the estimates pass and are kept (the swap rule is off,
-//! `ridge_pump_firmware::reid::SWAP_BELOW_FIT`), their static gain within 30 % of the plant's
+//! `ridge_pump_firmware::reid::ReidConfig::swap_below_fit`), their static gain within 30 % of the plant's
 //! secant through the map (measured 16–24 % below it); on the stiff lung the estimates' gain falls below the model
 //! check's 0.5 and they are refused (`verdict=model`), the power-up controller runs on.
 //!

@@ -1,0 +1,213 @@
+//! Run mode's re-identification (`ridge_pump_firmware::reid`) in the firmware's state machine
+//! on the host, closed loop with pump-sim's plant and ISO 80601-2-12 row 1's test lung: the
+//! swap path (off in the default settings) with a swap threshold set, and a refused estimate
+//! that keeps the running controller.
+//!
+//! Truths: the simulated lung (the volume it received each inspiration, from the plant's true
+//! flow), the breath timing of the `VENT` settings, the verdicts' definitions (the figures on
+//! each `REID` line against the rule it names).
+
+use pump_sim::baseline::experiment::identify_with;
+use pump_sim::iso::iso_row;
+use pump_sim::{LungParams, PlantArgs};
+use ridge_pump_firmware::command::VentArgs;
+use ridge_pump_firmware::event::{Event, ReidVerdict};
+use ridge_pump_firmware::reid::ReidConfig;
+use ridge_pump_firmware::selfid::{Config, SelfIdentification};
+use ridge_pump_firmware::setpoint::Shape;
+use ridge_pump_firmware::units::FLOW_OFFSET;
+
+/// The defaults with the swap rule on at 80 % (the threshold the first device run used).
+static SWAP_AT_80: Config = Config {
+    frozen_ticks: 0,
+    reid: ReidConfig {
+        swap_below_fit: Some(80.0),
+        ..ReidConfig::DEFAULT
+    },
+    ..Config::DEFAULT
+};
+
+/// The defaults (swap off).
+static NO_SWAP: Config = Config {
+    frozen_ticks: 0,
+    ..Config::DEFAULT
+};
+
+fn row1_lung() -> LungParams {
+    iso_row(1).expect("row 1").lung(&LungParams::adult())
+}
+
+/// `VENT vt=VT rate=20 ti=1 wave=square peep=5 trim=on` (`vt` in mL).
+fn vent(vt: i32) -> VentArgs {
+    VentArgs {
+        vt: vt * 1_000,
+        rate: 20_000,
+        ti: Some(1_000),
+        ie: None,
+        wave: Some(Shape::Square),
+        peep: Some(5_000),
+        bias: None,
+        rise: None,
+        trim: Some(true),
+    }
+}
+
+/// A ventilated run: the events, the lung's volumes, the swaps.
+struct Run {
+    events: Vec<Event>,
+    /// Per breath (from 1): the volume the lung received while the valve was closed, mL.
+    delivered: Vec<f64>,
+    /// Controller swaps seen (the controller's parameters changed), at these breaths.
+    swaps: Vec<u32>,
+}
+
+/// Identifies on row 1's lung with its PEEP valve at 0 (as the stored model of the device
+/// tests), then ventilates with `args` for `breaths` breaths on row 1's lung (PEEP 5).
+fn ventilate(config: &'static Config, args: &VentArgs, breaths: u32) -> Run {
+    let l = row1_lung();
+    let plant = PlantArgs {
+        compliance: Some(l.compliance),
+        resistance: Some(l.resistance),
+        peep: Some(0.0),
+        ..PlantArgs::default()
+    };
+    let (mut rig, mut sm, _): (_, SelfIdentification, _) =
+        identify_with(&plant, 3, config).expect("identification");
+    rig.lung.as_mut().expect("lung").set_params(l);
+    sm.set_vent(args).expect("VENT");
+    let ticks = 300 * (breaths + 1);
+    let mut duty = sm.duty();
+    let (mut events, mut delivered, mut swaps) = (Vec::new(), Vec::new(), Vec::new());
+    let mut volume = 0.0;
+    let mut closed_before = false;
+    let mut ctrl = sm.controller().map(|c| format!("{:?}", c.rst()));
+    for _ in 0..ticks {
+        rig.valve = sm.valve();
+        let closed = rig.valve == pump_sim::Valve::Closed;
+        if closed && !closed_before {
+            volume = 0.0;
+        }
+        let flow = rig.true_flow(duty);
+        if closed {
+            volume += flow * 1000.0 / 60.0 * 0.01;
+        }
+        if !closed && closed_before {
+            delivered.push(volume);
+        }
+        closed_before = closed;
+        let word = rig.sensor.measure_raw(flow);
+        let counts = (i32::from(word) - i32::from(FLOW_OFFSET)) as i16;
+        let mut event = None;
+        duty = sm.tick_into(Ok(counts), &mut event);
+        sm.after_write(&mut event);
+        sm.after_pwm(&mut event);
+        let now = sm.controller().map(|c| format!("{:?}", c.rst()));
+        if now != ctrl {
+            swaps.push(delivered.len() as u32 + 1);
+            ctrl = now;
+        }
+        events.extend(event);
+        assert!(sm.fault().is_none(), "fault: {:?}", sm.fault());
+    }
+    Run {
+        events,
+        delivered,
+        swaps,
+    }
+}
+
+fn reports(run: &Run) -> Vec<ridge_pump_firmware::event::ReidReport> {
+    run.events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Reid(r) => Some(*r),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Each verdict against the rule it names (`min_fit` 70 %, the swap threshold `swap`).
+fn check_verdicts(reports: &[ridge_pump_firmware::event::ReidReport], swap: Option<f32>) {
+    for r in reports {
+        match r.verdict {
+            ReidVerdict::Accepted => {
+                assert!(r.fit >= 70.0 && r.fit >= r.running, "{r:?}");
+                assert!(swap.is_some_and(|s| r.running < s), "{r:?}");
+            }
+            ReidVerdict::Kept => {
+                assert!(r.fit >= 70.0 && r.fit >= r.running, "{r:?}");
+                assert!(swap.is_none_or(|s| r.running >= s), "{r:?}");
+            }
+            ReidVerdict::Fit => assert!(r.fit < 70.0 || r.fit < r.running, "{r:?}"),
+            ReidVerdict::NotExcited => assert!(r.v_rms < 5.0, "{r:?}"),
+            ReidVerdict::Model => assert!(!(0.5..=2.0).contains(&r.gain), "{r:?}"),
+            _ => {}
+        }
+    }
+}
+
+/// With the swap rule on at 80 % the adult lung's power-up controller is swapped (its model's
+/// held-out fit is far below 80 %, identified without the PEEP and exhalation valves), at a
+/// breath boundary, bumplessly: every breath after a swap delivers within ±(4 mL + 15 %).
+#[test]
+fn an_accepted_estimate_is_swapped_in_at_a_breath_boundary_bumplessly() {
+    let run = ventilate(&SWAP_AT_80, &vent(500), 12);
+    let reports = reports(&run);
+    for r in &reports {
+        println!("{r:?}");
+    }
+    println!("swaps at breaths {:?}", run.swaps);
+    for (k, v) in run.delivered.iter().enumerate() {
+        println!("breath {:2}: {v:6.1} mL", k + 1);
+    }
+    check_verdicts(&reports, Some(80.0));
+    let accepted = reports
+        .iter()
+        .filter(|r| r.verdict == ReidVerdict::Accepted)
+        .count();
+    assert!(accepted >= 1, "{reports:?}");
+    // One controller swap per accepted estimate (none from elsewhere).
+    assert_eq!(run.swaps.len(), accepted, "{:?}", run.swaps);
+    // From breath 2 on (the first is the program's start from the settled flow) every breath
+    // is within the standards' band, the swapped ones included.
+    for (k, &v) in run.delivered.iter().enumerate().skip(1) {
+        assert!(
+            (v - 500.0).abs() <= 4.0 + 0.15 * 500.0,
+            "breath {}: {v:.1} mL (swaps at {:?})",
+            k + 1,
+            run.swaps
+        );
+    }
+}
+
+/// Breaths too small to excite the loop (100 mL on the 5 slm bias flow: the map's flow moves by
+/// 2.1–3.2 slm RMS, below the 5 slm of `ReidConfig::min_input_response`) give `not-excited`
+/// estimates, and the controller is never swapped, even with the rule on.
+#[test]
+fn a_refused_estimate_keeps_the_running_controller() {
+    let run = ventilate(&SWAP_AT_80, &vent(100), 8);
+    let reports = reports(&run);
+    for r in &reports {
+        println!("{r:?}");
+    }
+    check_verdicts(&reports, Some(80.0));
+    assert!(reports.len() >= 3, "{reports:?}");
+    assert!(
+        reports.iter().all(|r| r.verdict == ReidVerdict::NotExcited),
+        "{reports:?}"
+    );
+    assert!(run.swaps.is_empty(), "{:?}", run.swaps);
+}
+
+/// The default settings (swap off) on the same lung: estimates made and kept, never swapped.
+#[test]
+fn with_the_default_settings_no_controller_is_swapped() {
+    let run = ventilate(&NO_SWAP, &vent(500), 8);
+    let reports = reports(&run);
+    check_verdicts(&reports, None);
+    assert!(
+        reports.iter().any(|r| r.verdict == ReidVerdict::Kept),
+        "{reports:?}"
+    );
+    assert!(run.swaps.is_empty(), "{:?}", run.swaps);
+}
