@@ -4,7 +4,7 @@
 //! changes it for the ATmega2560 (which has no room for the re-identification).
 //!
 //! What it shows (numbers printed with `--nocapture`): `REID` lines every other breath on
-//! both lungs; on the adult lung the estimates pass and are kept (the swap rule is off,
+//! both lungs, no tick past 10 ms and the control latency within 10 000 instructions with them; on the adult lung the estimates pass and are kept (the swap rule is off,
 //! `ridge_pump_firmware::reid::ReidConfig::swap_below_fit`), their static gain within 30 % of the plant's
 //! secant through the map (measured 16–24 % below it); on the stiff lung the estimates' gain falls below the model
 //! check's 0.5 and they are refused (`verdict=model`), the power-up controller runs on.
@@ -69,6 +69,7 @@ fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
         "{}",
         transcript(&b)
     );
+    let vent_from = b.machine.now();
     // Nine breaths on the adult lung, the change as breath 10 starts (its valve closes), ten on
     // the stiff lung.
     let before = 10;
@@ -105,6 +106,35 @@ fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
             100.0 * (br.delivered - br.tidal) / br.tidal
         );
     }
+    // The ticks while ventilating (the re-identification's snapshots and fit units in them):
+    // none overruns 10 ms, the control latency stays within the blowers test's budget, no
+    // tick is lost or late (`MISSED`).
+    let ticks: Vec<_> = b
+        .machine
+        .core()
+        .ticks
+        .ticks
+        .iter()
+        .filter(|k| k.start >= vent_from)
+        .copied()
+        .collect();
+    let control = ticks
+        .iter()
+        .filter_map(|k| k.control_instr)
+        .max()
+        .unwrap_or(0);
+    let busy = ticks.iter().map(|k| k.busy_instr).max().unwrap_or(0);
+    let busy_ps = ticks.iter().map(|k| k.busy_ps).max().unwrap_or(0);
+    println!(
+        "{} ticks ventilating: control worst {control} instructions, tick worst {busy} \
+         instructions ({:.3} ms)",
+        ticks.len(),
+        busy_ps as f64 * 1e-9
+    );
+    assert!(ticks.len() > 1900, "{} ticks", ticks.len());
+    assert!(control <= 10_000, "control latency {control} instructions");
+    assert!(busy_ps < 10_000_000_000, "a tick took {busy_ps} ps");
+    assert!(b.find("MISSED").next().is_none(), "{}", transcript(&b));
     // On the adult lung the estimates are made every other breath (one breath fitted, one
     // held out), and the swap rule is off: every estimate that passes is kept.
     assert!(
