@@ -16,14 +16,15 @@
 
 mod common;
 
-use common::{elf, flash_with_row1_model, iso_lung, run_to, transcript};
+use common::{assert_stopped, elf, flash_with_row1_model, iso_lung, run_to, transcript};
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::iso_row;
 use pump_sim::reid::{linearisation, secant_through_map};
 use pump_sim::{LungParams, PlantArgs, Valve};
 use ridge_pump_firmware::lines::{BreathLine, ReidLine};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
-use stm32_harness::bench::{Bench, BenchConfig};
+use stm32_harness::bench::{Action, Bench, BenchConfig};
+use stm32_harness::sensor::Fault;
 
 /// Row 1's breaths: `VENT` with its volume and PEEP, 20 /min, Ti 1 s, square.
 fn vent_row1() -> String {
@@ -192,4 +193,36 @@ fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
     // After the change every other breath is re-estimated too, and none is swapped in.
     let changed: Vec<&ReidLine> = all.iter().filter(|r| r.breath > before).collect();
     assert!(changed.len() >= 4, "{}", transcript(&b));
+}
+
+/// A sensor fault while a re-estimate is being fitted (1 s into breath 2, whose start took the
+/// snapshot): the pump's usual fault path (the `FAULT` line, duty 0 within two ticks, the
+/// exhalation valve open), and the re-estimate is gone with run mode: no `REID` line after it.
+#[test]
+fn a_fault_during_a_re_estimate_stops_the_pump_and_drops_it() {
+    let mut cfg = BenchConfig::new(elf());
+    cfg.lung = Some(iso_lung());
+    cfg.flash = Some(flash_with_row1_model());
+    let mut b = Bench::new(cfg).expect("bench");
+    assert!(run_to(&mut b, 10.0, "CTRL").is_some(), "{}", transcript(&b));
+    b.send_at(b.time_s(), vent_row1().as_bytes());
+    assert!(
+        run_to(&mut b, 0.2, "OK vent").is_some(),
+        "{}",
+        transcript(&b)
+    );
+    assert_eq!(run_breaths(&mut b, 2), 2, "{}", transcript(&b));
+    b.run_for(1.0).expect("run");
+    assert!(b.find("REID").next().is_none(), "{}", transcript(&b));
+    b.apply(Action::Sensor(Fault::Absent)).expect("fault");
+    let i = run_to(&mut b, 0.5, "FAULT sensor=nack")
+        .unwrap_or_else(|| panic!("no FAULT:\n{}", transcript(&b)));
+    b.run_for(5.0).expect("run");
+    assert_stopped(&b, i, "sensor fault during a re-estimate");
+    assert_eq!(b.valve_now(), Valve::Open);
+    assert!(
+        b.lines[i..].iter().all(|l| !l.text.starts_with("REID")),
+        "{}",
+        transcript(&b)
+    );
 }
