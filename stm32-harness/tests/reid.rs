@@ -21,10 +21,15 @@ use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::iso_row;
 use pump_sim::reid::{linearisation, secant_through_map};
 use pump_sim::{LungParams, PlantArgs, Valve};
+use ridge_pump_firmware::command::VentArgs;
+use ridge_pump_firmware::event::{Event, LINE_MAX};
 use ridge_pump_firmware::lines::{BreathLine, ReidLine};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
+use ridge_pump_firmware::setpoint::Shape;
+use ridge_pump_firmware::ventilation::settings;
 use stm32_harness::bench::{Action, Bench, BenchConfig};
 use stm32_harness::sensor::Fault;
+use stm32_harness::tracking::run_trace_vent;
 
 /// Row 1's breaths: `VENT` with its volume and PEEP, 20 /min, Ti 1 s, square.
 fn vent_row1() -> String {
@@ -188,6 +193,67 @@ fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
             "breath {}: gain {:.3} against {truth:.3}",
             r.breath,
             r.gain
+        );
+    }
+    // The host's replay of the firmware's code on what the bench observed (harness-kit's
+    // run-mode rebuild: the readings served, the map's flow at the pin's duty, the model and
+    // map of the LOADED and MAP lines) prints the same REID lines: the same verdicts, and
+    // figures within what the replay cannot see: the duty read back from the pin is the
+    // commanded one only to the PWM's resolution (TIM3 at 20 kHz: 2 duty units a count), and
+    // the running model is the LOADED line's (6 decimals). Measured: gains and `v` RMS equal
+    // to the last printed digit, held-out fits within 0.3 (the estimate's) and 0.3 (the
+    // running model's) percentage points.
+    let r = iso_row(1).expect("row 1");
+    let args = VentArgs {
+        vt: (r.tidal * 1_000.0).round() as i32,
+        rate: 20_000,
+        ti: Some(1_000),
+        ie: None,
+        wave: Some(Shape::Square),
+        peep: Some((r.peep * 1_000.0).round() as i32),
+        bias: None,
+        rise: None,
+        trim: Some(true),
+    };
+    let breath = settings(&args, DEFAULT_CONFIG.flow_limit).expect("VENT");
+    let trace = run_trace_vent(&b, Some(breath)).expect("replay");
+    let replayed: Vec<ReidLine> = trace
+        .replayed
+        .iter()
+        .filter(|e| matches!(e, Event::Reid(_)))
+        .map(|e| {
+            let l = e.line::<LINE_MAX>();
+            ReidLine::parse(l.as_str()).expect("replayed REID")
+        })
+        .collect();
+    assert_eq!(replayed.len(), all.len(), "{replayed:?}\n{all:?}");
+    for (h, d) in replayed.iter().zip(&all) {
+        println!(
+            "REID breath {:2}: host {} {:.3} {:.1}/{:.1} {:.3}, device {} {:.3} {:.1}/{:.1} {:.3}",
+            h.breath,
+            h.verdict,
+            h.gain,
+            h.fit,
+            h.running,
+            h.v_rms,
+            d.verdict,
+            d.gain,
+            d.fit,
+            d.running,
+            d.v_rms
+        );
+    }
+    for (h, d) in replayed.iter().zip(&all) {
+        let near =
+            |a: f64, b: f64, unit: f64| (a.is_nan() && b.is_nan()) || (a - b).abs() <= unit + 1e-9;
+        assert!(
+            h.breath == d.breath
+                && h.verdict == d.verdict
+                && near(h.gain, d.gain, 0.002)
+                && near(h.fit, d.fit, 0.5)
+                && near(h.running, d.running, 0.5)
+                && near(h.v_rms, d.v_rms, 0.002),
+            "host {h:?}\ndevice {d:?}"
         );
     }
     // After the change every other breath is re-estimated too, and none is swapped in.
