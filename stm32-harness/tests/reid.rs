@@ -141,6 +141,10 @@ fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
     assert!(control <= 10_000, "control latency {control} instructions");
     assert!(busy_ps < 10_000_000_000, "a tick took {busy_ps} ps");
     assert!(b.find("MISSED").next().is_none(), "{}", transcript(&b));
+    // The loop's state (run mode with the window, a fit or a hold-out) is on the stack.
+    let stack = b.machine.stack_used().expect("stack symbols");
+    println!("stack high-water {stack} B");
+    assert!(stack < 32 * 1024, "stack high-water {stack} B");
     // On the adult lung the estimates are made every other breath (one breath fitted, one
     // held out), and the swap rule is off: every estimate that passes is kept.
     assert!(
