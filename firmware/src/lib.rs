@@ -23,6 +23,7 @@
 //! | [`excitation`] | the pump's excitation presets ([`excitation::Record`]) |
 //! | [`ring`] | the lock-free UART queues (the crate's only `unsafe`) |
 //! | [`ventilation`] | volume-controlled breaths: `VENT` settings, the exhalation valve, per-breath volume, alarm and trim |
+//! | `reid` | not on the ATmega2560 (no flash): run mode's closed-loop re-identification while ventilating, `REID` lines |
 
 pub mod app;
 pub mod command;

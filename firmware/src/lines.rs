@@ -11,7 +11,8 @@
 //!   [`PrintedModel`], the model part it shares with `LOADED` and `MODEL`.
 //! - [`LoadedLine`]: the `LOADED` line; [`ScanLine`], [`ExciteLine`], [`ValidateLine`]: the
 //!   records' announcements (`SCAN`, `EXCITE`, `VALIDATE`); [`MapLine`]: the static map
-//!   (`MAP`).
+//!   (`MAP`); [`BreathLine`], [`VolumeAlarmLine`], [`ReidLine`]: the ventilation's `BREATH`,
+//!   `ALARM volume` and `REID` lines.
 //!
 //! Errors ([`LineError`]) name the field that is missing or malformed; the caller adds the
 //! file and line number.

@@ -17,11 +17,11 @@
 //!   then the breath after the snapshot held out ([`Holdout`]): the estimate's free-run fit at
 //!   least `min_fit` and at least the running model's ([`Acceptance::judge`]).
 //! - **Swap rule**: an estimate that passes replaces the running model only when the running
-//!   model's own held-out fit is below [`ReidConfig::swap_below_fit`] (it no longer describes the lung);
-//!   otherwise it is reported (`kept`) and the running controller stays. The rule is off
-//!   by default (`None`, see there for the measurement): every passing estimate is `kept`. The re-designed
-//!   controller tracks worse than the power-up one on the lung the power-up saw
-//!   (docs/control.md), so a better fit alone is no reason to swap.
+//!   model's own held-out fit is below [`ReidConfig::swap_below_fit`] (it no longer describes
+//!   the lung); otherwise it is reported (`kept`) and the running controller stays. The rule is
+//!   off by default (`None`, see there for the measurement): every passing estimate is `kept`.
+//!   The re-designed controller tracks worse than the power-up one on the lung the power-up
+//!   saw (docs/control.md), so a better fit alone is no reason to swap.
 //!
 //! Any fault ends run mode and with it the re-estimate (the state lives in run mode).
 //!

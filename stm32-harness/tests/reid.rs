@@ -1,18 +1,24 @@
 //! Run mode's closed-loop re-identification on the STM32F411 release image (`REID` lines),
-//! closed loop with ISO 80601-2-12 row 1's test lung that becomes row 7's (C 50 → 10
-//! mL/cmH₂O, R 5 → 50 cmH₂O/(L/s)) as breath 10 starts, as `simavr-harness/tests/ventilation.rs`
-//! changes it for the ATmega2560 (which has no room for the re-identification).
+//! closed loop with ISO 80601-2-12 row 1's test lung that becomes row 7's (C 50 → 10 mL/cmH₂O,
+//! R 5 → 50 cmH₂O/(L/s)) as breath 10 starts, as `simavr-harness/tests/ventilation.rs` changes
+//! it for the ATmega2560 (which has no room for the re-identification).
 //!
-//! What it shows (numbers printed with `--nocapture`): `REID` lines every other breath on
-//! both lungs, no tick past 10 ms and the control latency within 10 000 instructions with them; on the adult lung the estimates pass and are kept (the swap rule is off,
-//! `ridge_pump_firmware::reid::ReidConfig::swap_below_fit`), their static gain within 30 % of the plant's
-//! secant through the map (measured 16–24 % below it); on the stiff lung the estimates' gain falls below the model
-//! check's 0.5 and they are refused (`verdict=model`), the power-up controller runs on.
+//! What it shows (numbers printed with `--nocapture`):
+//! - `REID` lines every other breath on both lungs, with no tick past 10 ms, the control
+//!   latency within 10 000 instructions and no `MISSED` line;
+//! - on the adult lung the estimates pass and are kept (the swap rule is off,
+//!   `ridge_pump_firmware::reid::ReidConfig::swap_below_fit`), their static gain within 30 % of
+//!   the plant's secant through the map (measured 16–24 % below it); on the stiff lung their
+//!   gain falls below the model check's 0.5 and they are refused (`verdict=model`), the
+//!   power-up controller runs on;
+//! - the host's replay of the firmware's code on what the bench observed (harness-kit) prints
+//!   the same lines, to the resolution the bench sees;
+//! - a sensor fault during a re-estimate takes the pump's fault path and drops it.
 //!
 //! Truths: the simulated lung (its parameters, what it received), the breath timing the `VENT`
-//! line sets (rate 20 /min, Ti 1 s), and pump-sim's linearisation of the plant through the
-//! model's map (`pump_sim::reid::linearisation` / `through_map`, an independent computation
-//! from the plant) for the re-estimated static gain.
+//! line sets (rate 20 /min, Ti 1 s), pump-sim's linearisation of the plant through the model's
+//! map (`pump_sim::reid::linearisation` / `secant_through_map`, an independent computation from
+//! the plant) for the re-estimated static gain, the bench's tick detector and fault injection.
 
 mod common;
 

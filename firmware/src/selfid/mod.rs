@@ -92,7 +92,7 @@
 //! | `recording.rs` | the estimation record's statistics around the operating point, and [`absolute_model`] |
 //! | `search.rs` | the structure search: blocking, or as a [`SearchJob`] while ticks go on |
 //! | `design.rs` | the controller design and the start of run mode |
-//! | `run.rs` | run mode: controller, map inverse, monitor, tracking |
+//! | `run.rs` | run mode: controller, map inverse, monitor, tracking, the re-identification ([`crate::reid`], not on the ATmega2560) and its swap |
 
 mod config;
 mod design;
