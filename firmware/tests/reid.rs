@@ -59,6 +59,10 @@ struct Run {
     delivered: Vec<f64>,
     /// Controller swaps seen (the controller's parameters changed), at these breaths.
     swaps: Vec<u32>,
+    /// The tick of each swap (the interval its control started) and the preview before it.
+    swap_ticks: Vec<(usize, u8)>,
+    /// The interval each breath started at (the valve closed for it).
+    breath_ticks: Vec<usize>,
 }
 
 /// Identifies on row 1's lung with its PEEP valve at 0 (as the stored model of the device
@@ -81,11 +85,14 @@ fn ventilate(config: &'static Config, args: &VentArgs, breaths: u32) -> Run {
     let mut volume = 0.0;
     let mut closed_before = false;
     let mut ctrl = sm.controller().map(|c| format!("{:?}", c.rst()));
-    for _ in 0..ticks {
+    let (mut swap_ticks, mut breath_ticks) = (Vec::new(), Vec::new());
+    for t in 0..ticks as usize {
+        // The valve of the interval the last tick started.
         rig.valve = sm.valve();
         let closed = rig.valve == pump_sim::Valve::Closed;
         if closed && !closed_before {
             volume = 0.0;
+            breath_ticks.push(t.saturating_sub(1));
         }
         let flow = rig.true_flow(duty);
         if closed {
@@ -98,12 +105,14 @@ fn ventilate(config: &'static Config, args: &VentArgs, breaths: u32) -> Run {
         let word = rig.sensor.measure_raw(flow);
         let counts = (i32::from(word) - i32::from(FLOW_OFFSET)) as i16;
         let mut event = None;
+        let preview = sm.preview().unwrap_or(0);
         duty = sm.tick_into(Ok(counts), &mut event);
         sm.after_write(&mut event);
         sm.after_pwm(&mut event);
         let now = sm.controller().map(|c| format!("{:?}", c.rst()));
         if now != ctrl {
             swaps.push(delivered.len() as u32 + 1);
+            swap_ticks.push((t, preview));
             ctrl = now;
         }
         events.extend(event);
@@ -113,6 +122,8 @@ fn ventilate(config: &'static Config, args: &VentArgs, breaths: u32) -> Run {
         events,
         delivered,
         swaps,
+        swap_ticks,
+        breath_ticks,
     }
 }
 
@@ -166,8 +177,17 @@ fn an_accepted_estimate_is_swapped_in_at_a_breath_boundary_bumplessly() {
         .filter(|r| r.verdict == ReidVerdict::Accepted)
         .count();
     assert!(accepted >= 1, "{reports:?}");
-    // One controller swap per accepted estimate (none from elsewhere).
+    // One controller swap per accepted estimate (none from elsewhere), each at the breath
+    // boundary as the controller sees it: the next breath starts as many ticks later as the
+    // controller previewed the program before the swap.
     assert_eq!(run.swaps.len(), accepted, "{:?}", run.swaps);
+    for &(t, preview) in &run.swap_ticks {
+        assert!(
+            run.breath_ticks.contains(&(t + usize::from(preview))),
+            "swap at tick {t}, preview {preview}, breaths at {:?}",
+            run.breath_ticks
+        );
+    }
     // From breath 2 on (the first is the program's start from the settled flow) every breath
     // is within the standards' band, the swapped ones included.
     for (k, &v) in run.delivered.iter().enumerate().skip(1) {

@@ -267,7 +267,10 @@ impl RunMode {
     #[inline(never)]
     #[cfg(not(target_arch = "avr"))]
     fn swap_at_boundary(&mut self, y: f32) {
-        let (Some((_, phase)), Some(period)) = (self.breath, self.setpoint.volume()) else {
+        // The coming interval's phase (the program has not advanced yet this tick).
+        let (Some((_, phase)), Some(period)) =
+            (self.setpoint.volume_phase(), self.setpoint.volume())
+        else {
             return;
         };
         let period = u32::from(period.wave.period());
