@@ -27,6 +27,16 @@ static SWAP_AT_80: Config = Config {
     ..Config::DEFAULT
 };
 
+/// The defaults, but a re-estimate only on a drift or an alarm (`every` far beyond the run).
+static ON_ALARM: Config = Config {
+    frozen_ticks: 0,
+    reid: ReidConfig {
+        every: 1_000,
+        ..ReidConfig::DEFAULT
+    },
+    ..Config::DEFAULT
+};
+
 /// The defaults (swap off).
 static NO_SWAP: Config = Config {
     frozen_ticks: 0,
@@ -55,6 +65,8 @@ fn vent(vt: i32) -> VentArgs {
 /// A ventilated run: the events, the lung's volumes, the swaps.
 struct Run {
     events: Vec<Event>,
+    /// The breath in progress (from 1) when each event came.
+    event_breaths: Vec<usize>,
     /// Per breath (from 1): the volume the lung received while the valve was closed, mL.
     delivered: Vec<f64>,
     /// Controller swaps seen (the controller's parameters changed), at these breaths.
@@ -96,6 +108,7 @@ fn ventilate_changing(
     let mut closed_before = false;
     let mut ctrl = sm.controller().map(|c| format!("{:?}", c.rst()));
     let (mut swap_ticks, mut breath_ticks) = (Vec::new(), Vec::new());
+    let mut event_breaths = Vec::new();
     for t in 0..ticks as usize {
         // The valve of the interval the last tick started.
         rig.valve = sm.valve();
@@ -130,11 +143,15 @@ fn ventilate_changing(
             swap_ticks.push((t, preview));
             ctrl = now;
         }
-        events.extend(event);
+        if let Some(e) = event {
+            events.push(e);
+            event_breaths.push(breath_ticks.len());
+        }
         assert!(sm.fault().is_none(), "fault: {:?}", sm.fault());
     }
     Run {
         events,
+        event_breaths,
         delivered,
         swaps,
         swap_ticks,
@@ -280,4 +297,36 @@ fn after_a_lung_change_the_default_stays_in_the_band_and_the_swap_would_not() {
             assert!(after.iter().any(|&v| !in_band(v)), "{after:?}");
         }
     }
+}
+
+/// With re-estimates only on a drift or an alarm (`every` 1 000 breaths): they start at the
+/// first breath boundary after the first `DRIFT` or alarm, and not before. On the ventilated
+/// lung the monitor raises `DRIFT` within the first breaths (the power-up model, identified
+/// without the PEEP and exhalation valves, mispredicts the breaths) and its flag stays raised,
+/// so from then on a re-estimate starts at every free boundary, as with `every` 1.
+#[test]
+fn a_drift_or_an_alarm_starts_a_re_estimate() {
+    let run = ventilate(&ON_ALARM, &vent(500), 10);
+    let first_trigger = run
+        .events
+        .iter()
+        .zip(&run.event_breaths)
+        .find(|(e, _)| {
+            matches!(
+                e,
+                Event::Drift { .. }
+                    | Event::Alarm { on: true, .. }
+                    | Event::VolumeAlarm { on: true, .. }
+            )
+        })
+        .map(|(_, &b)| b)
+        .expect("no DRIFT or alarm");
+    let reports = reports(&run);
+    println!(
+        "first DRIFT or alarm in breath {first_trigger}; REID breaths {:?}",
+        reports.iter().map(|r| r.breath).collect::<Vec<_>>()
+    );
+    assert!(!reports.is_empty());
+    assert_eq!(reports[0].breath as usize, first_trigger + 1, "{reports:?}");
+    check_verdicts(&reports, None);
 }
