@@ -1,11 +1,12 @@
 //! Run mode's re-identification (`ridge_pump_firmware::reid`) in the firmware's state machine
 //! on the host, closed loop with pump-sim's plant and ISO 80601-2-12 row 1's test lung: the
-//! swap path (off in the default settings) with a swap threshold set, and a refused estimate
-//! that keeps the running controller.
+//! swap path (off in the default settings) with a swap threshold set, at the breath boundary as
+//! the controller sees it; a refused estimate that keeps the running controller; the lung
+//! change to C 10 R 50 with and without the swap; the drift and alarm trigger.
 //!
 //! Truths: the simulated lung (the volume it received each inspiration, from the plant's true
-//! flow), the breath timing of the `VENT` settings, the verdicts' definitions (the figures on
-//! each `REID` line against the rule it names).
+//! flow), the breath timing of the `VENT` settings (the valve's closures), the verdicts'
+//! definitions (the figures on each `REID` report against the rule it names).
 
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::iso_row;
