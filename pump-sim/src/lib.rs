@@ -22,6 +22,7 @@ pub mod powerup;
 pub mod pump;
 pub mod reid;
 pub mod sfm3300;
+pub mod vent_bench;
 
 use std::fs::File;
 use std::io::{self, BufWriter, Write};

@@ -8,9 +8,15 @@
 //!
 //! - [`linearisation`]: the truth, the noise-free plant's small-signal step response and static
 //!   gain at a steady flow (central differences of `±δ` duty steps); [`through_map`] and
-//!   [`secant_through_map`]: the same as the model sees it, after the power-up's map.
+//!   [`secant_through_map`]: the same as the model sees it, after the power-up's map;
+//!   [`closed_valve_step`]: a volume breath's inspiration, the exhalation valve closed.
 //! - [`run`]: one closed-loop run ([`Study`]) with the per-breath figures ([`BreathFigures`])
 //!   and every re-estimate ([`Estimate`]).
+//! - The loop's two sides, which the ventilation benchmark ([`crate::vent_bench`]) runs too:
+//!   [`Running`], the firmware's controller through the static map ([`Running::tick`]: run
+//!   mode's step; [`Running::swapped`]: the bumpless swap, [`Running::swapped_at`] with a given
+//!   regulation speed, [`design_at`]), and [`Reestimation`], the window,
+//!   the re-estimate, its hold-out and verdict, and the swap rule ([`swap_allowed`]).
 //!
 //! # Timing
 //! As in [`crate::baseline::experiment`]: tick `k` reads the flow at the end of interval
@@ -73,6 +79,30 @@ fn settled(plant: &PlantArgs, lung: &LungParams, duty: f64) -> Rig {
 /// The true linearisation of `plant`'s blower behind `lung` at the steady flow `flow` (slm):
 /// the duty found by bisection on the settled flow, then `±DELTA` steps from there.
 pub fn linearisation(plant: &PlantArgs, lung: &LungParams, flow: f64) -> Linearisation {
+    let duty = steady_duty(plant, lung, flow);
+    let base = settled(plant, lung, duty);
+    let run = |d: f64| {
+        let mut rig = base.clone();
+        (0..STEP_TICKS).map(|_| rig.flow_at(d)).collect::<Vec<_>>()
+    };
+    let (up, down) = (run(duty + DELTA), run(duty - DELTA));
+    let step: Vec<f64> = up
+        .iter()
+        .zip(&down)
+        .map(|(a, b)| (a - b) / (2.0 * DELTA))
+        .collect();
+    let gain = step.last().copied().unwrap_or(0.0);
+    Linearisation {
+        flow,
+        duty,
+        step,
+        gain,
+    }
+}
+
+/// The duty (fraction) that holds the steady flow `flow` (slm) of `plant`'s blower behind
+/// `lung` with the exhalation valve open, by bisection on the settled flow.
+fn steady_duty(plant: &PlantArgs, lung: &LungParams, flow: f64) -> f64 {
     let (mut lo, mut hi) = (0.0, 1.0);
     for _ in 0..30 {
         let mid = 0.5 * (lo + hi);
@@ -83,11 +113,30 @@ pub fn linearisation(plant: &PlantArgs, lung: &LungParams, flow: f64) -> Lineari
             hi = mid;
         }
     }
-    let duty = 0.5 * (lo + hi);
-    let base = settled(plant, lung, duty);
+    0.5 * (lo + hi)
+}
+
+/// The small-signal response of a volume breath's inspiration, the plant the adaptive loop
+/// identifies in ventilation: the noise-free blower behind `lung` settled at the steady flow
+/// `from` (slm, the bias flow) with the valve open, then the valve closed and the duty stepped
+/// to the one that holds `flow` (slm) with the valve open, `±DELTA`; `step` is the flow's
+/// difference over `2 DELTA` tick by tick (slm per duty fraction) while the lung fills, `gain`
+/// its value after `ticks` ticks (the inspiration's end). With the valve closed there is no
+/// steady flow: the response rises with the blower's lag and falls as the lung's pressure
+/// builds.
+pub fn closed_valve_step(
+    plant: &PlantArgs,
+    lung: &LungParams,
+    from: f64,
+    flow: f64,
+    ticks: usize,
+) -> Linearisation {
+    let base = settled(plant, lung, steady_duty(plant, lung, from));
+    let duty = steady_duty(plant, lung, flow);
     let run = |d: f64| {
         let mut rig = base.clone();
-        (0..STEP_TICKS).map(|_| rig.flow_at(d)).collect::<Vec<_>>()
+        rig.valve = crate::Valve::Closed;
+        (0..ticks).map(|_| rig.flow_at(d)).collect::<Vec<_>>()
     };
     let (up, down) = (run(duty + DELTA), run(duty - DELTA));
     let step: Vec<f64> = up
@@ -240,6 +289,10 @@ pub struct Study {
     pub units: u32,
     /// The setpoint program ([`PROGRAM`]: square breaths).
     pub program: Program,
+    /// The swap rule ([`swap_allowed`]): an accepted re-estimate replaces the running model
+    /// only when the running model's own held-out free-run fit is below this, percent;
+    /// `None` (or 100): always.
+    pub swap_below_fit: Option<f64>,
 }
 
 impl Study {
@@ -275,6 +328,19 @@ impl Study {
             method: RidgeM::PAPER,
             units: 1,
             program: PROGRAM,
+            swap_below_fit: None,
+        }
+    }
+
+    /// The re-estimation's settings of this study.
+    pub fn rules(&self) -> Rules {
+        Rules {
+            mode: self.mode,
+            every: self.every,
+            method: self.method,
+            units: self.units,
+            swap_below_fit: self.swap_below_fit,
+            acceptance: acceptance(),
         }
     }
 
@@ -351,6 +417,8 @@ pub struct Estimate {
     /// The verdict: `Ok` the held-out free-run fits (estimate, running model) in percent, `Err`
     /// why it was refused; `None` when the run ended first.
     pub verdict: Option<Result<(f32, f32), Rejection<f32>>>,
+    /// Accepted, but the swap rule ([`Rules::swap_below_fit`]) kept the running model.
+    pub held: bool,
     /// The breath at whose start the new controller took over (`Mode::Adapt`, accepted, and
     /// the design not refused).
     pub swapped_at: Option<u32>,
@@ -390,7 +458,7 @@ pub fn acceptance() -> Acceptance<f32> {
 
 /// The firmware's controller for `model` (its design, retries and reference model), `None`
 /// when refused.
-fn design(model: &ArxModel<f32>) -> Option<Design<f32>> {
+pub fn design(model: &ArxModel<f32>) -> Option<Design<f32>> {
     let c = &EXPERIMENT_CONFIG.control;
     let mut d = firmware_design(model, c)?;
     if c.tau.is_none() {
@@ -399,17 +467,48 @@ fn design(model: &ArxModel<f32>) -> Option<Design<f32>> {
     Some(d)
 }
 
-/// A running controller with its model (the dynamics from the map's flow) and preview.
-struct Running {
-    model: ArxModel<f32>,
-    ctrl: Controller<f32>,
-    preview: u32,
+/// [`design`] with the regulation loop's speed `tau` (s) given instead of taken from the
+/// model's slow pole (`Spec::tau`, the firmware's retries, each 1.5 times slower), and the
+/// firmware's reference model on the setpoint all the same (a re-design at the power-up
+/// design's `Design::tau`: the same loop speed and setpoint response, new `R`, `S` for the
+/// new model); `None` as [`design`] when `tau` is `None`.
+pub fn design_at(model: &ArxModel<f32>, tau: Option<f32>) -> Option<Design<f32>> {
+    let Some(tau) = tau else {
+        return design(model);
+    };
+    let c = &EXPERIMENT_CONFIG.control;
+    let spec = ridge_core::control::Spec {
+        tau: Some(tau),
+        ..c.spec()
+    };
+    let (d, _) = ridge_core::control::design_slower_on_failure(
+        model,
+        &spec,
+        c.tries,
+        ridge_pump_firmware::selfid::SLOWDOWN,
+        || {},
+    );
+    let mut d = d.ok()?;
+    d.set_reference(REFERENCE_POLE).ok()?;
+    Some(d)
+}
+
+/// The firmware's running controller (run mode through the static map) with its model (the
+/// dynamics from the map's flow) and preview.
+#[derive(Clone, Debug)]
+pub struct Running {
+    /// The model the controller was designed from.
+    pub model: ArxModel<f32>,
+    /// The controller; its output is the map's flow, slm.
+    pub ctrl: Controller<f32>,
+    /// Ticks the controller is given the program ahead.
+    pub preview: u32,
 }
 
 impl Running {
     /// Started bumplessly at the map's flow `v` of the applied duty and the reading `flow`
     /// (slm), with the firmware's duty limits through the map.
-    fn new(model: ArxModel<f32>, d: &Design<f32>, table: &MapTable, v: f32, flow: f32) -> Self {
+    pub fn new(model: ArxModel<f32>, d: &Design<f32>, table: &MapTable, v: f32, flow: f32) -> Self {
         let c = &EXPERIMENT_CONFIG.control;
         let limits = Limits {
             min: map_slm(table, c.duty_min),
@@ -424,10 +523,63 @@ impl Running {
             preview: u32::from(preview_ticks(d.mean_delay(&model))),
         }
     }
+
+    /// The controller for `model` (with [`Mode::Restart`], the running model's own design
+    /// restarted) started bumplessly at the last output and the reading `y` (slm); `None`
+    /// when the design refuses the model.
+    pub fn swapped(
+        &self,
+        model: ArxModel<f32>,
+        mode: Mode,
+        table: &MapTable,
+        y: f32,
+    ) -> Option<Self> {
+        self.swapped_at(model, mode, table, y, None).map(|(r, _)| r)
+    }
+
+    /// [`swapped`](Self::swapped) with the new design's regulation speed `tau` (s;
+    /// [`design_at`]), and the design's `tau` as resolved (s).
+    pub fn swapped_at(
+        &self,
+        model: ArxModel<f32>,
+        mode: Mode,
+        table: &MapTable,
+        y: f32,
+        tau: Option<f32>,
+    ) -> Option<(Self, f32)> {
+        let model = if mode == Mode::Restart {
+            self.model
+        } else {
+            model
+        };
+        let d = design_at(&model, tau)?;
+        Some((Running::new(model, &d, table, self.ctrl.last(), y), d.tau))
+    }
+
+    /// One control tick of run mode through the map (as `firmware/src/selfid/run.rs`): the
+    /// controller's output for the previewed setpoint `ahead` and the reading `y` (slm) is
+    /// the map's flow, turned into duty by the map's inverse within the duty limits and the
+    /// rate limit from `applied` (1/10 000), and the controller is told the map's flow of the
+    /// duty applied. Returns the duty and that flow (counts).
+    pub fn tick(&mut self, table: &MapTable, ahead: f32, y: f32, applied: u16) -> (u16, i16) {
+        let c = &EXPERIMENT_CONFIG.control;
+        let v = self.ctrl.output(ahead, y);
+        let duty = duty_for_flow(
+            table,
+            v,
+            applied,
+            c.duty_min,
+            c.duty_max.min(DUTY_FULL_SCALE),
+            c.duty_step,
+        );
+        let counts = table.at(duty);
+        self.ctrl.commit(f32::from(counts) * SLM_PER_COUNT);
+        (duty, counts)
+    }
 }
 
 /// The map's flow at `duty` (1/10 000), slm, as the firmware's run mode converts it.
-fn map_slm(table: &MapTable, duty: u16) -> f32 {
+pub fn map_slm(table: &MapTable, duty: u16) -> f32 {
     f32::from(table.at(duty)) * SLM_PER_COUNT
 }
 
@@ -466,6 +618,197 @@ impl DitherGen {
     }
 }
 
+/// What the re-estimation does with the loop's data: a [`Study`]'s settings
+/// ([`Study::rules`]), or a ventilation benchmark cell's ([`crate::vent_bench`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Rules {
+    /// What is done with the re-estimates.
+    pub mode: Mode,
+    /// A re-estimate starts every this many breaths (at a boundary, when none is running).
+    pub every: u32,
+    /// Ridge-M's settings for the re-estimates.
+    pub method: RidgeM<f32>,
+    /// [`Refit`] units run per tick.
+    pub units: u32,
+    /// The swap rule ([`swap_allowed`]), percent; `None` (or 100 and more): always.
+    pub swap_below_fit: Option<f64>,
+    /// The checks of an estimate and its verdict.
+    pub acceptance: Acceptance<f32>,
+}
+
+/// The swap rule: an estimate the [`Acceptance`] accepted replaces the running model only when
+/// the running model's own held-out free-run fit (`running_fit`, percent, the verdict's
+/// [`HoldoutVerdict::running`](ridge_core::reid::HoldoutVerdict)) is below `swap_below_fit`
+/// percent; `None` or a threshold of 100 or more: always (the acceptance alone). A running fit
+/// that is not a number is below every threshold.
+pub fn swap_allowed(running_fit: f32, swap_below_fit: Option<f64>) -> bool {
+    match swap_below_fit {
+        Some(x) if x < 100.0 => f64::from(running_fit) < x || running_fit.is_nan(),
+        _ => true,
+    }
+}
+
+/// The re-estimation side of the closed loop, as the firmware would run it beside the
+/// controller: the statistics window ([`Window`]), the re-estimate in progress ([`Refit`]),
+/// its hold-out ([`Holdout`]) and verdict, and the accepted model waiting for its swap. The
+/// loop ([`run`], [`crate::vent_bench`]) calls [`boundary`](Self::boundary) at each breath
+/// boundary of the program, [`after_pwm`](Self::after_pwm) each tick after the duty is
+/// written, and swaps the controller itself when [`take_pending`](Self::take_pending) gives a
+/// model.
+pub struct Reestimation<'a> {
+    rules: Rules,
+    window: Window<'a>,
+    job: Job,
+    pending: Option<(ArxModel<f32>, usize)>,
+    estimates: Vec<Estimate>,
+}
+
+/// The statistics window's storage for any structure ([`window_len`] of the largest).
+pub type WindowStore = [i64; window_len(ridge_core::PARAMS_MAX)];
+
+impl<'a> Reestimation<'a> {
+    /// Re-estimation of `model`'s structure and offset with the forgetting shift `shift`,
+    /// the window kept in `store`.
+    pub fn new(
+        model: &ArxModel<f32>,
+        shift: u8,
+        rules: Rules,
+        store: &'a mut WindowStore,
+    ) -> Result<Self, ExperimentError> {
+        let window = Window::new(model.structure(), model.offset(), shift, store)
+            .map_err(|e| ExperimentError::Plant(format!("window: {e:?}")))?;
+        Ok(Reestimation {
+            rules,
+            window,
+            job: Job::Idle,
+            pending: None,
+            estimates: Vec::new(),
+        })
+    }
+
+    /// The boundary that starts breath `b` (from 0) of the program: the forgetting, the
+    /// verdict of a hold-out that has scored its samples (an accepted estimate the swap rule
+    /// lets through waits for its swap), and the next re-estimate.
+    pub fn boundary(&mut self, b: u32) {
+        let r = self.rules;
+        self.window.end_breath();
+        if let Job::HoldingOut(h, i) = &self.job {
+            if h.verdict()
+                .is_some_and(|v| v.candidate.n >= r.acceptance.holdout_min)
+            {
+                let verdict = r.acceptance.judge(h);
+                let i = *i;
+                let e = &mut self.estimates[i];
+                e.verdict = Some(verdict.map(|v| (v.candidate.fit, v.running.fit)));
+                if matches!(r.mode, Mode::Adapt | Mode::Restart) {
+                    if let Ok(v) = verdict {
+                        if !swap_allowed(v.running.fit, r.swap_below_fit) {
+                            e.held = true;
+                        } else if let Some(Ok(m)) = e.model {
+                            self.pending = Some((m, i));
+                        }
+                    }
+                }
+                self.job = Job::Idle;
+            }
+        }
+        if r.mode != Mode::Frozen && matches!(self.job, Job::Idle) && b > 0 && b % r.every == 0 {
+            // A window too short for the structure starts nothing (the next boundary tries).
+            if let Ok(f) = Refit::start(&self.window, r.method, &MODEL_SCALE) {
+                self.estimates.push(Estimate {
+                    breath: b,
+                    weight: f.weight(),
+                    model: None,
+                    iterations: 0,
+                    response: f.response(),
+                    input_response: f.input_response(),
+                    verdict: None,
+                    held: false,
+                    swapped_at: None,
+                    design_refused: false,
+                });
+                self.job = Job::Fitting(Box::new(f), self.estimates.len() - 1);
+            }
+        }
+    }
+
+    /// The accepted model waiting for its swap and its estimate's index, taken.
+    pub fn take_pending(&mut self) -> Option<(ArxModel<f32>, usize)> {
+        self.pending.take()
+    }
+
+    /// Estimate `i`'s controller took over at the start of breath `breath` (`Some`), or the
+    /// design refused its model (`None`).
+    pub fn swapped(&mut self, i: usize, breath: Option<u32>) {
+        if let Some(e) = self.estimates.get_mut(i) {
+            match breath {
+                Some(b) => e.swapped_at = Some(b),
+                None => e.design_refused = true,
+            }
+        }
+    }
+
+    /// After the tick's PWM write: the window takes the map's flow at the written duty
+    /// (`v_counts`) and the reading (`counts`); one step of the re-estimate or the hold-out;
+    /// `running` is the running controller's model.
+    pub fn after_pwm(&mut self, v_counts: i16, counts: i16, running: &ArxModel<f32>) {
+        let _ = self.window.push(v_counts, counts);
+        let (uk, yk) = (
+            f32::from(v_counts) * SLM_PER_COUNT,
+            f32::from(counts) * SLM_PER_COUNT,
+        );
+        let job = std::mem::replace(&mut self.job, Job::Idle);
+        self.job = match job {
+            Job::Fitting(mut f, i) => match f.step(self.rules.units) {
+                RefitStep::Working => Job::Fitting(f, i),
+                RefitStep::Done(m, iters) => {
+                    let e = &mut self.estimates[i];
+                    e.model = Some(Ok(m));
+                    e.iterations = iters;
+                    match self
+                        .rules
+                        .acceptance
+                        .check_estimate(&m, e.response, e.input_response)
+                    {
+                        Ok(_) => Job::HoldingOut(Box::new(Holdout::new(m, *running)), i),
+                        Err(why) => {
+                            e.verdict = Some(Err(why));
+                            Job::Idle
+                        }
+                    }
+                }
+                RefitStep::Refused(why) => {
+                    self.estimates[i].model = Some(Err(why));
+                    Job::Idle
+                }
+            },
+            Job::HoldingOut(mut h, i) => {
+                h.push(uk, yk);
+                Job::HoldingOut(h, i)
+            }
+            Job::Idle => Job::Idle,
+        };
+    }
+
+    /// Estimate `i` was accepted but the caller's swap policy kept the running controller
+    /// (counted as held, as by [`Rules::swap_below_fit`]).
+    pub fn hold(&mut self, i: usize) {
+        if let Some(e) = self.estimates.get_mut(i) {
+            e.held = true;
+        }
+    }
+
+    /// Every re-estimate so far, in order.
+    pub fn estimates(&self) -> &[Estimate] {
+        &self.estimates
+    }
+
+    /// Every re-estimate, in order.
+    pub fn into_estimates(self) -> Vec<Estimate> {
+        self.estimates
+    }
+}
+
 /// Runs one study: power-up as the firmware, then `study.breaths` breaths.
 pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
     let (mut rig, _sm, sw) = identify(&study.plant, study.seed)?;
@@ -483,11 +826,8 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
     let table = sw.map.table();
     let mut running = Running::new(sw.model, &d0, &table, map_slm(&table, sw.duty), sw.flow);
     let mut applied = sw.duty;
-    let s = sw.model.structure();
-    let offset = sw.model.offset();
-    let mut store = [0i64; window_len(ridge_core::PARAMS_MAX)];
-    let mut window = Window::new(s, offset, study.shift, &mut store)
-        .map_err(|e| ExperimentError::Plant(format!("window: {e:?}")))?;
+    let mut store: WindowStore = [0; window_len(ridge_core::PARAMS_MAX)];
+    let mut reest = Reestimation::new(&sw.model, study.shift, study.rules(), &mut store)?;
     let mut dither = match study.dither {
         Some(d) => Some(DitherGen::new(d, study.seed).ok_or(ExperimentError::Score)?),
         None => None,
@@ -495,9 +835,6 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
     let period = breath_ticks();
     let insp = inspiration_ticks();
     let mut breaths = Vec::new();
-    let mut estimates: Vec<Estimate> = Vec::new();
-    let mut job = Job::Idle;
-    let mut pending: Option<(ArxModel<f32>, usize)> = None;
     let mut raw = rig.step(sw.duty);
     let (mut sq, mut set_ml, mut got_ml) = (0.0, 0.0, 0.0);
     let mut breath_gain = running.model.static_gain();
@@ -507,7 +844,7 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
         let phase = k % period;
         if phase == 0 {
             // The breath boundary: the last breath's figures, the lung change, the forgetting,
-            // the swap, the verdict, the next job.
+            // the verdict, the next job.
             if b > 0 {
                 breaths.push(BreathFigures {
                     breath: b - 1,
@@ -523,43 +860,7 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
                     lung.set_params(c.lung.clone());
                 }
             }
-            window.end_breath();
-            if let Job::HoldingOut(h, i) = &job {
-                if h.verdict()
-                    .is_some_and(|v| v.candidate.n >= acceptance().holdout_min)
-                {
-                    let verdict = acceptance().judge(h);
-                    let i = *i;
-                    estimates[i].verdict = Some(verdict.map(|v| (v.candidate.fit, v.running.fit)));
-                    if matches!(study.mode, Mode::Adapt | Mode::Restart) && verdict.is_ok() {
-                        if let Some(Ok(m)) = estimates[i].model {
-                            pending = Some((m, i));
-                        }
-                    }
-                    job = Job::Idle;
-                }
-            }
-            if study.mode != Mode::Frozen
-                && matches!(job, Job::Idle)
-                && b > 0
-                && b % study.every == 0
-            {
-                // A window too short for the structure starts nothing (the next boundary tries).
-                if let Ok(r) = Refit::start(&window, study.method, &MODEL_SCALE) {
-                    estimates.push(Estimate {
-                        breath: b,
-                        weight: r.weight(),
-                        model: None,
-                        iterations: 0,
-                        response: r.response(),
-                        input_response: r.input_response(),
-                        verdict: None,
-                        swapped_at: None,
-                        design_refused: false,
-                    });
-                    job = Job::Fitting(Box::new(r), estimates.len() - 1);
-                }
-            }
+            reest.boundary(b);
             breath_gain = running.model.static_gain();
         }
         // The swap, at the breath boundary as the controller sees the program (its preview
@@ -568,19 +869,14 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
         // At the program's own boundary the previewed setpoint is already rising, and a
         // restarted reference model would lag the breath's rise by the preview.
         if (k + running.preview) % period == 0 {
-            if let Some((model, i)) = pending.take() {
+            if let Some((model, i)) = reest.take_pending() {
                 let y = f32::from(raw_to_counts(raw)) * SLM_PER_COUNT;
-                let model = if study.mode == Mode::Restart {
-                    running.model
-                } else {
-                    model
-                };
-                match design(&model) {
-                    Some(d) => {
-                        running = Running::new(model, &d, &table, running.ctrl.last(), y);
-                        estimates[i].swapped_at = Some(k.div_ceil(period));
+                match running.swapped(model, study.mode, &table, y) {
+                    Some(r) => {
+                        running = r;
+                        reest.swapped(i, Some(k.div_ceil(period)));
                     }
-                    None => estimates[i].design_refused = true,
+                    None => reest.swapped(i, None),
                 }
             }
         }
@@ -590,56 +886,13 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
         if let Some(g) = dither.as_mut() {
             ahead += g.at(k);
         }
-        // Run mode through the map (as `firmware/src/selfid/run.rs`): the controller's output
-        // is the map's flow, turned into duty by the map's inverse within the duty limits and
-        // the rate limit, and the controller is told the map's flow of the duty applied.
-        let c = &EXPERIMENT_CONFIG.control;
-        let v = running.ctrl.output(ahead, y);
-        let duty = duty_for_flow(
-            &table,
-            v,
-            applied,
-            c.duty_min,
-            c.duty_max.min(DUTY_FULL_SCALE),
-            c.duty_step,
-        );
-        let vk_counts = table.at(duty);
-        let uk = f32::from(vk_counts) * SLM_PER_COUNT;
-        running.ctrl.commit(uk);
+        let (duty, vk_counts) = running.tick(&table, ahead, y, applied);
         applied = duty;
         let flow = rig.true_flow(duty);
         raw = rig.sensor.measure_raw(flow);
         // After the PWM write: the statistics (the map's flow in, the reading out, counts), one
         // unit of the re-estimate, the hold-out.
-        let counts = raw_to_counts(raw);
-        let _ = window.push(vk_counts, counts);
-        let yk = f32::from(counts) * SLM_PER_COUNT;
-        job = match job {
-            Job::Fitting(mut r, i) => match r.step(study.units) {
-                RefitStep::Working => Job::Fitting(r, i),
-                RefitStep::Done(m, iters) => {
-                    let e = &mut estimates[i];
-                    e.model = Some(Ok(m));
-                    e.iterations = iters;
-                    match acceptance().check_estimate(&m, e.response, e.input_response) {
-                        Ok(_) => Job::HoldingOut(Box::new(Holdout::new(m, running.model)), i),
-                        Err(why) => {
-                            e.verdict = Some(Err(why));
-                            Job::Idle
-                        }
-                    }
-                }
-                RefitStep::Refused(why) => {
-                    estimates[i].model = Some(Err(why));
-                    Job::Idle
-                }
-            },
-            Job::HoldingOut(mut h, i) => {
-                h.push(uk, yk);
-                Job::HoldingOut(h, i)
-            }
-            Job::Idle => Job::Idle,
-        };
+        reest.after_pwm(vk_counts, raw_to_counts(raw), &running.model);
         let r = f64::from(setpoint::value(study.program, sw.flow, k));
         sq += (flow - r).powi(2);
         if phase < insp {
@@ -657,7 +910,7 @@ pub fn run(study: &Study) -> Result<StudyRun, ExperimentError> {
     Ok(StudyRun {
         switchover: sw,
         breaths,
-        estimates,
+        estimates: reest.into_estimates(),
     })
 }
 
