@@ -10,7 +10,8 @@
 
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::iso_row;
-use pump_sim::{LungParams, PlantArgs};
+use pump_sim::vent_bench::power_up_plant;
+use pump_sim::LungParams;
 use ridge_pump_firmware::command::VentArgs;
 use ridge_pump_firmware::event::{Event, ReidVerdict};
 use ridge_pump_firmware::reid::ReidConfig;
@@ -92,12 +93,7 @@ fn ventilate_changing(
     change: Option<(usize, LungParams)>,
 ) -> Run {
     let l = row1_lung();
-    let plant = PlantArgs {
-        compliance: Some(l.compliance),
-        resistance: Some(l.resistance),
-        peep: Some(0.0),
-        ..PlantArgs::default()
-    };
+    let plant = power_up_plant(&l);
     let (mut rig, mut sm, _): (_, SelfIdentification, _) =
         identify_with(&plant, 3, config).expect("identification");
     rig.lung.as_mut().expect("lung").set_params(l);

@@ -26,7 +26,8 @@ use common::{assert_stopped, elf, flash_with_row1_model, iso_lung, run_to, trans
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::iso_row;
 use pump_sim::reid::{linearisation, secant_through_map};
-use pump_sim::{LungParams, PlantArgs, Valve};
+use pump_sim::vent_bench::power_up_plant;
+use pump_sim::{LungParams, Valve};
 use ridge_pump_firmware::command::VentArgs;
 use ridge_pump_firmware::event::{Event, LINE_MAX};
 use ridge_pump_firmware::lines::{BreathLine, ReidLine};
@@ -178,12 +179,7 @@ fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
     // fill it against the closed valve, and the estimates come out 16–24 % below it (1.258
     // slm/slm against 0.954–1.058): bounded here at 30 %, the difference is not explained.
     let l = iso_lung();
-    let plant = PlantArgs {
-        compliance: Some(l.compliance),
-        resistance: Some(l.resistance),
-        peep: Some(0.0),
-        ..PlantArgs::default()
-    };
+    let plant = power_up_plant(&l);
     let (_, sm, _) = identify_with(&plant, 3, &DEFAULT_CONFIG).expect("identification");
     let table = sm.map().expect("map").table();
     let (lo, hi) = (

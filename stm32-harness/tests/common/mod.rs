@@ -4,7 +4,8 @@
 
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::iso_row;
-use pump_sim::{LungParams, PlantArgs};
+use pump_sim::vent_bench::power_up_plant;
+use pump_sim::LungParams;
 use ridge_pump_firmware::flash_store::{self, slot_bytes, PROGRAMMED_LEN, SECTOR_LEN};
 use ridge_pump_firmware::persist::RECORD_LEN;
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
@@ -84,12 +85,7 @@ pub fn iso_lung() -> LungParams {
 /// on `pump_sim`'s rig with row 1's lung, the PEEP valve at 0, in its first slot.
 pub fn flash_with_row1_model() -> Vec<u8> {
     let l = iso_lung();
-    let plant = PlantArgs {
-        compliance: Some(l.compliance),
-        resistance: Some(l.resistance),
-        peep: Some(0.0),
-        ..PlantArgs::default()
-    };
+    let plant = power_up_plant(&l);
     let (_, sm, _) = identify_with(&plant, 3, &DEFAULT_CONFIG).expect("identification");
     let record: [u8; RECORD_LEN] = sm.persist_bytes().expect("model");
     let mut mem = Bench::new(BenchConfig::new(elf())).expect("bench").flash();
