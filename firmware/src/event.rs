@@ -24,6 +24,7 @@
 //! | [`Event::Alarm`] | `ALARM track err=5.125 s=0.50` / `ALARM track clear` |
 //! | [`Event::Breath`] | `BREATH n=3 vt=500.0 peep=5.0 vd=497.2 cmd=512.3 peak=31.250 rms=1.234` |
 //! | [`Event::VolumeAlarm`] | `ALARM volume vd=612.5 vt=500.0` / `ALARM volume clear` |
+//! | `Event::Reid` | `REID breath=12 verdict=kept gain=1.035 fit=92.3/90.1 v-rms=22.150` (not on the ATmega2560; the verdicts: `ReidVerdict`; `nan` where a figure does not exist) |
 //! | [`Event::Residual`] | `RES rms=0.812 mean=-0.013 flow=50.125 n=100` |
 //! | [`Event::Drift`] | `DRIFT rms=3.200 mean=-2.997 flow=35.400 s=3 reid=0` |
 //! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125`, `FAULT sensor=frozen flow=19.058`, `FAULT noflow duty=30.00 flow=0.125 expect=19.058`, `FAULT control margin=0.412 tries=5`, `FAULT resets watchdog=2 brownout=1` |
@@ -394,8 +395,72 @@ pub enum Event {
         /// The set volume, mL.
         tidal: f32,
     },
+    /// Run mode's re-identification (`crate::reid`): one re-estimate's verdict (not on the
+    /// ATmega2560, which has no room for the re-identification).
+    #[cfg(not(target_arch = "avr"))]
+    Reid(ReidReport),
     /// The pump was stopped (duty 0) and the state machine latched its fault state.
     Fault(FaultReason),
+}
+
+/// What became of one re-estimate ([`crate::reid`]), as the `REID` line's `verdict=` names it.
+#[cfg(not(target_arch = "avr"))]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReidVerdict {
+    /// `accepted`: it passed every check and the running model no longer describes the lung
+    /// (its held-out fit below `crate::reid::ReidConfig::swap_below_fit`, off by default): swapped in at
+    /// the next breath boundary.
+    Accepted,
+    /// `kept`: it passed every check, but the running model still describes the lung: reported,
+    /// the running controller kept.
+    Kept,
+    /// `not-excited`: the window's input or output moved too little.
+    NotExcited,
+    /// `model`: unstable, not finite, or the static gain out of range (the design's model
+    /// check).
+    Model,
+    /// `fit`: the held-out free-run fit below the minimum or below the running model's.
+    Fit,
+    /// `numeric`: the fit's normal equations were not positive definite or its iterates not
+    /// finite.
+    Numeric,
+    /// `design`: the controller design for the accepted estimate was refused (the running one
+    /// stays).
+    Design,
+}
+
+#[cfg(not(target_arch = "avr"))]
+impl ReidVerdict {
+    /// The name on the `REID` line.
+    pub const fn name(self) -> &'static str {
+        match self {
+            ReidVerdict::Accepted => "accepted",
+            ReidVerdict::Kept => "kept",
+            ReidVerdict::NotExcited => "not-excited",
+            ReidVerdict::Model => "model",
+            ReidVerdict::Fit => "fit",
+            ReidVerdict::Numeric => "numeric",
+            ReidVerdict::Design => "design",
+        }
+    }
+}
+
+/// One re-estimate as its `REID` line reports it.
+#[cfg(not(target_arch = "avr"))]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReidReport {
+    /// The breath at whose start the snapshot was taken (from 1).
+    pub breath: u32,
+    /// What became of it.
+    pub verdict: ReidVerdict,
+    /// The estimate's static gain, slm/slm (NaN without an estimate).
+    pub gain: f32,
+    /// The estimate's free-run fit on the held-out breath, percent (NaN when not scored).
+    pub fit: f32,
+    /// The running model's free-run fit on the same samples, percent (NaN when not scored).
+    pub running: f32,
+    /// The window's input (the map's flow) RMS about its mean, slm.
+    pub v_rms: f32,
 }
 
 /// One volume-controlled breath as its `BREATH` line reports it: sums and counts, the means
@@ -945,6 +1010,17 @@ impl uDisplay for Event {
                 "ALARM volume vd={} vt={}",
                 Fixed::new(*delivered, 1),
                 Fixed::new(*tidal, 1)
+            ),
+            #[cfg(not(target_arch = "avr"))]
+            Event::Reid(r) => ufmt::uwrite!(
+                f,
+                "REID breath={} verdict={} gain={} fit={}/{} v-rms={}",
+                Int::from(r.breath),
+                r.verdict.name(),
+                Fixed::new(r.gain, 3),
+                Fixed::new(r.fit, 1),
+                Fixed::new(r.running, 1),
+                Fixed::new(r.v_rms, 3)
             ),
             Event::Fault(reason) => ufmt::uwrite!(f, "FAULT {}", reason),
         }

@@ -11,7 +11,8 @@
 //!   [`PrintedModel`], the model part it shares with `LOADED` and `MODEL`.
 //! - [`LoadedLine`]: the `LOADED` line; [`ScanLine`], [`ExciteLine`], [`ValidateLine`]: the
 //!   records' announcements (`SCAN`, `EXCITE`, `VALIDATE`); [`MapLine`]: the static map
-//!   (`MAP`).
+//!   (`MAP`); [`BreathLine`], [`VolumeAlarmLine`], [`ReidLine`]: the ventilation's `BREATH`,
+//!   `ALARM volume` and `REID` lines.
 //!
 //! Errors ([`LineError`]) name the field that is missing or malformed; the caller adds the
 //! file and line number.
@@ -615,6 +616,67 @@ impl VolumeAlarmLine {
         Ok(Self::On {
             delivered: line.finite("vd")?,
             tidal: line.finite("vt")?,
+        })
+    }
+}
+
+/// The `REID` line: one re-estimate of run mode's re-identification
+/// ([`Event::Reid`](crate::event::Event::Reid)), e.g. `REID breath=12 verdict=kept gain=1.035
+/// fit=92.3/90.1 v-rms=22.150`. The figures a verdict has none of print `nan` and parse as NaN.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReidLine {
+    /// The breath at whose start the snapshot was taken (`breath=`).
+    pub breath: u32,
+    /// The verdict's name (`verdict=`: `accepted`, `kept`, `not-excited`, `model`, `fit`,
+    /// `numeric`, `design`).
+    pub verdict: String,
+    /// The estimate's static gain, slm/slm (`gain=`, 3 decimals).
+    pub gain: f64,
+    /// The estimate's held-out free-run fit, percent (`fit=` before the `/`, 1 decimal).
+    pub fit: f64,
+    /// The running model's held-out free-run fit, percent (`fit=` after the `/`).
+    pub running: f64,
+    /// The window's input RMS about its mean, slm (`v-rms=`, 3 decimals).
+    pub v_rms: f64,
+}
+
+impl ReidLine {
+    /// The verdicts the firmware prints.
+    pub const VERDICTS: [&'static str; 7] = [
+        "accepted",
+        "kept",
+        "not-excited",
+        "model",
+        "fit",
+        "numeric",
+        "design",
+    ];
+
+    /// Parses a `REID` line (every field required; the numbers may be `nan`).
+    pub fn parse(text: &str) -> Result<Self, LineError> {
+        let line = ParsedLine::parse(text);
+        line.expect("REID")?;
+        let num = |key: &'static str, v: Option<&str>| {
+            v.and_then(number).ok_or(LineError::Field {
+                key,
+                expected: "number",
+            })
+        };
+        let verdict = line
+            .get("verdict")
+            .filter(|v| Self::VERDICTS.contains(v))
+            .ok_or(LineError::Field {
+                key: "verdict",
+                expected: "verdict",
+            })?;
+        let (fit, running) = line.get("fit").and_then(|f| f.split_once('/')).unzip();
+        Ok(Self {
+            breath: line.whole("breath")?,
+            verdict: verdict.to_string(),
+            gain: num("gain", line.get("gain"))?,
+            fit: num("fit", fit)?,
+            running: num("fit", running)?,
+            v_rms: num("v-rms", line.get("v-rms"))?,
         })
     }
 }

@@ -119,6 +119,12 @@ impl Monitor {
         }
     }
 
+    /// Monitors `model` from now on (the controller's model was swapped): the windows and the
+    /// drift flag start afresh.
+    pub fn set_model(&mut self, model: ArxModel<f32>) {
+        *self = Monitor::new(model, self.cfg);
+    }
+
     /// Whether a drift was raised (latched).
     pub fn drift(&self) -> bool {
         self.drift

@@ -10,12 +10,13 @@
 use ridge_core::control::{DesignError, ModelFault};
 use ridge_core::{ArxModel, Error as CoreError, InputMap, MapError, Offset, MAP_KNOTS};
 use ridge_pump_firmware::event::{
-    core_error_name, map_error_name, BreathSummary, ControlRefusal, Event, FaultReason,
-    RejectReason, Residuals, SearchStats, SensorFault, StoredReason, LINE_MAX, RECORD_NAME,
+    core_error_name, map_error_name, BreathSummary, ControlRefusal, Event, FaultReason, ReidReport,
+    ReidVerdict, RejectReason, Residuals, SearchStats, SensorFault, StoredReason, LINE_MAX,
+    RECORD_NAME,
 };
 use ridge_pump_firmware::lines::{
     number, BreathLine, ExciteLine, IdLine, LineError, LoadedLine, MapLine, ParsedLine,
-    PrintedModel, ScanLine, ValidateLine, VolumeAlarmLine,
+    PrintedModel, ReidLine, ScanLine, ValidateLine, VolumeAlarmLine,
 };
 use ridge_pump_firmware::persist::PersistError;
 
@@ -45,6 +46,8 @@ enum V {
     R(i64, i64),
     /// `a<b` of numbers (a value below its limit).
     Lt(f64, f64),
+    /// `a/b` of numbers (NaN compared as NaN).
+    P(f64, f64),
     /// A comma-separated list.
     L(Vec<f64>),
 }
@@ -92,8 +95,22 @@ fn check(line: &str, want: &Expected) {
                 V::Lt(number(a).unwrap(), number(b).unwrap())
             }
             V::L(_) => V::L(p.list(k).unwrap_or_else(|| panic!("{k} in {line}"))),
+            V::P(..) => {
+                let (a, b) = raw
+                    .split_once('/')
+                    .unwrap_or_else(|| panic!("{k} in {line}"));
+                V::P(number(a).unwrap(), number(b).unwrap())
+            }
         };
-        assert_eq!(&got, v, "{k} in {line}");
+        // NaN prints `nan` and parses back as NaN: compared by the bits' meaning.
+        let same = match (&got, v) {
+            (V::N(a), V::N(b)) => a == b || (a.is_nan() && b.is_nan()),
+            (V::P(a, b), V::P(c, d)) => {
+                (a == c || (a.is_nan() && c.is_nan())) && (b == d || (b.is_nan() && d.is_nan()))
+            }
+            _ => &got == v,
+        };
+        assert!(same, "{k} in {line}: {got:?} != {v:?}");
     }
 }
 
@@ -447,11 +464,104 @@ fn expected(e: &Event) -> Expected {
             &["volume"],
             vec![("vd", f(delivered)), ("vt", f(tidal))],
         ),
+        Event::Reid(r) => exp(
+            "REID",
+            &[],
+            vec![
+                ("breath", int(r.breath)),
+                (
+                    "verdict",
+                    V::W(match r.verdict {
+                        ReidVerdict::Accepted => "accepted",
+                        ReidVerdict::Kept => "kept",
+                        ReidVerdict::NotExcited => "not-excited",
+                        ReidVerdict::Model => "model",
+                        ReidVerdict::Fit => "fit",
+                        ReidVerdict::Numeric => "numeric",
+                        ReidVerdict::Design => "design",
+                    }),
+                ),
+                ("gain", f(r.gain)),
+                ("fit", V::P(f64::from(r.fit), f64::from(r.running))),
+                ("v-rms", f(r.v_rms)),
+            ],
+        ),
         Event::Fault(r) => {
             let (words, fields) = fault(r);
             exp("FAULT", &words, fields)
         }
     }
+}
+
+/// Re-estimates on the printed grid: one of each verdict, the figures a verdict has none of NaN.
+fn reids() -> Vec<ReidReport> {
+    let all = [
+        ReidVerdict::Accepted,
+        ReidVerdict::Kept,
+        ReidVerdict::NotExcited,
+        ReidVerdict::Model,
+        ReidVerdict::Fit,
+        ReidVerdict::Numeric,
+        ReidVerdict::Design,
+    ];
+    all.iter()
+        .enumerate()
+        .map(|(k, &verdict)| {
+            let scored = matches!(
+                verdict,
+                ReidVerdict::Accepted | ReidVerdict::Kept | ReidVerdict::Fit
+            );
+            ReidReport {
+                breath: 12 + k as u32,
+                verdict,
+                gain: if verdict == ReidVerdict::Numeric {
+                    f32::NAN
+                } else {
+                    1.125
+                },
+                fit: if scored { 92.5 } else { f32::NAN },
+                running: if scored { 60.5 } else { f32::NAN },
+                v_rms: 22.125,
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn reid_lines_parse_back_equal() {
+    for r in reids() {
+        let t = text(&Event::Reid(r));
+        check(&t, &expected(&Event::Reid(r)));
+        let p = ReidLine::parse(&t).unwrap_or_else(|e| panic!("{t}: {e:?}"));
+        assert_eq!(p.breath, r.breath, "{t}");
+        assert_eq!(
+            ReidLine::VERDICTS.iter().position(|v| *v == p.verdict),
+            Some(r.breath as usize - 12),
+            "{t}"
+        );
+        let same = |a: f64, b: f32| a == f64::from(b) || (a.is_nan() && b.is_nan());
+        assert!(
+            same(p.gain, r.gain) && same(p.fit, r.fit) && same(p.running, r.running),
+            "{t}"
+        );
+        assert_eq!(p.v_rms, 22.125, "{t}");
+    }
+    assert_eq!(
+        text(&Event::Reid(reids()[1])),
+        "REID breath=13 verdict=kept gain=1.125 fit=92.5/60.5 v-rms=22.125"
+    );
+    // A verdict the firmware does not print, and a fit without the running model's.
+    assert!(
+        ReidLine::parse("REID breath=3 verdict=maybe gain=1.000 fit=90.0/80.0 v-rms=5.000")
+            .is_err()
+    );
+    assert_eq!(
+        ReidLine::parse("REID breath=3 verdict=kept gain=1.000 fit=90.0 v-rms=5.000"),
+        Err(LineError::Field {
+            key: "fit",
+            expected: "number"
+        })
+    );
 }
 
 /// A breath on the printed grid: volumes in halves of a mL, the peak a multiple of 3 counts,
@@ -596,6 +706,7 @@ fn events() -> Vec<Event> {
             tidal: 500.0,
         },
     ];
+    v.extend(reids().into_iter().map(Event::Reid));
     for e in [
         PersistError::Length,
         PersistError::Magic,

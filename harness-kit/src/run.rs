@@ -36,8 +36,10 @@ use std::path::Path;
 use pump_sim::baseline::experiment::{score, Scores, Trace};
 use pump_sim::sfm3300::raw_to_flow;
 use ridge_core::control::Limits;
+use ridge_core::{ArxModel, MapTable};
 use ridge_pump_firmware::event::Event;
-use ridge_pump_firmware::lines::ParsedLine;
+use ridge_pump_firmware::lines::{MapLine, ParsedLine, PrintedModel};
+use ridge_pump_firmware::reid::Reid;
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use ridge_pump_firmware::setpoint::{value, Program, Setpoint, VolumeBreath};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
@@ -111,7 +113,9 @@ pub struct RunTrace {
     pub limits: Limits<f64>,
     /// The run tick the volume program started at ([`RunInput::vent`]), if any.
     pub vent_tick: Option<usize>,
-    /// The replayed volume program's `BREATH` events (what the firmware must have printed).
+    /// The replayed volume program's `BREATH` events (what the firmware must have printed) and,
+    /// when the firmware printed `REID` lines, its re-identification's `REID` events
+    /// ([`reid_replay`]).
     pub replayed: Vec<Event>,
 }
 
@@ -202,6 +206,7 @@ impl RunTrace {
             let mut ended = k0.checked_sub(1).map_or(start, |k| sp[k]) as f32;
             let mut setpoint = Setpoint::new(Program::Volume(b), ended);
             let mut v = Ventilation::new(b.tidal);
+            let mut reid = reid_replay(input, b)?;
             for (k, slot) in sp.iter_mut().enumerate().skip(k0) {
                 let (_, phase) = setpoint.volume_phase().ok_or("not a volume program")?;
                 let r = setpoint.advance();
@@ -213,6 +218,19 @@ impl RunTrace {
                 v.after_pwm(&mut setpoint, phase, held, ended, &mut event);
                 if let Some(e @ Event::Breath(_)) = event {
                     replayed.push(e);
+                }
+                // As the firmware: not in the lead-in, from breath 1's first tick.
+                if let Some((reid, table)) = reid.as_mut().filter(|_| v.breath() > 0) {
+                    // The duty of the interval that ended with this tick's reading, as the
+                    // firmware commanded it (the pin's fraction, back in 1/10 000).
+                    let applied = (duty_of((first_tick + k).saturating_sub(1))
+                        * f64::from(DUTY_FULL_SCALE))
+                    .round() as u16;
+                    let boundary = (phase == 0).then(|| v.breath());
+                    reid.after_pwm(table.at(applied), held, boundary, false);
+                    if let Some(report) = reid.take_report() {
+                        replayed.push(Event::Reid(report));
+                    }
                 }
                 ended = r;
             }
@@ -340,4 +358,54 @@ impl RunTrace {
         }
         w.flush().map_err(err)
     }
+}
+
+/// The re-identification of run mode (`ridge_pump_firmware::reid`, the firmware's own code)
+/// replayed beside the volume program when the firmware printed `REID` lines: the running
+/// model from the last `LOADED` or `ID` line before `CTRL` (6 decimals: the held-out fits may
+/// differ in the last printed digit), the map from the last `MAP` line, the default settings,
+/// one breath of `b` held out. With the window fed the bench's readings and the map's flow at
+/// the pin's duty, and a re-estimate started at every breath boundary (the default
+/// `ReidConfig::every` of 1 makes the drift and alarm triggers irrelevant), it prints what the
+/// firmware must have printed. `None` without `REID` lines.
+///
+/// Errors: `REID` lines, but no model or map line to replay them from.
+#[allow(clippy::type_complexity)]
+pub fn reid_replay(
+    input: &RunInput<'_>,
+    b: VolumeBreath,
+) -> Result<Option<(Reid, MapTable)>, String> {
+    if !input.lines.iter().any(|(_, t)| t.starts_with("REID")) {
+        return Ok(None);
+    }
+    let ctrl = input
+        .lines
+        .iter()
+        .position(|(_, t)| t.starts_with("CTRL"))
+        .ok_or("REID lines without a CTRL line")?;
+    let before = &input.lines[..ctrl];
+    let model_line = before
+        .iter()
+        .rev()
+        .find(|(_, t)| t.starts_with("LOADED ") || t.starts_with("ID "))
+        .ok_or("REID lines without a LOADED or ID line")?;
+    let printed = PrintedModel::from_line(&ParsedLine::parse(model_line.1))
+        .map_err(|e| format!("{}: {e}", model_line.1))?;
+    let f = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+    let model = ArxModel::<f32>::new(
+        &f(&printed.theta),
+        &f(&printed.phi),
+        printed.d,
+        printed.offset,
+        printed.c as f32,
+    )
+    .map_err(|e| format!("{}: {e:?}", model_line.1))?;
+    let map_line = before
+        .iter()
+        .rev()
+        .find(|(_, t)| t.starts_with("MAP "))
+        .ok_or("REID lines without a MAP line")?;
+    let map = MapLine::parse(map_line.1).map_err(|e| format!("{}: {e}", map_line.1))?;
+    let reid = Reid::new(&DEFAULT_CONFIG, model, u32::from(b.wave.period()));
+    Ok(Some((reid, map.map.table())))
 }

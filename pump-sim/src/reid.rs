@@ -32,6 +32,7 @@ use ridge_core::control::{Controller, Design};
 use ridge_core::input_map::MapTable;
 use ridge_core::reid::{window_len, Acceptance, Holdout, Refit, RefitStep, Rejection, Window};
 use ridge_core::{ArxModel, RidgeM};
+use ridge_pump_firmware::reid::ReidConfig;
 use ridge_pump_firmware::selfid::{duty_for_flow, preview_ticks, REFERENCE_POLE};
 use ridge_pump_firmware::setpoint::{self, BreathWave, Program, DEMO_BREATH};
 use ridge_pump_firmware::sfm3300::raw_to_counts;
@@ -438,10 +439,11 @@ pub struct StudyRun {
 }
 
 /// The smallest RMS of the window's input (the map's flow) about its mean for a re-estimate,
-/// slm (5). Measured (`reid-study`): square breaths 10 → 60 slm move it by 22 slm RMS on the
-/// adult lung and 35 slm on C 10 R 50; a constant 30 slm setpoint by 2.3–2.7 slm (the sensor
-/// noise fed back, with or without a ±1 slm dither), whose estimates rise 20 % too fast.
-pub const MIN_INPUT_RESPONSE: f32 = 5.0;
+/// slm: the firmware's ([`ReidConfig::DEFAULT`]'s `min_input_response`, 5). Measured here
+/// (`reid-study`): square breaths 10 → 60 slm move it by 22 slm RMS on the adult lung and 35 slm
+/// on C 10 R 50; a constant 30 slm setpoint by 2.3–2.7 slm (the sensor noise fed back, with or
+/// without a ±1 slm dither), whose estimates rise 20 % too fast.
+pub const MIN_INPUT_RESPONSE: f32 = ReidConfig::DEFAULT.min_input_response;
 
 /// The acceptance rules of the study: the firmware's model limits and minimum fit (70 %) and
 /// response (1 slm), [`MIN_INPUT_RESPONSE`], one breath of held-out samples.

@@ -129,6 +129,58 @@ fn window_matches_a_brute_force_weighted_sum() {
     }
 }
 
+/// A window kept apart from its storage between ticks (detached after each tick, attached for
+/// the next, as the firmware's run mode keeps it) sums what the brute force sums.
+#[test]
+fn a_window_detached_between_ticks_matches_a_brute_force_weighted_sum() {
+    let s = Structure::new(2, 3, 2).unwrap();
+    let (u, y) = known_record(&[0.9, -0.2], &[0.3, 0.2, 0.1], 2, 40.0, 30.0, 1200, 11);
+    let mut store = [0i64; WINDOW_LEN_MAX];
+    let mut state = Window::new(s, Offset::Intercept, 2, &mut store)
+        .unwrap()
+        .detach();
+    let n = s.params(Offset::Intercept);
+    let m = s.seed_len();
+    let mut brute = vec![vec![0.0f64; n + 1]; n + 1];
+    let mut breaths = 0u32;
+    for t in 0..u.len() {
+        let mut w = Window::attach(state, &mut store).unwrap();
+        w.push(u[t], y[t]).unwrap();
+        if t >= m {
+            let z = row(s, Offset::Intercept, &u, &y, t);
+            for (r, zi) in brute.iter_mut().zip(&z) {
+                for (x, zj) in r.iter_mut().zip(&z) {
+                    *x += zi * zj;
+                }
+            }
+        }
+        if t % 150 == 149 {
+            w.end_breath();
+            breaths += 1;
+            for x in brute.iter_mut().flatten() {
+                *x *= 0.75;
+            }
+        }
+        state = w.detach();
+    }
+    let w = Window::attach(state, &mut store).unwrap();
+    assert_eq!(w.rows() as usize, u.len() - m);
+    for (i, r) in brute.iter().enumerate() {
+        for (j, &want) in r.iter().enumerate() {
+            let got = w.entry(i, j) as f64;
+            let tol = f64::from(breaths) + 1e-12 * want.abs();
+            assert!((got - want).abs() <= tol, "({i}, {j}): {got} vs {want}");
+        }
+    }
+    // Storage too short for the structure is refused.
+    let state = w.detach();
+    let mut small = [0i64; 8];
+    assert!(matches!(
+        Window::attach(state, &mut small),
+        Err(Error::InvalidStructure)
+    ));
+}
+
 #[test]
 fn window_refuses_small_storage_and_bad_shift() {
     let s = Structure::new(2, 2, 0).unwrap();

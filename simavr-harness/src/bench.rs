@@ -118,7 +118,10 @@ pub struct BreathTruth {
     pub peep: f64,
     /// Largest airway pressure (blower outlet) from the closing to the next one, cmH₂O.
     pub peak_pressure: f64,
-    /// Largest true flow over the same span, slm.
+    /// Largest true flow while the valve was closed (the inspiration), slm: the span of the
+    /// firmware's `BREATH` peak. The largest flow of the whole breath comes just after the
+    /// valve opens (the blower still at the inspiration's duty, into the open valve), which
+    /// the firmware's inspiratory peak does not cover.
     pub peak_flow: f64,
     /// Lung volume at the closing, mL (for the delivered volume).
     volume_at_close: f64,
@@ -707,7 +710,9 @@ impl Bench {
         if let Some(b) = self.breaths.last_mut() {
             let pressure = self.lung.as_ref().map_or(0.0, Lung::airway_pressure);
             b.peak_pressure = b.peak_pressure.max(pressure);
-            b.peak_flow = b.peak_flow.max(flow);
+            if b.open.is_none() {
+                b.peak_flow = b.peak_flow.max(flow);
+            }
         }
         self.sensor.borrow_mut().flow_slm = flow;
         self.substep += 1;

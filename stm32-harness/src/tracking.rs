@@ -5,6 +5,7 @@
 
 use harness_kit::run::{RunInput, RunTrace};
 use pump_sim::Valve;
+use ridge_pump_firmware::setpoint::VolumeBreath;
 
 use crate::bench::Bench;
 use crate::periph::PS_PER_S;
@@ -12,6 +13,13 @@ use crate::periph::PS_PER_S;
 /// Run mode rebuilt from `bench` (`harness_kit::run::RunTrace::rebuild`); an error says what
 /// is missing (no `CTRL` line, no `TRACK` lines, no ticks).
 pub fn run_trace(bench: &Bench) -> Result<RunTrace, String> {
+    run_trace_vent(bench, None)
+}
+
+/// [`run_trace`] of a run that was sent a `VENT` command with the breath settings `vent`: the
+/// volume program, its `BREATH` lines and (when printed) the `REID` lines replayed
+/// ([`RunTrace::replayed`]).
+pub fn run_trace_vent(bench: &Bench, vent: Option<VolumeBreath>) -> Result<RunTrace, String> {
     let duty_at = |t: u64| bench.duty_at(t).map_or(0.0, |d| d.fraction);
     let flow_at = |t: u64| {
         let log = &bench.plant_log;
@@ -42,7 +50,7 @@ pub fn run_trace(bench: &Bench) -> Result<RunTrace, String> {
             .iter()
             .map(|&(t, v)| (t, v == Valve::Closed))
             .collect(),
-        vent: None,
+        vent,
     };
     RunTrace::rebuild(&input)
 }

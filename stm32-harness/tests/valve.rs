@@ -11,40 +11,11 @@
 
 mod common;
 
-use common::{assert_stopped, elf, run_to, transcript, TICK};
-use pump_sim::baseline::experiment::identify_with;
+use common::{assert_stopped, elf, flash_with_row1_model, iso_lung, run_to, transcript, TICK};
 use pump_sim::iso::iso_row;
-use pump_sim::{LungParams, PlantArgs, Valve};
-use ridge_pump_firmware::flash_store::{self, slot_bytes, PROGRAMMED_LEN, SECTOR_LEN};
-use ridge_pump_firmware::persist::RECORD_LEN;
-use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
+use pump_sim::Valve;
 use stm32_harness::bench::{ps, secs, Action, Bench, BenchConfig};
 use stm32_harness::sensor::Fault;
-
-/// Row 1's lung (C 50 mL/cmH₂O, R 5 cmH₂O/(L/s), PEEP 5 cmH₂O).
-fn iso_lung() -> LungParams {
-    iso_row(1).expect("row 1").lung(&LungParams::adult())
-}
-
-/// A store holding the model the firmware's state machine (compiled for the host) identifies
-/// on `pump_sim`'s rig with row 1's lung, the PEEP valve at 0, in its first slot.
-fn flash_with_row1_model() -> Vec<u8> {
-    let l = iso_lung();
-    let plant = PlantArgs {
-        compliance: Some(l.compliance),
-        resistance: Some(l.resistance),
-        peep: Some(0.0),
-        ..PlantArgs::default()
-    };
-    let (_, sm, _) = identify_with(&plant, 3, &DEFAULT_CONFIG).expect("identification");
-    let record: [u8; RECORD_LEN] = sm.persist_bytes().expect("model");
-    let mut mem = Bench::new(BenchConfig::new(elf())).expect("bench").flash();
-    let (_, offset) = flash_store::SECTORS[0];
-    let mut sector = vec![0xFF; SECTOR_LEN];
-    sector[..PROGRAMMED_LEN].copy_from_slice(&slot_bytes(&record, 0).expect("slot"));
-    mem[offset as usize..offset as usize + SECTOR_LEN].copy_from_slice(&sector);
-    mem
-}
 
 /// The times PB0 closed the valve (ps) and how long each closure lasted (ps; the last one up
 /// to now if still closed).

@@ -103,6 +103,10 @@ pub struct Config {
     pub monitor: MonitorConfig,
     /// The flow controller.
     pub control: ControlConfig,
+    /// Run mode's re-identification while ventilating (not on the ATmega2560, which has no
+    /// flash for it).
+    #[cfg(not(target_arch = "avr"))]
+    pub reid: crate::reid::ReidConfig,
 }
 
 /// Settings of the flow controller: its design, its limits and what it tracks.
@@ -370,5 +374,7 @@ impl Config {
         loss_ticks: 100,
         monitor: MonitorConfig::DEFAULT,
         control: ControlConfig::DEFAULT,
+        #[cfg(not(target_arch = "avr"))]
+        reid: crate::reid::ReidConfig::DEFAULT,
     };
 }

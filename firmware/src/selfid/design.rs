@@ -94,3 +94,38 @@ impl<S: Settings> SelfIdentification<S> {
         preview
     }
 }
+
+#[cfg(not(target_arch = "avr"))]
+impl<S: Settings> SelfIdentification<S> {
+    /// Run mode's re-identification accepted an estimate for a swap: its controller designed
+    /// here, as [`design`](Self::design) designs the power-up one (the model check, the design
+    /// slower on each failed check, the reference model; blocking, after the PWM write), then
+    /// swapped in by run mode at the next breath boundary as the controller sees it. A refused
+    /// model or design keeps the running model and controller and says so
+    /// (`REID … verdict=design`) into `event` if empty. Nothing when no estimate waits.
+    ///
+    /// The same steps as [`design`](Self::design), written again: sharing one function cost the
+    /// ATmega2560 image 0.9 KB (its inlining changed), and the ATmega2560 does not run this.
+    pub(super) fn redesign(&mut self, event: &mut Option<Event>) {
+        let c = &self.settings.config().control;
+        let Phase::Run(run) = &mut self.phase else {
+            return;
+        };
+        let Some(model) = run.take_candidate() else {
+            return;
+        };
+        if check_model(&model, &c.model).is_err() {
+            run.swap_refused(&model, event);
+            return;
+        }
+        match design_slower_on_failure(&model, &c.spec(), c.tries, SLOWDOWN, || {}) {
+            (Ok(mut d), _) => {
+                if c.tau.is_none() {
+                    d.set_reference(REFERENCE_POLE).ok();
+                }
+                run.set_swap(model, d);
+            }
+            (Err(_), _) => run.swap_refused(&model, event),
+        }
+    }
+}

@@ -22,7 +22,11 @@ use ridge_core::control::{Controller, Design, Limits};
 use ridge_core::{ArxModel, MapTable};
 
 use crate::event::Event;
+#[cfg(not(target_arch = "avr"))]
+use crate::event::{ReidReport, ReidVerdict};
 use crate::monitor::Monitor;
+#[cfg(not(target_arch = "avr"))]
+use crate::reid::Reid;
 use crate::setpoint::{Program, Setpoint};
 use crate::tracking::Tracking;
 use crate::units::{DUTY_FULL_SCALE, FLOW_SCALE, SLM_PER_COUNT};
@@ -66,6 +70,17 @@ pub(super) struct RunMode {
     ended: f32,
     /// The per-breath bookkeeping of a volume program.
     vent: Ventilation,
+    /// The re-identification while a volume program runs ([`crate::reid`]; not on the
+    /// ATmega2560, whose flash has no room for it: docs/control.md).
+    #[cfg(not(target_arch = "avr"))]
+    reid: Reid,
+    /// The re-estimate accepted for a swap, waiting for its design
+    /// ([`RunMode::take_candidate`]).
+    #[cfg(not(target_arch = "avr"))]
+    candidate: Option<ArxModel<f32>>,
+    /// The designed swap, waiting for the breath boundary as the controller sees it.
+    #[cfg(not(target_arch = "avr"))]
+    swap: Option<(ArxModel<f32>, Design<f32>)>,
 }
 
 impl RunMode {
@@ -96,11 +111,7 @@ impl RunMode {
         let y0 = f32::from(counts) * SLM_PER_COUNT;
         let v = slm(applied);
         ctrl.start(v, y0);
-        let mut sum_theta = 0.0;
-        for t in model.theta() {
-            sum_theta += *t;
-        }
-        let gain = model.static_gain();
+        let (gain, offset) = steady_state(&model);
         RunMode {
             monitor: Monitor::new(model, cfg.monitor),
             ctrl,
@@ -118,10 +129,16 @@ impl RunMode {
             reading: None,
             v,
             gain,
-            offset: model.intercept() / (1.0 - sum_theta) * f32::from(FLOW_SCALE),
+            offset,
             breath: None,
             ended: y0,
             vent: ventilation_for(program),
+            #[cfg(not(target_arch = "avr"))]
+            reid: Reid::new(cfg, model, breath_ticks(program)),
+            #[cfg(not(target_arch = "avr"))]
+            candidate: None,
+            #[cfg(not(target_arch = "avr"))]
+            swap: None,
         }
     }
 
@@ -134,6 +151,10 @@ impl RunMode {
         self.applied = applied;
         self.reading = reading;
         let y = f32::from(reading.unwrap_or(last)) * SLM_PER_COUNT;
+        #[cfg(not(target_arch = "avr"))]
+        if self.swap.is_some() {
+            self.swap_at_boundary(y);
+        }
         let ahead = self.setpoint.ahead(u32::from(self.preview));
         self.breath = self.setpoint.volume_phase();
         self.next = self.setpoint.advance();
@@ -171,17 +192,108 @@ impl RunMode {
 
     /// After the tick's PWM write and [`after_write`](Self::after_write): a volume program's
     /// per-breath bookkeeping with the tick's reading `reading` (counts, held over sensor
-    /// errors); its event into `event` if empty. Returns what the fault checks take from the
-    /// tick, with the duty applied during the interval that ended with the reading.
+    /// errors), then the re-identification (`drift`: the monitor's drift flag, one of its
+    /// triggers); one event into `event` if empty (the breath's, else a `REID` line). Returns
+    /// what the fault checks take from the tick, with the duty applied during the interval
+    /// that ended with the reading.
     pub(super) fn after_pwm(
         &mut self,
         reading: i16,
+        drift: bool,
         event: &mut Option<Event>,
     ) -> Option<(Anchor, u16)> {
         let (_, phase) = self.breath?;
-        self.vent
+        let anchor = self
+            .vent
             .after_pwm(&mut self.setpoint, phase, reading, self.ended, event)
-            .map(|a| (a, self.applied))
+            .map(|a| (a, self.applied));
+        #[cfg(not(target_arch = "avr"))]
+        self.reidentify(phase, reading, drift, event);
+        #[cfg(target_arch = "avr")]
+        let _ = drift;
+        anchor
+    }
+
+    /// The re-identification's tick (see [`crate::reid`]): the breath boundary at `phase` 0,
+    /// triggered by `drift` or an alarm; its `REID` line into `event` if empty.
+    #[cfg(not(target_arch = "avr"))]
+    fn reidentify(&mut self, phase: u32, reading: i16, drift: bool, event: &mut Option<Event>) {
+        // Not in the program's lead-in: the window starts with breath 1.
+        if self.vent.breath() == 0 {
+            return;
+        }
+        let boundary = (phase == 0).then(|| self.vent.breath());
+        let trigger = drift || self.vent.alarm() || self.tracking.alarm();
+        let v = self.table.at(self.applied);
+        if let Some(model) = self.reid.after_pwm(v, reading, boundary, trigger) {
+            self.candidate = Some(model);
+        }
+        if event.is_none() {
+            *event = self.reid.take_report().map(Event::Reid);
+        }
+    }
+
+    /// The re-estimate accepted for a swap, once: its controller is to be designed
+    /// ([`set_swap`](Self::set_swap), or [`swap_refused`](Self::swap_refused)).
+    #[cfg(not(target_arch = "avr"))]
+    pub(super) fn take_candidate(&mut self) -> Option<ArxModel<f32>> {
+        self.candidate.take()
+    }
+
+    /// The design `d` for the accepted re-estimate `model`: swapped in at the next breath
+    /// boundary as the controller sees it.
+    #[cfg(not(target_arch = "avr"))]
+    pub(super) fn set_swap(&mut self, model: ArxModel<f32>, d: Design<f32>) {
+        self.swap = Some((model, d));
+    }
+
+    /// The design for the accepted re-estimate `model` was refused: the running model and
+    /// controller stay; the `REID … verdict=design` line.
+    #[cfg(not(target_arch = "avr"))]
+    pub(super) fn swap_refused(&mut self, model: &ArxModel<f32>, event: &mut Option<Event>) {
+        let report = ReidReport {
+            breath: self.vent.breath(),
+            verdict: ReidVerdict::Design,
+            gain: model.static_gain(),
+            fit: f32::NAN,
+            running: f32::NAN,
+            v_rms: f32::NAN,
+        };
+        if event.is_none() {
+            *event = Some(Event::Reid(report));
+        }
+    }
+
+    /// The designed swap, at the breath boundary as the controller sees it (the setpoint it is
+    /// given is the flat end of the expiration): the new controller starts bumplessly at the
+    /// map's flow of the applied duty and the reading `y` (slm), with its own preview; the
+    /// monitor and the fault checks' steady state follow the new model.
+    #[inline(never)]
+    #[cfg(not(target_arch = "avr"))]
+    fn swap_at_boundary(&mut self, y: f32) {
+        // The coming interval's phase (the program has not advanced yet this tick).
+        let (Some((_, phase)), Some(period)) =
+            (self.setpoint.volume_phase(), self.setpoint.volume())
+        else {
+            return;
+        };
+        let period = u32::from(period.wave.period());
+        if (phase + u32::from(self.preview)) % period.max(1) != 0 {
+            return;
+        }
+        let Some((model, d)) = self.swap.take() else {
+            return;
+        };
+        let limits = *self.ctrl.limits();
+        let mut ctrl = Controller::new(d.rst, limits);
+        ctrl.start(self.v, y);
+        self.ctrl = ctrl;
+        self.preview = preview_ticks(d.mean_delay(&model));
+        self.monitor.set_model(model);
+        let (gain, offset) = steady_state(&model);
+        self.gain = gain;
+        self.offset = offset;
+        self.reid.swapped(model);
     }
 
     /// The exhalation valve for the interval in progress: closed in a volume breath's
@@ -199,10 +311,17 @@ impl RunMode {
         self.breath.is_some()
     }
 
-    /// Tracks `program` from now on, starting from the setpoint in progress.
+    /// Tracks `program` from now on, starting from the setpoint in progress (the
+    /// re-identification starts afresh, its held-out span the program's breath).
     pub(super) fn set_program(&mut self, program: Program) {
         self.setpoint = Setpoint::new(program, self.current);
         self.vent = ventilation_for(program);
+        #[cfg(not(target_arch = "avr"))]
+        {
+            self.reid.restart(breath_ticks(program));
+            self.candidate = None;
+            self.swap = None;
+        }
     }
 
     /// The controller.
@@ -224,6 +343,28 @@ impl RunMode {
     pub(super) fn preview(&self) -> u8 {
         self.preview
     }
+}
+
+/// Ticks of a volume program's breath (0 for other programs): the re-identification's
+/// held-out span.
+#[cfg(not(target_arch = "avr"))]
+fn breath_ticks(program: Program) -> u32 {
+    match program {
+        Program::Volume(b) => u32::from(b.wave.period()),
+        _ => 0,
+    }
+}
+
+/// A model's steady state through the map: flow = `gain · g(u) + offset` (counts).
+fn steady_state(model: &ArxModel<f32>) -> (f32, f32) {
+    let mut sum_theta = 0.0;
+    for t in model.theta() {
+        sum_theta += *t;
+    }
+    (
+        model.static_gain(),
+        model.intercept() / (1.0 - sum_theta) * f32::from(FLOW_SCALE),
+    )
 }
 
 /// The per-breath bookkeeping for `program` (idle unless it is a volume program).

@@ -18,4 +18,4 @@ mod window;
 
 pub use accept::{Acceptance, Holdout, HoldoutVerdict, Rejection};
 pub use refit::{unit_flops, Refit, RefitStep};
-pub use window::{window_len, Window, WINDOW_LEN_MAX};
+pub use window::{window_len, Window, WindowState, WINDOW_LEN_MAX};

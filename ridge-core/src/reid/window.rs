@@ -59,6 +59,21 @@ pub struct Window<'a> {
     shift: u8,
 }
 
+/// A [`Window`] without its storage ([`Window::detach`]): the structure, the lag history and
+/// the counts, so that a caller can keep a window beside the storage it lends (a struct cannot
+/// hold both a buffer and a borrow of it) and [`Window::attach`] it again for each update.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WindowState {
+    layout: Layout,
+    y: [i16; P_MAX],
+    u: [i16; L_MAX],
+    seeded: u8,
+    seed: u8,
+    rows: u32,
+    weight: u32,
+    shift: u8,
+}
+
 impl<'a> Window<'a> {
     /// A window for `structure` with `offset` in `storage` (at least
     /// [`window_len`]`(n)` entries; it is zeroed), forgetting `λ = 1 − 2^{−shift}` per breath
@@ -94,6 +109,41 @@ impl<'a> Window<'a> {
         };
         w.clear();
         Ok(w)
+    }
+
+    /// The window without its storage; the statistics stay in the storage, unchanged.
+    pub fn detach(self) -> WindowState {
+        WindowState {
+            layout: self.layout,
+            y: self.y,
+            u: self.u,
+            seeded: self.seeded,
+            seed: self.seed,
+            rows: self.rows,
+            weight: self.weight,
+            shift: self.shift,
+        }
+    }
+
+    /// The window `state` again, on `storage` (which must hold what the window had when it was
+    /// detached: nothing is zeroed).
+    ///
+    /// Errors: [`Error::InvalidStructure`] when `storage` is shorter than the structure needs.
+    pub fn attach(state: WindowState, storage: &'a mut [i64]) -> Result<Self> {
+        if storage.len() < window_len(state.layout.len) {
+            return Err(Error::InvalidStructure);
+        }
+        Ok(Window {
+            layout: state.layout,
+            gram: storage,
+            y: state.y,
+            u: state.u,
+            seeded: state.seeded,
+            seed: state.seed,
+            rows: state.rows,
+            weight: state.weight,
+            shift: state.shift,
+        })
     }
 
     /// Forgets everything, lag history included.

@@ -2,7 +2,14 @@
 //! them: hence `dead_code` allowed here).
 #![allow(dead_code)]
 
-use stm32_harness::bench::{ps, secs, Bench, RunEnd};
+use pump_sim::baseline::experiment::identify_with;
+use pump_sim::iso::iso_row;
+use pump_sim::vent_bench::power_up_plant;
+use pump_sim::LungParams;
+use ridge_pump_firmware::flash_store::{self, slot_bytes, PROGRAMMED_LEN, SECTOR_LEN};
+use ridge_pump_firmware::persist::RECORD_LEN;
+use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
+use stm32_harness::bench::{ps, secs, Bench, BenchConfig, RunEnd};
 use stm32_harness::firmware;
 use stm32_harness::periph::Time;
 use stm32_harness::transcript::Line;
@@ -67,4 +74,24 @@ pub fn assert_stopped(b: &Bench, idx: usize, what: &str) {
         b.machine.now() >= deadline + ps(0.01),
         "{what}: run too short"
     );
+}
+
+/// Row 1's lung (C 50 mL/cmH₂O, R 5 cmH₂O/(L/s), PEEP 5 cmH₂O).
+pub fn iso_lung() -> LungParams {
+    iso_row(1).expect("row 1").lung(&LungParams::adult())
+}
+
+/// A store holding the model the firmware's state machine (compiled for the host) identifies
+/// on `pump_sim`'s rig with row 1's lung, the PEEP valve at 0, in its first slot.
+pub fn flash_with_row1_model() -> Vec<u8> {
+    let l = iso_lung();
+    let plant = power_up_plant(&l);
+    let (_, sm, _) = identify_with(&plant, 3, &DEFAULT_CONFIG).expect("identification");
+    let record: [u8; RECORD_LEN] = sm.persist_bytes().expect("model");
+    let mut mem = Bench::new(BenchConfig::new(elf())).expect("bench").flash();
+    let (_, offset) = flash_store::SECTORS[0];
+    let mut sector = vec![0xFF; SECTOR_LEN];
+    sector[..PROGRAMMED_LEN].copy_from_slice(&slot_bytes(&record, 0).expect("slot"));
+    mem[offset as usize..offset as usize + SECTOR_LEN].copy_from_slice(&sector);
+    mem
 }

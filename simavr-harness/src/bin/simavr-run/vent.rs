@@ -203,7 +203,7 @@ pub fn print(out: &VentOutcome, command: &str, breaths: u32) -> bool {
         .filter(|r| r.number as u32 <= breaths)
         .collect();
     println!(
-        "  per breath (lung = the simulator's truth: volume gained while the valve was closed, peak airway pressure, end-expiratory pressure after the breath; fw = the firmware's BREATH line):"
+        "  per breath (lung = the simulator's truth: volume gained while the valve was closed, peak airway pressure, end-expiratory pressure after the breath, peak flow while the valve was closed; fw = the firmware's BREATH line):"
     );
     println!(
         "    {:>3} {:>6} {:>8} {:>8} {:>7} {:>8} {:>8} {:>7} {:>7} {:>8} {:>8} {:>7}",

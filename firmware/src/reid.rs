@@ -1,0 +1,327 @@
+//! Run mode's closed-loop re-identification while a volume program ventilates: the running
+//! model's structure re-estimated from the loop's own data (`ridge_core::reid`), checked, and
+//! reported on a `REID` line; the estimate that passes and finds the running model no longer
+//! describing the lung is handed to run mode for a swap at a breath boundary.
+//!
+//! Everything here runs after the tick's PWM write ([`Reid::after_pwm`], called by run mode):
+//! - **Statistics**: every tick, `(v, y)` in counts into a [`Window`] of the running model's
+//!   structure and intercept: `v` the map's flow at the duty applied during the interval that
+//!   ended with the reading `y` (what the controller's memory takes); forgetting at each
+//!   breath's start by [`SHIFT`] (`λ = 3/4` a breath).
+//! - **Trigger**: at a breath boundary with no re-estimate running, when the monitor raised
+//!   `DRIFT`, a volume or tracking alarm is on, or [`ReidConfig::every`] breaths passed since
+//!   the last start.
+//! - **Fit**: [`Refit::start`] (the snapshot) at the boundary, then one unit
+//!   ([`Refit::step`]`(1)`) a tick.
+//! - **Checks**: [`Acceptance::check_estimate`] (the window excited, the design's model check),
+//!   then the breath after the snapshot held out ([`Holdout`]): the estimate's free-run fit at
+//!   least `min_fit` and at least the running model's ([`Acceptance::judge`]).
+//! - **Swap rule**: an estimate that passes replaces the running model only when the running
+//!   model's own held-out fit is below [`ReidConfig::swap_below_fit`] (it no longer describes
+//!   the lung); otherwise it is reported (`kept`) and the running controller stays. The rule is
+//!   off by default (`None`, see there for the measurement): every passing estimate is `kept`.
+//!   The re-designed controller tracks worse than the power-up one on the lung the power-up
+//!   saw (docs/control.md), so a better fit alone is no reason to swap.
+//!
+//! Any fault ends run mode and with it the re-estimate (the state lives in run mode).
+//!
+//! Memory: the window's storage for the largest structure ([`WINDOW_LEN_MAX`] `i64`), and one
+//! of a [`Refit`] or a [`Holdout`] at a time (never both).
+
+use ridge_core::reid::{
+    Acceptance, Holdout, Refit, RefitStep, Rejection, Window, WindowState, WINDOW_LEN_MAX,
+};
+use ridge_core::{ArxModel, RidgeM};
+
+use crate::event::{ReidReport, ReidVerdict};
+use crate::selfid::Config;
+use crate::units::{MODEL_SCALE, SLM_PER_COUNT};
+
+/// The window's forgetting per breath, `λ = 1 − 2^{−SHIFT}` = 3/4 (docs/control.md: no window
+/// length is better in the bias table, and this one forgets a lung change twice as fast as
+/// `λ = 7/8`).
+pub const SHIFT: u8 = 2;
+
+/// The re-identification's settings ([`Config::reid`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReidConfig {
+    /// A re-estimate starts at least every this many breaths (and at once on a drift or an
+    /// alarm); default 1, as the study (docs/control.md) re-estimated.
+    pub every: u32,
+    /// The smallest RMS of the window's input (the map's flow) about its mean, slm (default
+    /// 5): square breaths move it by 22 slm RMS on the adult lung, a constant setpoint by
+    /// 2.3–2.7 (the sensor noise fed back), whose estimates rise 20 % too fast
+    /// (docs/control.md).
+    pub min_input_response: f32,
+    /// The swap rule: a passing estimate replaces the running model only when the running
+    /// model's free-run fit on the held-out breath is below this, percent; `None` (the
+    /// default): never, the estimates are reported (`kept`) and the power-up controller runs
+    /// on. Off because on the STM32F411 image (`stm32-harness/tests/reid.rs`, docs/control.md
+    /// "What the firmware does") the power-up model's held-out fit on the adult lung's breaths
+    /// was −23 to −11 % (identified without the PEEP and exhalation valves): no threshold
+    /// keeps the adult lung's controller and swaps on the stiff one.
+    pub swap_below_fit: Option<f32>,
+}
+
+impl ReidConfig {
+    /// The defaults (see each field).
+    pub const DEFAULT: ReidConfig = ReidConfig {
+        every: 1,
+        min_input_response: 5.0,
+        swap_below_fit: None,
+    };
+}
+
+/// Where the current re-estimate stands.
+// One of the two at a time, in run mode's static storage.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone)]
+enum Job {
+    Idle,
+    /// The fit of the snapshot taken at the start of breath `breath`.
+    Fitting {
+        refit: Refit<f32>,
+        breath: u32,
+    },
+    /// The estimate `model` scored on the breath after its snapshot.
+    HoldingOut {
+        holdout: Holdout<f32>,
+        model: ArxModel<f32>,
+        breath: u32,
+        v_rms: f32,
+    },
+}
+
+/// The re-identification's state (see the [module docs](self)).
+#[derive(Debug, Clone)]
+pub struct Reid {
+    store: [i64; WINDOW_LEN_MAX],
+    /// The window, detached from `store`; `None` when the running model's structure has none.
+    window: Option<WindowState>,
+    job: Job,
+    method: RidgeM<f32>,
+    accept: Acceptance<f32>,
+    /// The running model.
+    running: ArxModel<f32>,
+    /// Breaths since the last re-estimate started.
+    since: u32,
+    /// Re-estimate at least every this many breaths, and the swap rule ([`ReidConfig`]).
+    every: u32,
+    swap_below_fit: Option<f32>,
+    /// A report waiting for a tick without another event.
+    due: Option<ReidReport>,
+}
+
+impl Reid {
+    /// Re-identification of `running`'s structure and intercept with `cfg`'s estimator (Ridge-M
+    /// as the search's, the paper's otherwise) and checks (the model limits, `min_response`,
+    /// `min_fit`), one breath of `holdout` ticks held out.
+    pub fn new(cfg: &Config, running: ArxModel<f32>, holdout: u32) -> Self {
+        let mut store = [0i64; WINDOW_LEN_MAX];
+        let window = Window::new(running.structure(), running.offset(), SHIFT, &mut store)
+            .ok()
+            .map(Window::detach);
+        let method = match cfg.search.method {
+            ridge_core::Method::RidgeM(m) => m,
+            _ => RidgeM::PAPER,
+        };
+        Reid {
+            store,
+            window,
+            job: Job::Idle,
+            method,
+            accept: Acceptance {
+                model: cfg.control.model,
+                min_response: cfg.min_response,
+                min_input_response: cfg.reid.min_input_response,
+                min_fit: cfg.min_fit,
+                holdout_min: holdout,
+            },
+            running,
+            since: 0,
+            every: cfg.reid.every,
+            swap_below_fit: cfg.reid.swap_below_fit,
+            due: None,
+        }
+    }
+
+    /// The running model.
+    pub fn running(&self) -> &ArxModel<f32> {
+        &self.running
+    }
+
+    /// The model swapped in: it runs from now on (the window goes on: same structure).
+    pub fn swapped(&mut self, model: ArxModel<f32>) {
+        self.running = model;
+    }
+
+    /// Starts afresh (a new program): the window emptied, a re-estimate in progress dropped, the
+    /// held-out span `holdout` ticks.
+    pub fn restart(&mut self, holdout: u32) {
+        if let Some(state) = self.window {
+            if let Ok(mut w) = Window::attach(state, &mut self.store) {
+                w.clear();
+                self.window = Some(w.detach());
+            }
+        }
+        self.job = Job::Idle;
+        self.since = 0;
+        self.due = None;
+        self.accept.holdout_min = holdout;
+    }
+
+    /// Whether a re-estimate is in progress.
+    pub fn busy(&self) -> bool {
+        !matches!(self.job, Job::Idle)
+    }
+
+    /// One tick after the PWM write: `v` the map's flow at the duty applied during the interval
+    /// that ended with the reading `y` (both counts); `boundary` the breath number when this
+    /// tick starts a breath, `trigger` whether a drift or an alarm is on. Returns the estimate
+    /// to swap in (at the next breath boundary as the controller sees it), if one passed the
+    /// swap rule; its report waits in [`take_report`](Self::take_report).
+    pub fn after_pwm(
+        &mut self,
+        v: i16,
+        y: i16,
+        boundary: Option<u32>,
+        trigger: bool,
+    ) -> Option<ArxModel<f32>> {
+        let state = self.window?;
+        let Ok(mut window) = Window::attach(state, &mut self.store) else {
+            self.window = None;
+            return None;
+        };
+        // A row that could overflow is refused and changes nothing but the lag history.
+        window.push(v, y).ok();
+        if boundary.is_some() {
+            window.end_breath();
+        }
+        let state = window.detach();
+        self.window = Some(state);
+        let mut swap = None;
+        if let Some(breath) = boundary {
+            self.since = self.since.saturating_add(1);
+            swap = self.judge();
+            if matches!(self.job, Job::Idle) && (trigger || self.since >= self.every) {
+                // A window too short for the structure starts nothing (the next boundary tries).
+                let started = Window::attach(state, &mut self.store)
+                    .and_then(|w| Refit::start(&w, self.method, &MODEL_SCALE));
+                if let Ok(refit) = started {
+                    self.since = 0;
+                    self.job = Job::Fitting { refit, breath };
+                }
+            }
+        }
+        let (u, y) = (f32::from(v) * SLM_PER_COUNT, f32::from(y) * SLM_PER_COUNT);
+        self.step(u, y);
+        swap
+    }
+
+    /// A report waiting to be printed, once.
+    pub fn take_report(&mut self) -> Option<ReidReport> {
+        self.due.take()
+    }
+
+    /// One unit of the fit, or one held-out sample `(u, y)` (slm).
+    fn step(&mut self, u: f32, y: f32) {
+        match &mut self.job {
+            Job::Idle => {}
+            Job::Fitting { refit, breath } => {
+                let breath = *breath;
+                match refit.step(1) {
+                    RefitStep::Working => {}
+                    RefitStep::Done(model, _) => {
+                        let (response, v_rms) = (refit.response(), refit.input_response());
+                        match self.accept.check_estimate(&model, response, v_rms) {
+                            Ok(_) => {
+                                self.job = Job::HoldingOut {
+                                    holdout: Holdout::new(model, self.running),
+                                    model,
+                                    breath,
+                                    v_rms,
+                                }
+                            }
+                            Err(why) => self.refused(breath, &model, v_rms, &why),
+                        }
+                    }
+                    RefitStep::Refused(_) => {
+                        self.due = Some(ReidReport {
+                            breath,
+                            verdict: ReidVerdict::Numeric,
+                            gain: f32::NAN,
+                            fit: f32::NAN,
+                            running: f32::NAN,
+                            v_rms: refit.input_response(),
+                        });
+                        self.job = Job::Idle;
+                    }
+                }
+            }
+            Job::HoldingOut { holdout, .. } => holdout.push(u, y),
+        }
+    }
+
+    /// A refused estimate: its report, nothing else changes.
+    fn refused(&mut self, breath: u32, model: &ArxModel<f32>, v_rms: f32, why: &Rejection<f32>) {
+        let (verdict, fit, running) = match why {
+            Rejection::Model(_) => (ReidVerdict::Model, f32::NAN, f32::NAN),
+            Rejection::NotExcited { .. } => (ReidVerdict::NotExcited, f32::NAN, f32::NAN),
+            Rejection::Fit { candidate, running } => (ReidVerdict::Fit, *candidate, *running),
+            Rejection::TooFewHeldOut { .. } => (ReidVerdict::Fit, f32::NAN, f32::NAN),
+        };
+        self.due = Some(ReidReport {
+            breath,
+            verdict,
+            gain: model.static_gain(),
+            fit,
+            running,
+            v_rms,
+        });
+        self.job = Job::Idle;
+    }
+
+    /// At a breath boundary: the verdict of a held-out estimate once a breath of samples is
+    /// scored; the estimate when it is to be swapped in.
+    fn judge(&mut self) -> Option<ArxModel<f32>> {
+        let Job::HoldingOut {
+            holdout,
+            model,
+            breath,
+            v_rms,
+        } = &self.job
+        else {
+            return None;
+        };
+        let (model, breath, v_rms) = (*model, *breath, *v_rms);
+        let scored = holdout.verdict().map_or(0, |v| v.candidate.n);
+        if scored < self.accept.holdout_min {
+            return None;
+        }
+        match self.accept.judge(holdout) {
+            Ok(v) => {
+                let swap = self
+                    .swap_below_fit
+                    .is_some_and(|below| v.running.fit < below);
+                self.due = Some(ReidReport {
+                    breath,
+                    verdict: if swap {
+                        ReidVerdict::Accepted
+                    } else {
+                        ReidVerdict::Kept
+                    },
+                    gain: model.static_gain(),
+                    fit: v.candidate.fit,
+                    running: v.running.fit,
+                    v_rms,
+                });
+                self.job = Job::Idle;
+                swap.then_some(model)
+            }
+            Err(why) => {
+                self.refused(breath, &model, v_rms, &why);
+                None
+            }
+        }
+    }
+}

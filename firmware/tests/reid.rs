@@ -1,0 +1,331 @@
+//! Run mode's re-identification (`ridge_pump_firmware::reid`) in the firmware's state machine
+//! on the host, closed loop with pump-sim's plant and ISO 80601-2-12 row 1's test lung: the
+//! swap path (off in the default settings) with a swap threshold set, at the breath boundary as
+//! the controller sees it; a refused estimate that keeps the running controller; the lung
+//! change to C 10 R 50 with and without the swap; the drift and alarm trigger.
+//!
+//! Truths: the simulated lung (the volume it received each inspiration, from the plant's true
+//! flow), the breath timing of the `VENT` settings (the valve's closures), the verdicts'
+//! definitions (the figures on each `REID` report against the rule it names).
+
+use pump_sim::baseline::experiment::identify_with;
+use pump_sim::iso::iso_row;
+use pump_sim::vent_bench::power_up_plant;
+use pump_sim::LungParams;
+use ridge_pump_firmware::command::VentArgs;
+use ridge_pump_firmware::event::{Event, ReidVerdict};
+use ridge_pump_firmware::reid::ReidConfig;
+use ridge_pump_firmware::selfid::{Config, SelfIdentification};
+use ridge_pump_firmware::setpoint::Shape;
+use ridge_pump_firmware::units::FLOW_OFFSET;
+
+/// The defaults with the swap rule on at 80 % (the threshold the first device run used).
+static SWAP_AT_80: Config = Config {
+    frozen_ticks: 0,
+    reid: ReidConfig {
+        swap_below_fit: Some(80.0),
+        ..ReidConfig::DEFAULT
+    },
+    ..Config::DEFAULT
+};
+
+/// The defaults, but a re-estimate only on a drift or an alarm (`every` far beyond the run).
+static ON_ALARM: Config = Config {
+    frozen_ticks: 0,
+    reid: ReidConfig {
+        every: 1_000,
+        ..ReidConfig::DEFAULT
+    },
+    ..Config::DEFAULT
+};
+
+/// The defaults (swap off).
+static NO_SWAP: Config = Config {
+    frozen_ticks: 0,
+    ..Config::DEFAULT
+};
+
+fn row1_lung() -> LungParams {
+    iso_row(1).expect("row 1").lung(&LungParams::adult())
+}
+
+/// `VENT vt=VT rate=20 ti=1 wave=square peep=5 trim=on` (`vt` in mL).
+fn vent(vt: i32) -> VentArgs {
+    VentArgs {
+        vt: vt * 1_000,
+        rate: 20_000,
+        ti: Some(1_000),
+        ie: None,
+        wave: Some(Shape::Square),
+        peep: Some(5_000),
+        bias: None,
+        rise: None,
+        trim: Some(true),
+    }
+}
+
+/// A ventilated run: the events, the lung's volumes, the swaps.
+struct Run {
+    events: Vec<Event>,
+    /// The breath in progress (from 1) when each event came.
+    event_breaths: Vec<usize>,
+    /// Per breath (from 1): the volume the lung received while the valve was closed, mL.
+    delivered: Vec<f64>,
+    /// Controller swaps seen (the controller's parameters changed), at these breaths.
+    swaps: Vec<u32>,
+    /// The tick of each swap (the interval its control started) and the preview before it.
+    swap_ticks: Vec<(usize, u8)>,
+    /// The interval each breath started at (the valve closed for it).
+    breath_ticks: Vec<usize>,
+}
+
+/// Identifies on row 1's lung with its PEEP valve at 0 (as the stored model of the device
+/// tests), then ventilates with `args` for `breaths` breaths on row 1's lung (PEEP 5).
+fn ventilate(config: &'static Config, args: &VentArgs, breaths: u32) -> Run {
+    ventilate_changing(config, args, breaths, None)
+}
+
+/// [`ventilate`], the lung becoming `change.1` as breath `change.0` starts.
+fn ventilate_changing(
+    config: &'static Config,
+    args: &VentArgs,
+    breaths: u32,
+    change: Option<(usize, LungParams)>,
+) -> Run {
+    let l = row1_lung();
+    let plant = power_up_plant(&l);
+    let (mut rig, mut sm, _): (_, SelfIdentification, _) =
+        identify_with(&plant, 3, config).expect("identification");
+    rig.lung.as_mut().expect("lung").set_params(l);
+    sm.set_vent(args).expect("VENT");
+    let ticks = 300 * (breaths + 1);
+    let mut duty = sm.duty();
+    let (mut events, mut delivered, mut swaps) = (Vec::new(), Vec::new(), Vec::new());
+    let mut volume = 0.0;
+    let mut closed_before = false;
+    let mut ctrl = sm.controller().map(|c| format!("{:?}", c.rst()));
+    let (mut swap_ticks, mut breath_ticks) = (Vec::new(), Vec::new());
+    let mut event_breaths = Vec::new();
+    for t in 0..ticks as usize {
+        // The valve of the interval the last tick started.
+        rig.valve = sm.valve();
+        let closed = rig.valve == pump_sim::Valve::Closed;
+        if closed && !closed_before {
+            volume = 0.0;
+            breath_ticks.push(t.saturating_sub(1));
+            if let Some((at, lung)) = &change {
+                if breath_ticks.len() == *at {
+                    rig.lung.as_mut().expect("lung").set_params(lung.clone());
+                }
+            }
+        }
+        let flow = rig.true_flow(duty);
+        if closed {
+            volume += flow * 1000.0 / 60.0 * 0.01;
+        }
+        if !closed && closed_before {
+            delivered.push(volume);
+        }
+        closed_before = closed;
+        let word = rig.sensor.measure_raw(flow);
+        let counts = (i32::from(word) - i32::from(FLOW_OFFSET)) as i16;
+        let mut event = None;
+        let preview = sm.preview().unwrap_or(0);
+        duty = sm.tick_into(Ok(counts), &mut event);
+        sm.after_write(&mut event);
+        sm.after_pwm(&mut event);
+        let now = sm.controller().map(|c| format!("{:?}", c.rst()));
+        if now != ctrl {
+            swaps.push(delivered.len() as u32 + 1);
+            swap_ticks.push((t, preview));
+            ctrl = now;
+        }
+        if let Some(e) = event {
+            events.push(e);
+            event_breaths.push(breath_ticks.len());
+        }
+        assert!(sm.fault().is_none(), "fault: {:?}", sm.fault());
+    }
+    Run {
+        events,
+        event_breaths,
+        delivered,
+        swaps,
+        swap_ticks,
+        breath_ticks,
+    }
+}
+
+fn reports(run: &Run) -> Vec<ridge_pump_firmware::event::ReidReport> {
+    run.events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Reid(r) => Some(*r),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Each verdict against the rule it names (`min_fit` 70 %, the swap threshold `swap`).
+fn check_verdicts(reports: &[ridge_pump_firmware::event::ReidReport], swap: Option<f32>) {
+    for r in reports {
+        match r.verdict {
+            ReidVerdict::Accepted => {
+                assert!(r.fit >= 70.0 && r.fit >= r.running, "{r:?}");
+                assert!(swap.is_some_and(|s| r.running < s), "{r:?}");
+            }
+            ReidVerdict::Kept => {
+                assert!(r.fit >= 70.0 && r.fit >= r.running, "{r:?}");
+                assert!(swap.is_none_or(|s| r.running >= s), "{r:?}");
+            }
+            ReidVerdict::Fit => assert!(r.fit < 70.0 || r.fit < r.running, "{r:?}"),
+            ReidVerdict::NotExcited => assert!(r.v_rms < 5.0, "{r:?}"),
+            ReidVerdict::Model => assert!(!(0.5..=2.0).contains(&r.gain), "{r:?}"),
+            _ => {}
+        }
+    }
+}
+
+/// With the swap rule on at 80 % the adult lung's power-up controller is swapped (its model's
+/// held-out fit is far below 80 %, identified without the PEEP and exhalation valves), at a
+/// breath boundary, bumplessly: every breath after a swap delivers within ±(4 mL + 15 %).
+#[test]
+fn an_accepted_estimate_is_swapped_in_at_a_breath_boundary_bumplessly() {
+    let run = ventilate(&SWAP_AT_80, &vent(500), 12);
+    let reports = reports(&run);
+    for r in &reports {
+        println!("{r:?}");
+    }
+    println!("swaps at breaths {:?}", run.swaps);
+    for (k, v) in run.delivered.iter().enumerate() {
+        println!("breath {:2}: {v:6.1} mL", k + 1);
+    }
+    check_verdicts(&reports, Some(80.0));
+    let accepted = reports
+        .iter()
+        .filter(|r| r.verdict == ReidVerdict::Accepted)
+        .count();
+    assert!(accepted >= 1, "{reports:?}");
+    // One controller swap per accepted estimate (none from elsewhere), each at the breath
+    // boundary as the controller sees it: the next breath starts as many ticks later as the
+    // controller previewed the program before the swap.
+    assert_eq!(run.swaps.len(), accepted, "{:?}", run.swaps);
+    for &(t, preview) in &run.swap_ticks {
+        assert!(
+            run.breath_ticks.contains(&(t + usize::from(preview))),
+            "swap at tick {t}, preview {preview}, breaths at {:?}",
+            run.breath_ticks
+        );
+    }
+    // From breath 2 on (the first is the program's start from the settled flow) every breath
+    // is within the standards' band, the swapped ones included.
+    for (k, &v) in run.delivered.iter().enumerate().skip(1) {
+        assert!(
+            (v - 500.0).abs() <= 4.0 + 0.15 * 500.0,
+            "breath {}: {v:.1} mL (swaps at {:?})",
+            k + 1,
+            run.swaps
+        );
+    }
+}
+
+/// Breaths too small to excite the loop (100 mL on the 5 slm bias flow: the map's flow moves by
+/// 2.1–3.2 slm RMS, below the 5 slm of `ReidConfig::min_input_response`) give `not-excited`
+/// estimates, and the controller is never swapped, even with the rule on.
+#[test]
+fn a_refused_estimate_keeps_the_running_controller() {
+    let run = ventilate(&SWAP_AT_80, &vent(100), 8);
+    let reports = reports(&run);
+    for r in &reports {
+        println!("{r:?}");
+    }
+    check_verdicts(&reports, Some(80.0));
+    assert!(reports.len() >= 3, "{reports:?}");
+    assert!(
+        reports.iter().all(|r| r.verdict == ReidVerdict::NotExcited),
+        "{reports:?}"
+    );
+    assert!(run.swaps.is_empty(), "{:?}", run.swaps);
+}
+
+/// The default settings (swap off) on the same lung: estimates made and kept, never swapped.
+#[test]
+fn with_the_default_settings_no_controller_is_swapped() {
+    let run = ventilate(&NO_SWAP, &vent(500), 8);
+    let reports = reports(&run);
+    check_verdicts(&reports, None);
+    assert!(
+        reports.iter().any(|r| r.verdict == ReidVerdict::Kept),
+        "{reports:?}"
+    );
+    assert!(run.swaps.is_empty(), "{:?}", run.swaps);
+}
+
+/// Row 1's lung becomes C 10 R 50 as breath 10 starts. With the default settings (the swap
+/// off) every breath from two after the change is within ±(4 mL + 15 %) of 500 mL, the
+/// power-up controller and the volume trim doing it. With the swap rule on at 80 % the adult
+/// lung's controller is swapped (its model's held-out fit is far below 80 %) and the swapped
+/// controller does not reach the issue's ±(4 mL + 5 %) on the stiff lung (−15 %, at the edge
+/// of the ±(4 mL + 15 %) band): the reason the rule is off by default (docs/control.md). Both
+/// runs' verdicts follow their rules.
+#[test]
+fn after_a_lung_change_the_default_stays_in_the_band_and_the_swap_would_not() {
+    let stiff = LungParams {
+        compliance: 10.0,
+        resistance: 50.0,
+        ..row1_lung()
+    };
+    let in_band = |v: f64| (v - 500.0).abs() <= 4.0 + 0.15 * 500.0;
+    let in_band5 = |v: f64| (v - 500.0).abs() <= 4.0 + 0.05 * 500.0;
+    for (config, swap) in [(&NO_SWAP, None), (&SWAP_AT_80, Some(80.0))] {
+        let run = ventilate_changing(config, &vent(500), 20, Some((10, stiff.clone())));
+        let reports = reports(&run);
+        println!("swap rule {swap:?}: swaps at breaths {:?}", run.swaps);
+        for r in &reports {
+            println!("  {r:?}");
+        }
+        let after: Vec<f64> = run.delivered.iter().skip(11).copied().collect();
+        println!("  breaths 12-: {after:.1?}");
+        check_verdicts(&reports, swap);
+        assert!(after.len() >= 9, "{after:?}");
+        if swap.is_none() {
+            assert!(run.swaps.is_empty(), "{:?}", run.swaps);
+            assert!(after.iter().all(|&v| in_band(v)), "{after:?}");
+        } else {
+            assert!(!run.swaps.is_empty());
+            assert!(after.iter().all(|&v| !in_band5(v)), "{after:?}");
+        }
+    }
+}
+
+/// With re-estimates only on a drift or an alarm (`every` 1 000 breaths): they start at the
+/// first breath boundary after the first `DRIFT` or alarm, and not before. On the ventilated
+/// lung the monitor raises `DRIFT` within the first breaths (the power-up model, identified
+/// without the PEEP and exhalation valves, mispredicts the breaths) and its flag stays raised,
+/// so from then on a re-estimate starts at every free boundary, as with `every` 1.
+#[test]
+fn a_drift_or_an_alarm_starts_a_re_estimate() {
+    let run = ventilate(&ON_ALARM, &vent(500), 10);
+    let first_trigger = run
+        .events
+        .iter()
+        .zip(&run.event_breaths)
+        .find(|(e, _)| {
+            matches!(
+                e,
+                Event::Drift { .. }
+                    | Event::Alarm { on: true, .. }
+                    | Event::VolumeAlarm { on: true, .. }
+            )
+        })
+        .map(|(_, &b)| b)
+        .expect("no DRIFT or alarm");
+    let reports = reports(&run);
+    println!(
+        "first DRIFT or alarm in breath {first_trigger}; REID breaths {:?}",
+        reports.iter().map(|r| r.breath).collect::<Vec<_>>()
+    );
+    assert!(!reports.is_empty());
+    assert_eq!(reports[0].breath as usize, first_trigger + 1, "{reports:?}");
+    check_verdicts(&reports, None);
+}
