@@ -98,7 +98,8 @@ impl<S: Settings> SelfIdentification<S> {
 
     /// Run mode ventilates: volume-controlled breaths of a `VENT` command, checked by
     /// [`ventilation::settings`](crate::ventilation::settings) (`Err(<setting>)`, nothing
-    /// changes), from breath 1 now (or from the start of run mode).
+    /// changes), from now (or from the start of run mode): a lead-in of one expiration, then
+    /// breath 1 ([`crate::setpoint`]'s module docs).
     pub fn set_vent(&mut self, args: &VentArgs) -> Result<(), &'static str> {
         let breath = crate::ventilation::settings(args, self.settings.config().flow_limit)?;
         self.use_program(Program::Volume(breath));
