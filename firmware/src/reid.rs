@@ -223,6 +223,15 @@ impl Reid {
         self.due.take()
     }
 
+    /// The verdict of run mode's re-design for the accepted estimate (`design`: refused),
+    /// put where [`take_report`](Self::take_report) finds it. One re-estimate runs at a time
+    /// and run mode holds an accepted estimate's line until its re-design's verdict, so the
+    /// report waiting is this estimate's `accepted`: the refusal takes its place (one line per
+    /// re-estimate), and nothing is dropped when the tick already has an event.
+    pub fn report(&mut self, report: ReidReport) {
+        self.due = Some(report);
+    }
+
     /// One unit of the fit, or one held-out sample `(u, y)` (slm).
     fn step(&mut self, u: f32, y: f32) {
         match &mut self.job {

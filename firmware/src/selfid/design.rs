@@ -123,7 +123,7 @@ impl<S: Settings> SelfIdentification<S> {
                 if c.tau.is_none() {
                     d.set_reference(REFERENCE_POLE).ok();
                 }
-                run.set_swap(model, d);
+                run.set_swap(model, d, event);
             }
             (Err(_), _) => run.swap_refused(&model, event),
         }

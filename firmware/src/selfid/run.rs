@@ -228,7 +228,9 @@ impl RunMode {
         if let Some(model) = self.reid.after_pwm(v, reading, boundary, trigger) {
             self.candidate = Some(model);
         }
-        if event.is_none() {
+        // An accepted estimate's line waits for its re-design's verdict (`redesign`, in the
+        // same pass): `accepted` once designed, `design` if refused.
+        if event.is_none() && self.candidate.is_none() {
             *event = self.reid.take_report().map(Event::Reid);
         }
     }
@@ -241,26 +243,36 @@ impl RunMode {
     }
 
     /// The design `d` for the accepted re-estimate `model`: swapped in at the next breath
-    /// boundary as the controller sees it.
+    /// boundary as the controller sees it; its `REID … verdict=accepted` line into `event` if
+    /// empty, else at the next tick without another event.
     #[cfg(not(target_arch = "avr"))]
-    pub(super) fn set_swap(&mut self, model: ArxModel<f32>, d: Design<f32>) {
+    pub(super) fn set_swap(
+        &mut self,
+        model: ArxModel<f32>,
+        d: Design<f32>,
+        event: &mut Option<Event>,
+    ) {
         self.swap = Some((model, d));
+        if event.is_none() {
+            *event = self.reid.take_report().map(Event::Reid);
+        }
     }
 
     /// The design for the accepted re-estimate `model` was refused: the running model and
-    /// controller stay; the `REID … verdict=design` line.
+    /// controller stay; the `REID … verdict=design` line into `event` if empty, else at the
+    /// next tick without another event.
     #[cfg(not(target_arch = "avr"))]
     pub(super) fn swap_refused(&mut self, model: &ArxModel<f32>, event: &mut Option<Event>) {
-        let report = ReidReport {
+        self.reid.report(ReidReport {
             breath: self.vent.breath(),
             verdict: ReidVerdict::Design,
             gain: model.static_gain(),
             fit: f32::NAN,
             running: f32::NAN,
             v_rms: f32::NAN,
-        };
+        });
         if event.is_none() {
-            *event = Some(Event::Reid(report));
+            *event = self.reid.take_report().map(Event::Reid);
         }
     }
 
