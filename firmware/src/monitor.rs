@@ -55,8 +55,9 @@ pub struct MonitorConfig {
     pub seconds: u8,
     /// Ticks whose duty (1/10 000) is below this are not scored.
     pub min_duty: u16,
-    /// Start a new identification when a drift is raised. Off by default: the excitation
-    /// sweeps the pump over 20..90 % for a minute, which the application must allow.
+    /// Start a new identification when a drift is raised, except while a volume program runs
+    /// (the drift is then only reported). Off by default: the excitation sweeps the pump over
+    /// 20..90 % for a minute, which the application must allow.
     pub reidentify: bool,
 }
 
@@ -100,11 +101,34 @@ pub struct Monitor {
     /// Consecutive windows above the limit.
     over: u8,
     drift: bool,
+    /// A volume program runs: the breath rule decides, not the windows'.
+    vent: bool,
+    /// Σe and scored samples of the breath in progress (volume program), slm.
+    breath_sum: f32,
+    breath_n: u16,
+    /// Breath boundaries since the program started or the model was swapped.
+    boundaries: u8,
+    /// The baseline breath's mean residual, slm (NaN until it is complete).
+    base: f32,
 }
 
+/// The breath boundary that ends the ventilated baseline breath, counted from the program's
+/// start (the first ends the lead-in: the baseline is breath 3, once the volume trim has
+/// settled) or from a model swap (the first ends the swap's part-breath: the baseline is the
+/// third whole breath on the new model). Module docs, "While ventilating".
+pub const BASELINE_BOUNDARY: u8 = 4;
+
+/// While ventilating: the largest change of a breath's mean residual from the baseline
+/// breath's, slm (module docs, "While ventilating").
+pub const BREATH_MEAN_SLM: f32 = 0.15;
+
+/// While ventilating: consecutive breaths beyond [`BREATH_MEAN_SLM`] that raise a drift.
+pub const DRIFT_BREATHS: u8 = 2;
+
 impl Monitor {
-    /// A monitor of `model` (physical units: the map's flow in slm in, the flow in slm out).
-    pub fn new(model: ArxModel<f32>, cfg: MonitorConfig) -> Self {
+    /// A monitor of `model` (physical units: the map's flow in slm in, the flow in slm out);
+    /// `vent`: a volume program runs ([`set_ventilating`](Self::set_ventilating)).
+    pub fn new(model: ArxModel<f32>, cfg: MonitorConfig, vent: bool) -> Self {
         Monitor {
             cfg,
             predictor: Predictor::new(model, Mode::OneStep),
@@ -116,13 +140,58 @@ impl Monitor {
             sum_y: 0.0,
             over: 0,
             drift: false,
+            vent,
+            breath_sum: 0.0,
+            breath_n: 0,
+            boundaries: 0,
+            base: f32::NAN,
         }
     }
 
     /// Monitors `model` from now on (the controller's model was swapped): the windows and the
     /// drift flag start afresh.
     pub fn set_model(&mut self, model: ArxModel<f32>) {
-        *self = Monitor::new(model, self.cfg);
+        *self = Monitor::new(model, self.cfg, self.vent);
+    }
+
+    /// A volume program starts (`true`) or ends: the drift decision moves to the breath rule
+    /// (or back to the windows'), with a new baseline, the counts and the drift flag afresh.
+    // Out of line: smaller ATmega2560 image.
+    #[inline(never)]
+    pub fn set_ventilating(&mut self, on: bool) {
+        self.vent = on;
+        self.over = 0;
+        self.drift = false;
+        self.breath_sum = 0.0;
+        self.breath_n = 0;
+        self.boundaries = 0;
+        self.base = f32::NAN;
+    }
+
+    /// A volume program's breath boundary (a breath starts): the mean residual of the breath
+    /// (or lead-in) that ended becomes the baseline ([`BASELINE_BOUNDARY`]) or, after it, is
+    /// compared with it; a drift is raised with the next window's report. Ignored outside a
+    /// volume program.
+    // Out of line: once a breath, after the PWM write.
+    #[inline(never)]
+    pub fn breath_end(&mut self) {
+        if !self.vent {
+            return;
+        }
+        let mean = self.breath_sum / f32::from(self.breath_n.max(1));
+        self.breath_sum = 0.0;
+        self.breath_n = 0;
+        self.boundaries = self.boundaries.saturating_add(1);
+        if self.boundaries == BASELINE_BOUNDARY {
+            self.base = mean;
+        } else if self.boundaries > BASELINE_BOUNDARY {
+            // NaN (a diverging model, no baseline) counts as beyond.
+            if Real::abs(mean - self.base) <= BREATH_MEAN_SLM {
+                self.over = 0;
+            } else {
+                self.over = self.over.saturating_add(1);
+            }
+        }
     }
 
     /// Whether a drift was raised (latched).
@@ -148,6 +217,8 @@ impl Monitor {
                 self.sum_e2 += e * e;
                 self.sum_y += y;
                 self.scored = self.scored.saturating_add(1);
+                self.breath_sum += e;
+                self.breath_n = self.breath_n.saturating_add(1);
             }
         }
         self.ticks = self.ticks.saturating_add(1);
@@ -180,18 +251,24 @@ impl Monitor {
         // RMS ≤ abs + rel·level ⟺ n·Σe² ≤ (n·abs + rel·|Σy|)², and
         // |mean| ≤ abs + rel·level ⟺ |Σe| ≤ n·abs + rel·|Σy|. NaN residuals (a diverging
         // model) count as above the limit.
-        let n = f32::from(self.scored);
-        let level = Real::abs(self.sum_y);
-        let rms_limit = n * self.cfg.rms_abs + self.cfg.rms_rel * level;
-        let mean_limit = n * self.cfg.mean_abs + self.cfg.mean_rel * level;
-        let above =
-            !(n * self.sum_e2 <= rms_limit * rms_limit && Real::abs(self.sum_e) <= mean_limit);
-        if above {
-            self.over = self.over.saturating_add(1);
+        let needed = if self.vent {
+            // The breath rule counts `over` at the breath boundaries.
+            DRIFT_BREATHS
         } else {
-            self.over = 0;
-        }
-        if !self.drift && self.over >= self.cfg.seconds.max(1) {
+            let n = f32::from(self.scored);
+            let level = Real::abs(self.sum_y);
+            let rms_limit = n * self.cfg.rms_abs + self.cfg.rms_rel * level;
+            let mean_limit = n * self.cfg.mean_abs + self.cfg.mean_rel * level;
+            let above =
+                !(n * self.sum_e2 <= rms_limit * rms_limit && Real::abs(self.sum_e) <= mean_limit);
+            if above {
+                self.over = self.over.saturating_add(1);
+            } else {
+                self.over = 0;
+            }
+            self.cfg.seconds
+        };
+        if !self.drift && self.over >= needed.max(1) {
             self.drift = true;
             *event = Some(Event::Drift {
                 residuals: r,

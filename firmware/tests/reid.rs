@@ -210,6 +210,12 @@ fn an_accepted_estimate_is_swapped_in_at_a_breath_boundary_bumplessly() {
     // boundary as the controller sees it: the next breath starts as many ticks later as the
     // controller previewed the program before the swap.
     assert_eq!(run.swaps.len(), accepted, "{:?}", run.swaps);
+    // The swapped model's monitor takes a new ventilated baseline: no `DRIFT` on the steady
+    // lung.
+    assert!(
+        !run.events.iter().any(|e| matches!(e, Event::Drift { .. })),
+        "DRIFT after a swap"
+    );
     for &(t, preview) in &run.swap_ticks {
         assert!(
             run.breath_ticks.contains(&(t + usize::from(preview))),
@@ -299,13 +305,19 @@ fn after_a_lung_change_the_default_stays_in_the_band_and_the_swap_would_not() {
 }
 
 /// With re-estimates only on a drift or an alarm (`every` 1 000 breaths): they start at the
-/// first breath boundary after the first `DRIFT` or alarm, and not before. On the ventilated
-/// lung the monitor raises `DRIFT` within the first breaths (the power-up model, identified
-/// without the PEEP and exhalation valves, mispredicts the breaths) and its flag stays raised,
-/// so from then on a re-estimate starts at every free boundary, as with `every` 1.
+/// first breath boundary after the first `DRIFT` or alarm, and not before. On row 1's steady
+/// lung nothing triggers one (the monitor compares the breaths with its ventilated baseline,
+/// breath 3); its change to C 10 R 50 as breath 10 starts raises `DRIFT` within two breaths
+/// (`monitor`'s breath rule), and the drift flag stays raised, so from then on a re-estimate
+/// starts at every free boundary, as with `every` 1.
 #[test]
 fn a_drift_or_an_alarm_starts_a_re_estimate() {
-    let run = ventilate(&ON_ALARM, &vent(500), 10);
+    let stiff = LungParams {
+        compliance: 10.0,
+        resistance: 50.0,
+        ..row1_lung()
+    };
+    let run = ventilate_changing(&ON_ALARM, &vent(500), 16, Some((10, stiff)));
     let first_trigger = run
         .events
         .iter()
@@ -325,6 +337,7 @@ fn a_drift_or_an_alarm_starts_a_re_estimate() {
         "first DRIFT or alarm in breath {first_trigger}; REID breaths {:?}",
         reports.iter().map(|r| r.breath).collect::<Vec<_>>()
     );
+    assert!((10..=12).contains(&first_trigger), "{first_trigger}");
     assert!(!reports.is_empty());
     assert_eq!(reports[0].breath as usize, first_trigger + 1, "{reports:?}");
     check_verdicts(&reports, None);

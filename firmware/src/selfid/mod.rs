@@ -425,11 +425,14 @@ impl<S: Settings> SelfIdentification<S> {
     }
 
     /// A drift from the monitor: the flag, and a new identification when it asks for one
-    /// (from the next tick on, which then holds the base duty).
+    /// (from the next tick on, which then holds the base duty), never while a volume program
+    /// runs: the drift is then reported (and on boards with [`crate::reid`] it triggers a
+    /// re-estimate at the next breath boundary), the breaths go on.
     fn run_event(&mut self, event: Option<&Event>) {
         if let Some(Event::Drift { reidentify, .. }) = event {
             self.drift = true;
-            if *reidentify {
+            let ventilating = matches!(&self.phase, Phase::Run(run) if run.volume_program());
+            if *reidentify && !ventilating {
                 self.request_reidentification();
             }
         }

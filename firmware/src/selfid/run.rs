@@ -113,7 +113,7 @@ impl RunMode {
         ctrl.start(v, y0);
         let (gain, offset) = steady_state(&model);
         RunMode {
-            monitor: Monitor::new(model, cfg.monitor),
+            monitor: Monitor::new(model, cfg.monitor, matches!(program, Program::Volume(_))),
             ctrl,
             table,
             setpoint: Setpoint::new(program, y0),
@@ -207,6 +207,9 @@ impl RunMode {
             .vent
             .after_pwm(&mut self.setpoint, phase, reading, self.ended, event)
             .map(|a| (a, self.applied));
+        if phase == 0 {
+            self.monitor.breath_end();
+        }
         #[cfg(not(target_arch = "avr"))]
         self.reidentify(phase, reading, drift, event);
         #[cfg(target_arch = "avr")]
@@ -323,11 +326,19 @@ impl RunMode {
         self.breath.is_some()
     }
 
+    /// Whether the program is a volume program (from its first tick, before
+    /// [`ventilating`](Self::ventilating) says so).
+    pub(super) fn volume_program(&self) -> bool {
+        matches!(self.setpoint.program(), Program::Volume(_))
+    }
+
     /// Tracks `program` from now on, starting from the setpoint in progress (the
     /// re-identification starts afresh, its held-out span the program's breath).
     pub(super) fn set_program(&mut self, program: Program) {
         self.setpoint = Setpoint::new(program, self.current);
         self.vent = ventilation_for(program);
+        self.monitor
+            .set_ventilating(matches!(program, Program::Volume(_)));
         #[cfg(not(target_arch = "avr"))]
         {
             self.reid.restart(breath_ticks(program));
