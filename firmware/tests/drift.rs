@@ -117,6 +117,9 @@ fn ventilate(
     run
 }
 
+/// A lung change: its name, the ISO row, what it does to the row's lung.
+type Change = (&'static str, u8, fn(&mut LungParams));
+
 /// Row `row`'s lung with `f` applied.
 fn changed(row: u8, f: impl Fn(&mut LungParams)) -> LungParams {
     let mut l = iso_row(row).expect("row").lung(&LungParams::adult());
@@ -149,7 +152,7 @@ fn no_drift_while_the_lung_stays() {
 /// row 7 with the leak: row 7's lung already is C 10, R 50), seeds 1-5.
 #[test]
 fn a_lung_change_raises_drift_within_two_breaths() {
-    let cases: [(&str, u8, fn(&mut LungParams)); 7] = [
+    let cases: [Change; 7] = [
         ("C 10", 1, |l| l.compliance = 10.0),
         ("R 50", 1, |l| l.resistance = 50.0),
         ("leak", 1, |l| l.leak = Some(100.0)),
