@@ -92,6 +92,12 @@ fn check_run(what: &str, o: &VentOutcome, breaths: u32) {
     if o.outcome.timing.missed > 0 {
         bad.push(format!("{} overruns", o.outcome.timing.missed));
     }
+    // The lung does not change: the monitor's breath rule (firmware monitor.rs) raises no
+    // `DRIFT` against its ventilated baseline (breath 3).
+    let drifts = drifts_after_vent(bench);
+    if !drifts.is_empty() {
+        bad.push(format!("{} DRIFT lines while ventilating", drifts.len()));
+    }
     let rows = &o.rows;
     if rows.len() < breaths as usize {
         bad.push(format!("{} breaths of {breaths}", rows.len()));
@@ -222,6 +228,22 @@ fn check_run(what: &str, o: &VentOutcome, breaths: u32) {
     );
 }
 
+/// The index of the first line starting with `prefix` after `OK vent`, if any.
+fn line_after_vent(bench: &Bench, prefix: &str) -> Option<usize> {
+    let vent = bench.lines.iter().position(|l| l.text == "OK vent")?;
+    (vent..bench.lines.len()).find(|&i| bench.lines[i].text.starts_with(prefix))
+}
+
+/// The `DRIFT` lines after `OK vent` (indices into the bench's lines).
+fn drifts_after_vent(bench: &Bench) -> Vec<usize> {
+    let Some(vent) = bench.lines.iter().position(|l| l.text == "OK vent") else {
+        return Vec::new();
+    };
+    (vent..bench.lines.len())
+        .filter(|&i| bench.lines[i].text.starts_with("DRIFT"))
+        .collect()
+}
+
 fn iso_command(row: u8) -> String {
     let r = iso_row(row).expect("row");
     format!(
@@ -275,6 +297,24 @@ fn a_sudden_lung_change_is_back_in_the_band_within_two_breaths() {
         transcript(&o.outcome.bench)
     );
     assert!(o.rows.len() >= 10, "{}", transcript(&o.outcome.bench));
+    // The monitor's breath rule against its baseline (breath 3): one `DRIFT`, within two
+    // breaths of the change (after breath 4's `BREATH` line, before breath 8's).
+    let bench = &o.outcome.bench;
+    let drifts = drifts_after_vent(bench);
+    let (from, to) = (
+        line_after_vent(bench, "BREATH n=4 "),
+        line_after_vent(bench, "BREATH n=8 "),
+    );
+    println!(
+        "lung change at breath 5: DRIFT lines {drifts:?}, BREATH n=4 at {from:?}, n=8 at {to:?}"
+    );
+    assert!(
+        drifts.len() == 1
+            && from.is_some_and(|f| drifts[0] > f)
+            && to.is_some_and(|t| drifts[0] < t),
+        "{}",
+        transcript(bench)
+    );
     for r in o.rows.iter().take(10).filter(|r| r.number >= 3) {
         let d = r.truth.delivered;
         assert!(within(d, set, 0.35), "breath {}: {d:.1} mL", r.number);
