@@ -48,6 +48,18 @@ struct Run {
     breath_lines: usize,
     /// Ticks in run mode after the program started (all of them unless it left run mode).
     run_ticks: usize,
+    /// Per breath (index 0 the lead-in): Σ residual and samples of the `RES`/`DRIFT` windows
+    /// that closed in it (1 s windows, three to a breath at 20 /min), slm.
+    windows: Vec<(f32, f32)>,
+}
+
+impl Run {
+    /// Breaths 4 to `last`: the mean residual of each minus breath 3's (the baseline), slm,
+    /// from the windows (a figure to print beside the firmware's decision).
+    fn deviations(&self, last: usize) -> Vec<f32> {
+        let mean = |b: usize| self.windows.get(b).map_or(f32::NAN, |(s, n)| s / n);
+        (4..=last).map(|b| mean(b) - mean(3)).collect()
+    }
 }
 
 /// Identifies on row `row`'s lung with its PEEP valve at 0 (the power-up plant), then
@@ -85,6 +97,7 @@ fn ventilate(
         breaths: 0,
         breath_lines: 0,
         run_ticks: 0,
+        windows: vec![(0.0, 0.0); breaths as usize + 2],
     };
     for _ in 0..ticks {
         rig.valve = sm.valve();
@@ -103,10 +116,21 @@ fn ventilate(
         duty = sm.tick_into(Ok(counts), &mut event);
         sm.after_write(&mut event);
         sm.after_pwm(&mut event);
-        match event {
-            Some(Event::Drift { .. }) => run.drifts.push(run.breaths),
-            Some(Event::Breath(_)) => run.breath_lines += 1,
-            _ => {}
+        let window = match event {
+            Some(Event::Drift { residuals, .. }) => {
+                run.drifts.push(run.breaths);
+                Some(residuals)
+            }
+            Some(Event::Residual(r)) => Some(r),
+            Some(Event::Breath(_)) => {
+                run.breath_lines += 1;
+                None
+            }
+            _ => None,
+        };
+        if let (Some(r), Some(w)) = (window, run.windows.get_mut(run.breaths)) {
+            w.0 += r.sum;
+            w.1 += f32::from(r.samples);
         }
         assert!(sm.fault().is_none(), "fault: {:?}", sm.fault());
         if sm.state() == State::Run {
@@ -136,7 +160,12 @@ fn no_drift_while_the_lung_stays() {
     for row in [1, 4, 7] {
         for seed in 1..=5 {
             let run = ventilate(&DEFAULTS, row, seed, None, 20);
-            println!("row {row} seed {seed}: DRIFT in breaths {:?}", run.drifts);
+            let dev = run.deviations(19);
+            let worst = dev.iter().fold(0.0f32, |m, d| m.max(d.abs()));
+            println!(
+                "row {row} seed {seed}: DRIFT in breaths {:?}; breaths 4-19 within {worst:.3} slm of breath 3",
+                run.drifts
+            );
             assert!(
                 run.drifts.is_empty(),
                 "row {row} seed {seed}: {:?}",
@@ -164,9 +193,11 @@ fn a_lung_change_raises_drift_within_two_breaths() {
     for (name, row, f) in cases {
         for seed in 1..=5 {
             let run = ventilate(&DEFAULTS, row, seed, Some(&changed(row, f)), 16);
+            let dev = run.deviations(15);
             println!(
-                "row {row} {name} seed {seed}: DRIFT in breaths {:?}",
-                run.drifts
+                "row {row} {name} seed {seed}: DRIFT in breaths {:?}; breaths 10-15 minus breath 3 {:.2?} slm",
+                run.drifts,
+                dev.get(6..).unwrap_or(&[])
             );
             assert_eq!(run.drifts.len(), 1, "row {row} {name} seed {seed}");
             let after = run.drifts[0] - CHANGE;

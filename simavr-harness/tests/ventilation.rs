@@ -305,9 +305,13 @@ fn a_sudden_lung_change_is_back_in_the_band_within_two_breaths() {
         line_after_vent(bench, "BREATH n=4 "),
         line_after_vent(bench, "BREATH n=8 "),
     );
-    println!(
-        "lung change at breath 5: DRIFT lines {drifts:?}, BREATH n=4 at {from:?}, n=8 at {to:?}"
-    );
+    let before = drifts.first().and_then(|&d| {
+        (0..d)
+            .rev()
+            .find(|&i| bench.lines[i].text.starts_with("BREATH n="))
+            .map(|i| bench.lines[i].text.as_str())
+    });
+    println!("lung change at breath 5: DRIFT lines {drifts:?}, the last BREATH line before it {before:?}");
     assert!(
         drifts.len() == 1
             && from.is_some_and(|f| drifts[0] > f)
