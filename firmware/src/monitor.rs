@@ -189,11 +189,16 @@ impl Monitor {
         *self = Monitor::new(model, self.cfg, self.vent);
     }
 
-    /// A volume program starts (`true`) or ends: the drift decision moves to the breath rule
-    /// (or back to the windows'), with a new baseline, the counts and the drift flag afresh.
+    /// A program starts: `on` for a volume program (a new `VENT` too: its breaths differ), whose
+    /// drift decision is the breath rule with a new baseline, the counts and the drift flag
+    /// afresh; back to the windows' rule, afresh, when a volume program ends; nothing between
+    /// two other programs (the windows and the flag go on, as before volume programs).
     // Out of line: smaller ATmega2560 image.
     #[inline(never)]
     pub fn set_ventilating(&mut self, on: bool) {
+        if !on && !self.vent {
+            return;
+        }
         self.vent = on;
         self.over = 0;
         self.drift = false;
@@ -205,15 +210,14 @@ impl Monitor {
 
     /// A volume program's breath boundary (a breath starts): the mean residual of the breath
     /// (or lead-in) that ended becomes the baseline ([`BASELINE_BOUNDARY`]) or, after it, is
-    /// compared with it; a drift is raised with the next window's report. Ignored outside a
-    /// volume program.
+    /// compared with it; a drift is raised with the next window's report. Called by run mode
+    /// only while a volume program runs (its breath phase), after
+    /// [`set_ventilating`](Self::set_ventilating)`(true)`. A breath without a scored sample
+    /// has a NaN mean: beyond.
     // Out of line: once a breath, after the PWM write.
     #[inline(never)]
     pub fn breath_end(&mut self) {
-        if !self.vent {
-            return;
-        }
-        let mean = self.breath_sum / f32::from(self.breath_n.max(1));
+        let mean = self.breath_sum / f32::from(self.breath_n);
         self.breath_sum = 0.0;
         self.breath_n = 0;
         self.boundaries = self.boundaries.saturating_add(1);
@@ -252,8 +256,13 @@ impl Monitor {
                 self.sum_e2 += e * e;
                 self.sum_y += y;
                 self.scored = self.scored.saturating_add(1);
-                self.breath_sum += e;
-                self.breath_n = self.breath_n.saturating_add(1);
+                // Only while ventilating: the other programs' ticks stay as they were (with these
+                // sums in every tick, simavr's console test `commands_on_the_running_pump` saw
+                // one tick overrun with the log on; the cause was not found).
+                if self.vent {
+                    self.breath_sum += e;
+                    self.breath_n = self.breath_n.saturating_add(1);
+                }
             }
         }
         self.ticks = self.ticks.saturating_add(1);
