@@ -87,6 +87,9 @@ pub fn run(cfg: &VentConfig) -> Result<VentOutcome, String> {
     let bench_cfg = &cfg.session.bench;
     let sizes = firmware::sizes(&bench_cfg.elf)?;
     let mut bench = Bench::new(bench_cfg.clone())?;
+    if cfg.session.log {
+        bench.send_after(|_| true, 0.0, b"LOG on\n".to_vec());
+    }
     if let Some(l) = &mut bench.lung {
         let p = LungChange {
             peep: Some(cfg.identify_peep),

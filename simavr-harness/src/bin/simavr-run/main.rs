@@ -142,17 +142,26 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let mut status = print_outcome(&args, &cfg, &out, None);
-    if let Some(path) = &args.log {
-        match capture::write_capture(&out.bench, path) {
-            Ok(c) => println!("\n== log\n  {} ({c})", path.display()),
-            Err(e) => {
-                println!("\n== log\n  failed: {e}");
-                status = ExitCode::FAILURE;
-            }
+    let status = print_outcome(&args, &cfg, &out, None);
+    write_log(&args, &out, status)
+}
+
+/// `--log PATH`: what the firmware streamed after `LOG on`, as `ridge-id capture` writes it;
+/// `status` becomes a failure when it cannot be written.
+fn write_log(args: &Args, out: &Outcome, status: ExitCode) -> ExitCode {
+    let Some(path) = &args.log else {
+        return status;
+    };
+    match capture::write_capture(&out.bench, path) {
+        Ok(c) => {
+            println!("\n== log\n  {} ({c})", path.display());
+            status
+        }
+        Err(e) => {
+            println!("\n== log\n  failed: {e}");
+            ExitCode::FAILURE
         }
     }
-    status
 }
 
 /// `--mode volume`: identify, design, send `VENT`, run the breaths, print.
@@ -220,12 +229,13 @@ fn ventilate(args: &Args, cfg: SessionConfig) -> ExitCode {
     };
     let status = print_outcome(args, &vc.session, &out.outcome, Some(out.breath));
     let ok = vent::print(&out, &command, args.vent.breaths);
-    if status == ExitCode::SUCCESS && ok {
+    let status = if status == ExitCode::SUCCESS && ok {
         ExitCode::SUCCESS
     } else {
         println!("\nsimavr-run: the firmware did not ventilate as asked");
         ExitCode::FAILURE
-    }
+    };
+    write_log(args, &out.outcome, status)
 }
 
 fn print_outcome(
