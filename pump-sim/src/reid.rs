@@ -81,10 +81,16 @@ fn settled(plant: &PlantArgs, lung: &LungParams, duty: f64) -> Rig {
 /// the duty found by bisection on the settled flow, then `±DELTA` steps from there.
 pub fn linearisation(plant: &PlantArgs, lung: &LungParams, flow: f64) -> Linearisation {
     let duty = steady_duty(plant, lung, flow);
-    let base = settled(plant, lung, duty);
+    dithered(&settled(plant, lung, duty), flow, duty, STEP_TICKS)
+}
+
+/// The response of `base` (already set up: settled, its valve as wanted) to the duty `duty`
+/// `±DELTA` for `ticks` ticks: the flow's difference over `2 DELTA` tick by tick (slm per duty
+/// fraction) and its last value as the gain; `flow` (slm) is the operating point it is named by.
+fn dithered(base: &Rig, flow: f64, duty: f64, ticks: usize) -> Linearisation {
     let run = |d: f64| {
         let mut rig = base.clone();
-        (0..STEP_TICKS).map(|_| rig.flow_at(d)).collect::<Vec<_>>()
+        (0..ticks).map(|_| rig.flow_at(d)).collect::<Vec<_>>()
     };
     let (up, down) = (run(duty + DELTA), run(duty - DELTA));
     let step: Vec<f64> = up
@@ -132,26 +138,10 @@ pub fn closed_valve_step(
     flow: f64,
     ticks: usize,
 ) -> Linearisation {
-    let base = settled(plant, lung, steady_duty(plant, lung, from));
+    let mut base = settled(plant, lung, steady_duty(plant, lung, from));
     let duty = steady_duty(plant, lung, flow);
-    let run = |d: f64| {
-        let mut rig = base.clone();
-        rig.valve = crate::Valve::Closed;
-        (0..ticks).map(|_| rig.flow_at(d)).collect::<Vec<_>>()
-    };
-    let (up, down) = (run(duty + DELTA), run(duty - DELTA));
-    let step: Vec<f64> = up
-        .iter()
-        .zip(&down)
-        .map(|(a, b)| (a - b) / (2.0 * DELTA))
-        .collect();
-    let gain = step.last().copied().unwrap_or(0.0);
-    Linearisation {
-        flow,
-        duty,
-        step,
-        gain,
-    }
+    base.valve = crate::Valve::Closed;
+    dithered(&base, flow, duty, ticks)
 }
 
 /// The truth as the model sees it, through the power-up's static map `table` (duty → the map's
