@@ -448,6 +448,23 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
             .as_ref()
             .map(|l| (l.volume(), l.pressure(), l.airway_pressure()))
     };
+    // The breath `number` that has just ended, from its figures: volume the lung gained (mL),
+    // peak pressure, pressure at its start (cmH₂O), squared tracking errors summed (slm²).
+    let finished = |number: u32, rig: &Rig, delivered_ml: f64, peak: f64, start: f64, sq: f64| {
+        let (_, end_pressure, _) = lung_of(rig).unwrap_or_default();
+        Breath {
+            number,
+            set_ml: f64::from(vb.tidal),
+            delivered_ml,
+            measured_ml: f64::NAN,
+            command_ml: f64::NAN,
+            peak_pressure: peak,
+            end_pressure,
+            start_pressure: start,
+            peep: f64::from(vb.peep),
+            rms: (sq / f64::from(period)).sqrt(),
+        }
+    };
     // The firmware's lead-in (one expiration before breath 1, `setpoint`'s module docs): its
     // ticks are breath 0, counted nowhere.
     let lead = period - insp;
@@ -459,19 +476,7 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         // boundary moves its pressure), the re-estimation's boundary.
         if kb.is_some() && phase == 0 {
             if b > 1 {
-                let (_, p_end, _) = lung_of(&rig).unwrap_or_default();
-                breaths.push(Breath {
-                    number: b - 1,
-                    set_ml: f64::from(vb.tidal),
-                    delivered_ml: delivered,
-                    measured_ml: f64::NAN,
-                    command_ml: f64::NAN,
-                    peak_pressure: peak,
-                    end_pressure: p_end,
-                    start_pressure,
-                    peep: f64::from(vb.peep),
-                    rms: (sq / f64::from(period)).sqrt(),
-                });
+                breaths.push(finished(b - 1, &rig, delivered, peak, start_pressure, sq));
             }
             (sq, peak) = (0.0, 0.0);
             start_pressure = lung_of(&rig).map_or(f64::NAN, |l| l.1);
@@ -598,19 +603,14 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
     if let Some(Event::Breath(s)) = event {
         reported.push((s.number, f64::from(s.delivered), f64::from(s.command)));
     }
-    let (_, p_end, _) = lung_of(&rig).unwrap_or_default();
-    breaths.push(Breath {
-        number: cell.breaths,
-        set_ml: f64::from(vb.tidal),
-        delivered_ml: delivered,
-        measured_ml: f64::NAN,
-        command_ml: f64::NAN,
-        peak_pressure: peak,
-        end_pressure: p_end,
+    breaths.push(finished(
+        cell.breaths,
+        &rig,
+        delivered,
+        peak,
         start_pressure,
-        peep: f64::from(vb.peep),
-        rms: (sq / f64::from(period)).sqrt(),
-    });
+        sq,
+    ));
     for (n, vd, cmd) in reported {
         let offset = offsets.iter().find(|o| o.0 == n).map_or(0.0, |o| o.1);
         if let Some(b) = breaths.iter_mut().find(|b| b.number == n) {
