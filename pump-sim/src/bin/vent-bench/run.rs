@@ -1,0 +1,149 @@
+//! What the tables share: the power-ups and cells they run (failures printed and skipped), the
+//! lung changes of the lung-change tables, the adaptive controller's knobs under study.
+
+use pump_sim::iso::{iso_row, IsoRow, ISO_ROWS};
+use pump_sim::vent_bench::{
+    power_up, row_lung, run_cell, zn_for, Cell, CellRun, ChangeAt, Ctrl, LungChange, Outcomes,
+    Policy, PowerUp,
+};
+use pump_sim::LungParams;
+use ridge_pump_firmware::setpoint::Shape;
+
+/// The lung changes: name, `(C, R)` before and after.
+pub type Change = (&'static str, (f64, f64), (f64, f64));
+
+/// The changes of the lung-change table.
+pub const CASES: [Change; 6] = [
+    ("C 50 → 10", (50.0, 5.0), (10.0, 5.0)),
+    ("R 5 → 50", (50.0, 5.0), (50.0, 50.0)),
+    ("C 50 → 10 and R 5 → 50", (50.0, 5.0), (10.0, 50.0)),
+    ("C 10 → 50", (10.0, 5.0), (50.0, 5.0)),
+    ("R 50 → 5", (50.0, 50.0), (50.0, 5.0)),
+    ("C 10 → 50 and R 50 → 5", (10.0, 50.0), (50.0, 5.0)),
+];
+
+/// The breath of the lung-change table: row 1's.
+pub const CHANGE_BREATH: u32 = 6;
+/// Breaths run in the lung-change table.
+pub const CHANGE_RUN: u32 = 14;
+
+/// The adaptive controller's knobs under study in the lung-change tables (`--trim`,
+/// `--swap-when` and the policy's other flags).
+#[derive(Clone, Copy, Debug)]
+pub struct Knobs {
+    /// The per-breath volume trim on.
+    pub trim: bool,
+    /// When and how the adaptive controller swaps an accepted re-estimate in.
+    pub policy: Policy,
+}
+
+impl Knobs {
+    /// `cell` with these knobs.
+    pub fn apply(&self, cell: Cell) -> Cell {
+        Cell {
+            trim: self.trim,
+            policy: self.policy,
+            ..cell
+        }
+    }
+}
+
+/// The power-ups of `lung` for `seeds`, with their ZN tuning; failures printed and skipped.
+pub fn power_ups(lung: &LungParams, seeds: u64) -> Vec<PowerUp> {
+    let zn = match zn_for(lung) {
+        Ok(z) => z,
+        Err(e) => {
+            eprintln!(
+                "ZN tuning, C {} R {}: {e}",
+                lung.compliance, lung.resistance
+            );
+            return Vec::new();
+        }
+    };
+    (1..=seeds)
+        .filter_map(|seed| match power_up(lung, seed, &zn) {
+            Ok(p) => Some(p),
+            Err(e) => {
+                eprintln!(
+                    "power-up C {} R {} seed {seed}: {e}",
+                    lung.compliance, lung.resistance
+                );
+                None
+            }
+        })
+        .collect()
+}
+
+/// The power-ups (seeds 1 to `seeds`) into row 1's lung with `(C, R)`, its PEEP valve at 0:
+/// a lung change's first lung.
+pub fn power_ups_on((c, r): (f64, f64), seeds: u64) -> Vec<PowerUp> {
+    power_ups(
+        &LungParams {
+            peep: 0.0,
+            ..lung(c, r)
+        },
+        seeds,
+    )
+}
+
+/// `cell` from every power-up; failures printed and skipped.
+pub fn runs(ups: &[PowerUp], cell: &Cell) -> Vec<CellRun> {
+    ups.iter()
+        .filter_map(|p| match run_cell(p, cell) {
+            Ok(r) => Some(r),
+            Err(e) => {
+                eprintln!(
+                    "row {} {:?} {} seed {}: {e}",
+                    cell.row.row,
+                    cell.wave,
+                    cell.ctrl.name(),
+                    p.seed
+                );
+                None
+            }
+        })
+        .collect()
+}
+
+/// Row 1's square breath under `ctrl` on the lung `from` (`(C, R)`), changed to `to` in
+/// breath [`CHANGE_BREATH`] (`at`) of [`CHANGE_RUN`]: the lung-change tables' cell.
+pub fn change_cell(from: (f64, f64), to: (f64, f64), at: ChangeAt, ctrl: Ctrl) -> Cell {
+    Cell {
+        breaths: CHANGE_RUN,
+        changes: vec![LungChange {
+            breath: CHANGE_BREATH,
+            at,
+            lung: lung(to.0, to.1),
+        }],
+        ..Cell::new(with_lung(ISO_ROWS[0], from), Shape::Square, ctrl)
+    }
+}
+
+/// Row 1's lung (behind the adult exhalation valve, PEEP valve at row 1's PEEP) with the
+/// compliance `c` (mL/cmH₂O) and resistance `r` (cmH₂O/(L/s)).
+pub fn lung(c: f64, r: f64) -> LungParams {
+    LungParams {
+        compliance: c,
+        resistance: r,
+        ..row_lung(&iso_row(1).unwrap_or(ISO_ROWS[0]), ISO_ROWS[0].peep)
+    }
+}
+
+/// `row`'s breath on the lung `(C, R)`.
+pub fn with_lung(row: IsoRow, (c, r): (f64, f64)) -> IsoRow {
+    IsoRow {
+        compliance: c,
+        resistance: r,
+        ..row
+    }
+}
+
+/// The largest of `v`; −∞ if empty.
+pub fn max(v: impl IntoIterator<Item = f64>) -> f64 {
+    v.into_iter().fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// The refusals of `o` as a table cell: `fit, model, other, design`.
+pub fn refused(o: &Outcomes) -> String {
+    format!("{}, {}, {}, {}", o.fit, o.model, o.other, o.design_refused)
+}
