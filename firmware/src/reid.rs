@@ -34,7 +34,6 @@ use ridge_core::reid::{
 use ridge_core::{ArxModel, RidgeM};
 
 use crate::event::{ReidReport, ReidVerdict};
-use crate::selfid::Config;
 use crate::units::{MODEL_SCALE, SLM_PER_COUNT};
 
 /// The window's forgetting per breath, `λ = 1 − 2^{−SHIFT}` = 3/4 (docs/control.md: no window
@@ -113,34 +112,30 @@ pub struct Reid {
 }
 
 impl Reid {
-    /// Re-identification of `running`'s structure and intercept with `cfg`'s estimator (Ridge-M
-    /// as the search's, the paper's otherwise) and checks (the model limits, `min_response`,
-    /// `min_fit`), one breath of `holdout` ticks held out.
-    pub fn new(cfg: &Config, running: ArxModel<f32>, holdout: u32) -> Self {
+    /// Re-identification of `running`'s structure and intercept with the estimator `method`,
+    /// the checks `accept` (its `holdout_min` ticks held out: one breath) and `cfg`'s trigger
+    /// and swap rule. Run mode builds them from its settings
+    /// ([`crate::selfid::Config::reidentification`]).
+    pub fn new(
+        method: RidgeM<f32>,
+        accept: Acceptance<f32>,
+        cfg: &ReidConfig,
+        running: ArxModel<f32>,
+    ) -> Self {
         let mut store = [0i64; WINDOW_LEN_MAX];
         let window = Window::new(running.structure(), running.offset(), SHIFT, &mut store)
             .ok()
             .map(Window::detach);
-        let method = match cfg.search.method {
-            ridge_core::Method::RidgeM(m) => m,
-            _ => RidgeM::PAPER,
-        };
         Reid {
             store,
             window,
             job: Job::Idle,
             method,
-            accept: Acceptance {
-                model: cfg.control.model,
-                min_response: cfg.min_response,
-                min_input_response: cfg.reid.min_input_response,
-                min_fit: cfg.min_fit,
-                holdout_min: holdout,
-            },
+            accept,
             running,
             since: 0,
-            every: cfg.reid.every,
-            swap_below_fit: cfg.reid.swap_below_fit,
+            every: cfg.every,
+            swap_below_fit: cfg.swap_below_fit,
             due: None,
         }
     }

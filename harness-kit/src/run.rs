@@ -406,6 +406,6 @@ pub fn reid_replay(
         .find(|(_, t)| t.starts_with("MAP "))
         .ok_or("REID lines without a MAP line")?;
     let map = MapLine::parse(map_line.1).map_err(|e| format!("{}: {e}", map_line.1))?;
-    let reid = Reid::new(&DEFAULT_CONFIG, model, u32::from(b.wave.period()));
+    let reid = DEFAULT_CONFIG.reidentification(model, u32::from(b.wave.period()));
     Ok(Some((reid, map.map.table())))
 }

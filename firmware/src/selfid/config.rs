@@ -377,4 +377,29 @@ impl Config {
         #[cfg(not(target_arch = "avr"))]
         reid: crate::reid::ReidConfig::DEFAULT,
     };
+
+    /// Run mode's re-identification of `running`, from these settings: the search's Ridge-M
+    /// (the paper's for another method), the power-up model's checks where they apply (the
+    /// controller's model limits, [`min_response`](Self::min_response),
+    /// [`min_fit`](Self::min_fit)) with [`reid`](Self::reid)'s input rule, `holdout` ticks held
+    /// out (one breath), and its trigger and swap rule.
+    #[cfg(not(target_arch = "avr"))]
+    pub fn reidentification(
+        &self,
+        running: ridge_core::ArxModel<f32>,
+        holdout: u32,
+    ) -> crate::reid::Reid {
+        let method = match self.search.method {
+            ridge_core::Method::RidgeM(m) => m,
+            _ => ridge_core::RidgeM::PAPER,
+        };
+        let accept = ridge_core::reid::Acceptance {
+            model: self.control.model,
+            min_response: self.min_response,
+            min_input_response: self.reid.min_input_response,
+            min_fit: self.min_fit,
+            holdout_min: holdout,
+        };
+        crate::reid::Reid::new(method, accept, &self.reid, running)
+    }
 }

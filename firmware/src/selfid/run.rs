@@ -134,7 +134,7 @@ impl RunMode {
             ended: y0,
             vent: ventilation_for(program),
             #[cfg(not(target_arch = "avr"))]
-            reid: Reid::new(cfg, model, breath_ticks(program)),
+            reid: cfg.reidentification(model, breath_ticks(program)),
             #[cfg(not(target_arch = "avr"))]
             candidate: None,
             #[cfg(not(target_arch = "avr"))]
