@@ -1,7 +1,8 @@
 //! The exhalation valve of the STM32F411 release image (PB0, high = closed, docs/boards.md),
 //! closed loop with ISO 80601-2-12 row 1's test lung, as
 //! `simavr-harness/tests/ventilation.rs` checks the ATmega2560's D22: volume-controlled
-//! breaths (`VENT` over the console) close it for each inspiration, and a fault opens it
+//! breaths (`VENT` over the console) close it for each inspiration, after a lead-in of one
+//! expiration, and a fault opens it
 //! within two ticks of the `FAULT` line, with the pump off, for good.
 //!
 //! Truths: the level PB0 drives (GPIOB's MODER and ODR at every plant step, the bench's
@@ -47,11 +48,8 @@ fn valve_closes_in_inspiration_and_opens_on_a_sensor_fault() {
         r.tidal, r.peep
     );
     b.send_at(b.time_s(), cmd.as_bytes());
-    assert!(
-        run_to(&mut b, 0.2, "OK vent").is_some(),
-        "{}",
-        transcript(&b)
-    );
+    let ok = run_to(&mut b, 0.2, "OK vent").unwrap_or_else(|| panic!("{}", transcript(&b)));
+    let ok_at = b.lines[ok].start;
     // Three breaths of 3 s; stop 0.3 s into the fourth inspiration.
     let t0 = b.time_s();
     while closures(&b).len() < 4 && b.time_s() < t0 + 12.0 {
@@ -60,6 +58,13 @@ fn valve_closes_in_inspiration_and_opens_on_a_sensor_fault() {
     b.run_for(0.3).expect("run");
     let c = closures(&b);
     assert_eq!(c.len(), 4, "{:?}\n{}", c, transcript(&b));
+    // The lead-in: one expiration (3 s − 1 s = 2 s) with the valve open before breath 1, from
+    // the tick that answered the command (its line starts within that tick), a tick either way.
+    assert!(
+        (c[0].0 - ok_at).abs_diff(ps(2.0)) <= 2 * TICK,
+        "first closing {} s after OK vent",
+        secs(c[0].0 - ok_at)
+    );
     for (i, &(at, len)) in c.iter().take(3).enumerate() {
         // Inspiration 1 s, one tick either way; breaths 3 s apart, one tick either way.
         assert!(
