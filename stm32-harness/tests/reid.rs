@@ -22,7 +22,7 @@
 
 mod common;
 
-use common::{assert_stopped, elf, flash_with_row1_model, iso_lung, run_to, transcript};
+use common::{assert_stopped, iso_lung, row1_in_run_mode, run_to, start_vent_row1, transcript};
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::iso_row;
 use pump_sim::reid::{linearisation, secant_through_map};
@@ -34,18 +34,9 @@ use ridge_pump_firmware::lines::{BreathLine, ReidLine};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use ridge_pump_firmware::setpoint::Shape;
 use ridge_pump_firmware::ventilation::settings;
-use stm32_harness::bench::{Action, Bench, BenchConfig};
+use stm32_harness::bench::{Action, Bench};
 use stm32_harness::sensor::Fault;
 use stm32_harness::tracking::run_trace_vent;
-
-/// Row 1's breaths: `VENT` with its volume and PEEP, 20 /min, Ti 1 s, square.
-fn vent_row1() -> String {
-    let r = iso_row(1).expect("row 1");
-    format!(
-        "VENT vt={} rate=20 ti=1 wave=square peep={} trim=on\n",
-        r.tidal, r.peep
-    )
-}
 
 /// Runs until `n` more valve closures (breath starts) happened; the closures' count.
 fn run_breaths(b: &mut Bench, n: usize) -> usize {
@@ -71,17 +62,8 @@ fn reids(b: &Bench) -> Vec<ReidLine> {
 
 #[test]
 fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
-    let mut cfg = BenchConfig::new(elf());
-    cfg.lung = Some(iso_lung());
-    cfg.flash = Some(flash_with_row1_model());
-    let mut b = Bench::new(cfg).expect("bench");
-    assert!(run_to(&mut b, 10.0, "CTRL").is_some(), "{}", transcript(&b));
-    b.send_at(b.time_s(), vent_row1().as_bytes());
-    assert!(
-        run_to(&mut b, 0.2, "OK vent").is_some(),
-        "{}",
-        transcript(&b)
-    );
+    let mut b = row1_in_run_mode();
+    start_vent_row1(&mut b);
     let vent_from = b.machine.now();
     // Nine breaths on the adult lung, the change as breath 10 starts (its valve closes), ten on
     // the stiff lung.
@@ -275,17 +257,8 @@ fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
 /// exhalation valve open), and the re-estimate is gone with run mode: no `REID` line after it.
 #[test]
 fn a_fault_during_a_re_estimate_stops_the_pump_and_drops_it() {
-    let mut cfg = BenchConfig::new(elf());
-    cfg.lung = Some(iso_lung());
-    cfg.flash = Some(flash_with_row1_model());
-    let mut b = Bench::new(cfg).expect("bench");
-    assert!(run_to(&mut b, 10.0, "CTRL").is_some(), "{}", transcript(&b));
-    b.send_at(b.time_s(), vent_row1().as_bytes());
-    assert!(
-        run_to(&mut b, 0.2, "OK vent").is_some(),
-        "{}",
-        transcript(&b)
-    );
+    let mut b = row1_in_run_mode();
+    start_vent_row1(&mut b);
     assert_eq!(run_breaths(&mut b, 2), 2, "{}", transcript(&b));
     b.run_for(1.0).expect("run");
     assert!(b.find("REID").next().is_none(), "{}", transcript(&b));

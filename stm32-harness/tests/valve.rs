@@ -12,10 +12,10 @@
 
 mod common;
 
-use common::{assert_stopped, elf, flash_with_row1_model, iso_lung, run_to, transcript, TICK};
+use common::{assert_stopped, row1_in_run_mode, run_to, start_vent_row1, transcript, TICK};
 use pump_sim::iso::iso_row;
 use pump_sim::Valve;
-use stm32_harness::bench::{ps, secs, Action, Bench, BenchConfig};
+use stm32_harness::bench::{ps, secs, Action, Bench};
 use stm32_harness::sensor::Fault;
 
 /// The times PB0 closed the valve (ps) and how long each closure lasted (ps; the last one up
@@ -34,21 +34,12 @@ fn closures(b: &Bench) -> Vec<(u64, u64)> {
 
 #[test]
 fn valve_closes_in_inspiration_and_opens_on_a_sensor_fault() {
-    let mut cfg = BenchConfig::new(elf());
-    cfg.lung = Some(iso_lung());
-    cfg.flash = Some(flash_with_row1_model());
-    let mut b = Bench::new(cfg).expect("bench");
-    assert!(run_to(&mut b, 10.0, "CTRL").is_some(), "{}", transcript(&b));
+    let mut b = row1_in_run_mode();
     assert_eq!(b.valve_now(), Valve::Open, "open until ventilation starts");
     assert!(b.valve_log.is_empty(), "closed before VENT");
 
     let r = iso_row(1).expect("row 1");
-    let cmd = format!(
-        "VENT vt={} rate=20 ti=1 wave=square peep={} trim=on\n",
-        r.tidal, r.peep
-    );
-    b.send_at(b.time_s(), cmd.as_bytes());
-    let ok = run_to(&mut b, 0.2, "OK vent").unwrap_or_else(|| panic!("{}", transcript(&b)));
+    let ok = start_vent_row1(&mut b);
     let ok_at = b.lines[ok].start;
     // Three breaths of 3 s; stop 0.3 s into the fourth inspiration.
     let t0 = b.time_s();

@@ -95,3 +95,28 @@ pub fn flash_with_row1_model() -> Vec<u8> {
     mem[offset as usize..offset as usize + SECTOR_LEN].copy_from_slice(&sector);
     mem
 }
+
+/// Row 1's breaths: `VENT` with its volume and PEEP, 20 /min, Ti 1 s, square, the trim on.
+pub fn vent_row1() -> String {
+    let r = iso_row(1).expect("row 1");
+    format!(
+        "VENT vt={} rate=20 ti=1 wave=square peep={} trim=on\n",
+        r.tidal, r.peep
+    )
+}
+
+/// A bench with row 1's lung and the stored row-1 model, run to its controller (`CTRL`).
+pub fn row1_in_run_mode() -> Bench {
+    let mut cfg = BenchConfig::new(elf());
+    cfg.lung = Some(iso_lung());
+    cfg.flash = Some(flash_with_row1_model());
+    let mut b = Bench::new(cfg).expect("bench");
+    assert!(run_to(&mut b, 10.0, "CTRL").is_some(), "{}", transcript(&b));
+    b
+}
+
+/// Sends [`vent_row1`] now and runs to its answer; the `OK vent` line's index.
+pub fn start_vent_row1(b: &mut Bench) -> usize {
+    b.send_at(b.time_s(), vent_row1().as_bytes());
+    run_to(b, 0.2, "OK vent").unwrap_or_else(|| panic!("{}", transcript(b)))
+}
