@@ -84,6 +84,24 @@ pub struct VentArgs {
     pub trim: Option<bool>,
 }
 
+impl VentArgs {
+    /// The two required settings, `vt` (thousandths of a mL) and `rate` (thousandths of a
+    /// breath per minute), every optional one left out (its default applies).
+    pub const fn new(vt: Milli, rate: Milli) -> Self {
+        VentArgs {
+            vt,
+            rate,
+            ti: None,
+            ie: None,
+            wave: None,
+            peep: None,
+            bias: None,
+            rise: None,
+            trim: None,
+        }
+    }
+}
+
 /// A console command (see the [module docs](self)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Command {
@@ -235,17 +253,7 @@ pub fn parse(line: &[u8]) -> Result<Command, CommandError> {
 /// one of `ti` and `ie` ([`CommandError::BadField`]), each key at most once.
 fn vent<'a>(fields: impl Iterator<Item = &'a [u8]>) -> Result<VentArgs, CommandError> {
     let (mut vt, mut rate) = (None, None);
-    let mut args = VentArgs {
-        vt: 0,
-        rate: 0,
-        ti: None,
-        ie: None,
-        wave: None,
-        peep: None,
-        bias: None,
-        rise: None,
-        trim: None,
-    };
+    let mut args = VentArgs::new(0, 0);
     for field in fields {
         let (key, value) = key_value(field)?;
         if eq(key, b"WAVE") {

@@ -86,17 +86,7 @@ fn every_command_parses() {
 }
 
 fn vent(vt: i32, rate: i32) -> VentArgs {
-    VentArgs {
-        vt,
-        rate,
-        ti: None,
-        ie: None,
-        wave: None,
-        peep: None,
-        bias: None,
-        rise: None,
-        trim: None,
-    }
+    VentArgs::new(vt, rate)
 }
 
 #[test]

@@ -52,15 +52,11 @@ fn row1_lung() -> LungParams {
 /// `VENT vt=VT rate=20 ti=1 wave=square peep=5 trim=on` (`vt` in mL).
 fn vent(vt: i32) -> VentArgs {
     VentArgs {
-        vt: vt * 1_000,
-        rate: 20_000,
         ti: Some(1_000),
-        ie: None,
         wave: Some(Shape::Square),
         peep: Some(5_000),
-        bias: None,
-        rise: None,
         trim: Some(true),
+        ..VentArgs::new(vt * 1_000, 20_000)
     }
 }
 

@@ -13,17 +13,7 @@ use ridge_pump_firmware::ventilation::{settings, within_band, Anchor, Ventilatio
 const LIMIT: i16 = 30_000;
 
 fn args(vt: Milli, rate: Milli) -> VentArgs {
-    VentArgs {
-        vt,
-        rate,
-        ti: None,
-        ie: None,
-        wave: None,
-        peep: None,
-        bias: None,
-        rise: None,
-        trim: None,
-    }
+    VentArgs::new(vt, rate)
 }
 
 fn check(a: VentArgs) -> Result<VolumeBreath, &'static str> {
