@@ -33,6 +33,8 @@
 //!   `avr-stack` prints).
 //! - [`ventilation`]: a ventilated session (identify, design, then `VENT` over the console,
 //!   the exhalation valve on its pin), breath by breath against the lung's truth.
+//! - [`vent_bench`]: issue 32's ventilation targets on the image (ISO rows, lung changes),
+//!   scored with the host benchmark's rules (`pump_sim::vent_bench`; `avr-vent-bench` prints).
 
 pub mod bench;
 pub mod bus;
@@ -47,4 +49,5 @@ pub mod stack;
 pub mod tracking;
 pub mod transcript;
 pub mod uart;
+pub mod vent_bench;
 pub mod ventilation;
