@@ -3,16 +3,22 @@
 //!
 //! - ISO 80601-2-12 rows 1, 4 and 7 (Table 201.104) after the power-up identification, with
 //!   the controller designed then (frozen) and the per-breath trim: the volume the lung gained
-//!   while the valve was closed is within ±(4 mL + 15 %) of the set volume on every breath
-//!   from breath 3 (the issue's ±(4 mL + 5 %) is printed beside it); the valve is closed for
-//!   the inspiration's 100 ticks each breath; the firmware's `BREATH` lines number the
-//!   breaths the lung saw and their volumes equal the firmware's own code replayed on the host
-//!   from the frames it was served, within 2 mL + 2 % of the truth (the sensor's offset and
-//!   noise); no fault, no overrun, the control tick < 1.6 ms. The firmware's lead-in: the valve
-//!   first closes one expiration after `OK vent`, the lung then within ±2 cmH₂O of the PEEP,
-//!   and breath 2's peak pressure at most breath 1's + 5 cmH₂O.
-//! - A sudden lung change (row 1's lung to row 7's C and R at a breath boundary): back within
-//!   ±(4 mL + 15 %) within 2 breaths.
+//!   while the valve was closed is within the issue's ±(4 mL + 5 %) of the set volume on every
+//!   breath from breath 3 (the standards ask ±(4 mL + 15 %)), no breath peaks more than 5
+//!   cmH₂O above the one before, the lung is within ±2 cmH₂O of the PEEP at the end of every
+//!   expiration (scored as `pump_sim::vent_bench` scores the host's runs); the same on row 7
+//!   with the decelerating ramp; the valve is closed for the inspiration's 100 ticks each
+//!   breath; the firmware's `BREATH` lines number the breaths the lung saw and their volumes
+//!   equal the firmware's own code replayed on the host from the frames it was served, within
+//!   2 mL + 2 % of the truth (the sensor's offset and noise); no fault, no overrun, the control
+//!   tick < 1.6 ms. The firmware's lead-in: the valve first closes one expiration after
+//!   `OK vent`, the lung then within ±2 cmH₂O of the PEEP.
+//! - Sudden lung changes on row 1's breath, in breath 5 of 10 (row 1's lung to row 7's C and R
+//!   at the boundary, the reverse, C 50 → 10 mid-inspiration): the targets, back within
+//!   ±(4 mL + 15 %) from the change's 2nd breath and ±(4 mL + 5 %) from its 4th, no breath
+//!   outside ±35 %, PEEP within ±2 cmH₂O; after the reverse change no breath peaks more than 5
+//!   cmH₂O above the one before (the changes to a stiffer lung raise it by far more: no
+//!   pressure limit).
 //! - The valve opens on every fault path: a sensor fault, a stall, `STOP`, the panic handler,
 //!   within two ticks of the line that reports it, and stays open; with a refused controller
 //!   it never closes. The volume alarm comes after two breaths out of the band, and clears
@@ -23,16 +29,19 @@ use std::path::PathBuf;
 
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::iso_row;
-use pump_sim::{LungParams, PlantArgs, Valve};
+use pump_sim::vent_bench::{change_verdict, power_up_plant, score, CellRun};
+use pump_sim::{LungParams, Valve};
 use ridge_core::{ArxModel, Offset};
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
+use ridge_pump_firmware::setpoint::Shape;
 use ridge_pump_firmware::slots::{self, STORE_LEN};
 use simavr_harness::bench::{Action, Bench, BenchConfig, LungChange, RunEnd};
 use simavr_harness::firmware;
 use simavr_harness::sensor::Fault;
 use simavr_harness::session::{SessionConfig, TICK_CYCLES};
 use simavr_harness::transcript::Line;
+use simavr_harness::vent_bench::{cell_run, vent_line};
 use simavr_harness::ventilation::{self, within, VentConfig, VentOutcome};
 
 /// Tick budget, cycles (1.6 ms at 16 MHz).
@@ -63,14 +72,26 @@ fn power_up_run(
     breaths: u32,
     change: Option<(usize, f64, LungChange)>,
 ) -> VentOutcome {
+    power_up_run_on(iso_lung(row), command, breaths, change)
+}
+
+/// Power-up identification into `lung` (PEEP valve at 0), then `command` (with `lung`'s PEEP)
+/// for `breaths` breaths, with `change` if given.
+fn power_up_run_on(
+    lung: LungParams,
+    command: &str,
+    breaths: u32,
+    change: Option<(usize, f64, LungChange)>,
+) -> VentOutcome {
     let mut session = SessionConfig::new(elf());
-    session.bench.lung = Some(iso_lung(row));
+    let peep = lung.peep;
+    session.bench.lung = Some(lung);
     session.max_s = 120.0;
     let cfg = VentConfig {
         session,
         command: command.to_string(),
         identify_peep: 0.0,
-        peep: iso_lung(row).peep,
+        peep,
         breaths,
         change,
     };
@@ -145,6 +166,29 @@ fn check_run(what: &str, o: &VentOutcome, breaths: u32) {
         }
     }
     println!("{what}: breaths 3-{breaths} within ±(4 mL + 5 %): {in5}/{n}");
+    // The targets, scored as the host benchmark scores them: every breath from 3
+    // within ±(4 mL + 5 %), no breath's peak pressure above the previous breath's + 5 cmH₂O,
+    // the end-expiratory pressure within ±2 cmH₂O of the PEEP after every breath.
+    let all = score(&cell_run(o, breaths), 1);
+    println!(
+        "{what}: peak pressure rise on the breath before at most {:+.1} cmH2O, |PEEP error| at most {:.2} cmH2O",
+        all.peak_rise, all.peep_err
+    );
+    if in5 < n {
+        bad.push(format!(
+            "{} of {n} breaths from 3 outside ±(4 mL + 5 %)",
+            n - in5
+        ));
+    }
+    if all.peak_rise > 5.0 {
+        bad.push(format!(
+            "peak pressure {:+.1} cmH2O on the breath before",
+            all.peak_rise
+        ));
+    }
+    if all.peep_err > 2.0 {
+        bad.push(format!("PEEP {:.2} cmH2O off", all.peep_err));
+    }
     // The lead-in: the valve first closes one expiration after `OK vent` (the line leaves the
     // UART within a few ms of the tick that took the command), the lung then within ±2 cmH₂O of
     // the PEEP, and breath 2 peaks at most 5 cmH₂O above breath 1 (the targets).
@@ -244,12 +288,13 @@ fn drifts_after_vent(bench: &Bench) -> Vec<usize> {
         .collect()
 }
 
+/// Row `row`'s `VENT` line with `wave` (`ti` 1 s, the row's PEEP, trim on).
+fn iso_wave_command(row: u8, wave: Shape) -> String {
+    vent_line(&iso_row(row).expect("row"), wave)
+}
+
 fn iso_command(row: u8) -> String {
-    let r = iso_row(row).expect("row");
-    format!(
-        "VENT vt={} rate={} ti=1 wave=square peep={} trim=on",
-        r.tidal, r.rate, r.peep
-    )
+    iso_wave_command(row, Shape::Square)
 }
 
 #[test]
@@ -270,36 +315,31 @@ fn iso_row_7_reaches_the_set_volume() {
     check_run("ISO row 7", &o, 8);
 }
 
+/// The decelerating ramp on row 7's lung (C 10 mL/cmH₂O, R 50 cmH₂O/(L/s), 300 mL at 20 /min,
+/// PEEP 10): the same checks as the square rows (`avr-vent-bench --table rows --rows 7
+/// --waves ramp` measured breaths 3-8 within 3.2 % of the set volume, breath 2 peaking 1.8
+/// cmH₂O above breath 1).
+#[test]
+fn iso_row_7_ramp_reaches_the_set_volume() {
+    let o = power_up_run(7, &iso_wave_command(7, Shape::Ramp), 8, None);
+    check_run("ISO row 7 ramp", &o, 8);
+}
+
 /// Row 1's lung becomes row 7's (C 50 → 10 mL/cmH₂O, R 5 → 50 cmH₂O/(L/s)) as breath 5
-/// starts: breaths 5 and 6 may miss the band, breath 7 on is back within ±(4 mL + 15 %), and no
-/// breath is outside ±35 %.
+/// starts: the volume targets after a change ([`change_targets`]; measured: breath 5
+/// 23.8 % short, breaths 6-10 within 0.7 %) and one `DRIFT` within two breaths. The peak
+/// pressure rises by ~67 cmH₂O on breath 5 (17.5 → 84.3): volume control pushes the set volume
+/// into the stiff lung, and without a pressure sensor nothing limits it (docs/ventilation.md);
+/// not asserted.
 #[test]
 fn a_sudden_lung_change_is_back_in_the_band_within_two_breaths() {
-    let change = LungChange {
-        compliance: Some(10.0),
-        resistance: Some(50.0),
-        ..LungChange::default()
-    };
-    let o = power_up_run(1, &iso_command(1), 10, Some((5, 0.0, change)));
-    let set = f64::from(o.breath.tidal);
-    for r in &o.rows {
-        println!(
-            "lung change at breath 5: breath {:2}: {:6.1} mL ({:+5.1} %), peak pressure {:5.1}",
-            r.number,
-            r.truth.delivered,
-            100.0 * (r.truth.delivered - set) / set,
-            r.truth.peak_pressure
-        );
-    }
-    assert!(
-        o.outcome.faults.is_empty(),
-        "{}",
-        transcript(&o.outcome.bench)
-    );
-    assert!(o.rows.len() >= 10, "{}", transcript(&o.outcome.bench));
+    let what = "lung change at breath 5";
+    let (o, run) = change_run(what, (50.0, 5.0), (10.0, 50.0), 0.0);
+    let bad = change_targets(&run);
+    let bench = &o.outcome.bench;
+    assert!(bad.is_empty(), "{what}: {bad:?}\n{}", transcript(bench));
     // The monitor's breath rule against its baseline (breath 3): one `DRIFT`, within two
     // breaths of the change (after breath 4's `BREATH` line, before breath 8's).
-    let bench = &o.outcome.bench;
     let drifts = drifts_after_vent(bench);
     let (from, to) = (
         line_after_vent(bench, "BREATH n=4 "),
@@ -311,7 +351,7 @@ fn a_sudden_lung_change_is_back_in_the_band_within_two_breaths() {
             .find(|&i| bench.lines[i].text.starts_with("BREATH n="))
             .map(|i| bench.lines[i].text.as_str())
     });
-    println!("lung change at breath 5: DRIFT lines {drifts:?}, the last BREATH line before it {before:?}");
+    println!("{what}: DRIFT lines {drifts:?}, the last BREATH line before it {before:?}");
     assert!(
         drifts.len() == 1
             && from.is_some_and(|f| drifts[0] > f)
@@ -319,13 +359,126 @@ fn a_sudden_lung_change_is_back_in_the_band_within_two_breaths() {
         "{}",
         transcript(bench)
     );
-    for r in o.rows.iter().take(10).filter(|r| r.number >= 3) {
-        let d = r.truth.delivered;
-        assert!(within(d, set, 0.35), "breath {}: {d:.1} mL", r.number);
-        if r.number >= 7 {
-            assert!(within(d, set, 0.15), "breath {}: {d:.1} mL", r.number);
-        }
+}
+
+/// The reverse: a power-up into the stiff, resistive lung (C 10, R 50), back to row 1's
+/// (C 50, R 5) as breath 5 starts. The volume targets ([`change_targets`]; measured:
+/// breath 5 15.4 % over, breaths 6-10 within 3.7 %), and here the pressure target too: no
+/// breath peaks more than 5 cmH₂O above the one before (measured at most +3.1, breath 2; the
+/// change lowers the peak from 78.0 to 16.4 cmH₂O).
+#[test]
+fn the_reverse_lung_change_meets_the_targets() {
+    let what = "reverse change at breath 5";
+    let (o, run) = change_run(what, (10.0, 50.0), (50.0, 5.0), 0.0);
+    let mut bad = change_targets(&run);
+    let rise = score(&run, 1).peak_rise;
+    println!("{what}: peak pressure rise on the breath before at most {rise:+.1} cmH2O");
+    if rise > 5.0 {
+        bad.push(format!(
+            "a breath peaks {rise:+.1} cmH2O above the one before"
+        ));
     }
+    assert!(
+        bad.is_empty(),
+        "{what}: {bad:?}\n{}",
+        transcript(&o.outcome.bench)
+    );
+}
+
+/// Row 1's lung to C 10 mL/cmH₂O half-way through breath 5's inspiration (0.5 s after the
+/// valve closed): the volume targets ([`change_targets`]; measured: breath 5 25.7 %
+/// short, breaths 6-10 within 0.9 %). The peak pressure rises by 49 cmH₂O (17.5 → 66.5
+/// cmH₂O), as at the boundary; not asserted (no pressure sensor).
+#[test]
+fn a_lung_change_mid_inspiration_is_back_in_the_band() {
+    let what = "C 50 -> 10 mid-inspiration of breath 5";
+    let (o, run) = change_run(what, (50.0, 5.0), (10.0, 5.0), 0.5);
+    let bad = change_targets(&run);
+    assert!(
+        bad.is_empty(),
+        "{what}: {bad:?}\n{}",
+        transcript(&o.outcome.bench)
+    );
+}
+
+/// The breath in which the lung changes in the change tests (of [`CHANGE_RUN`]).
+const CHANGE_AT: usize = 5;
+/// Breaths run in the change tests.
+const CHANGE_RUN: u32 = 10;
+
+/// Row 1's breath (500 mL, 20 /min, `ti` 1 s, square, PEEP 5, trim on) after a power-up into
+/// the lung `from` (C mL/cmH₂O, R cmH₂O/(L/s)), the lung changed to `to` in breath
+/// [`CHANGE_AT`] of [`CHANGE_RUN`], `delay_s` after its valve closed (0: at the boundary, 0.5:
+/// mid-inspiration). Prints the breaths; asserts that the run had them all, without a fault.
+fn change_run(
+    what: &str,
+    from: (f64, f64),
+    to: (f64, f64),
+    delay_s: f64,
+) -> (VentOutcome, CellRun) {
+    let lung = LungParams {
+        compliance: from.0,
+        resistance: from.1,
+        ..iso_lung(1)
+    };
+    let change = LungChange {
+        compliance: Some(to.0),
+        resistance: Some(to.1),
+        ..LungChange::default()
+    };
+    // One breath more: the last one's end-expiratory pressure is the lung's at the next closing.
+    let o = power_up_run_on(
+        lung,
+        &iso_command(1),
+        CHANGE_RUN + 1,
+        Some((CHANGE_AT, delay_s, change)),
+    );
+    let run = cell_run(&o, CHANGE_RUN);
+    for b in &run.breaths {
+        println!(
+            "{what}: breath {:2}: {:6.1} mL ({:+5.1} %), firmware vd {:6.1}, peak pressure {:5.1}, PEEP after {:5.2}",
+            b.number,
+            b.delivered_ml,
+            b.error_pct(),
+            b.measured_ml,
+            b.peak_pressure,
+            b.end_pressure
+        );
+    }
+    let bench = &o.outcome.bench;
+    assert!(
+        o.outcome.faults.is_empty() && run.breaths.len() == CHANGE_RUN as usize,
+        "{what}:\n{}",
+        transcript(bench)
+    );
+    (o, run)
+}
+
+/// The targets after a lung change in breath [`CHANGE_AT`] (the change breath counts
+/// 1): back within ±(4 mL + 15 %) from the 2nd breath, within ±(4 mL + 5 %) from the 4th, no
+/// breath outside ±35 %; and the end-expiratory pressure within ±2 cmH₂O of the PEEP after
+/// every breath. Returns what failed.
+fn change_targets(run: &CellRun) -> Vec<String> {
+    let v = change_verdict(run, CHANGE_AT as u32);
+    let s = score(run, 1);
+    println!(
+        "  last breath outside 15 %: {}, outside 5 %: {}, worst {:.1} %, |PEEP error| at most {:.2}",
+        v.last15, v.last5, v.worst_pct, s.peep_err
+    );
+    let mut bad = Vec::new();
+    if !v.meets15() {
+        bad.push(format!("breath {} of the change outside 15 %", v.last15));
+    }
+    if !v.meets5() {
+        bad.push(format!("breath {} of the change outside 5 %", v.last5));
+    }
+    if !v.meets35() {
+        bad.push(format!("a breath {:.1} % off", v.worst_pct));
+    }
+    if s.peep_err > 2.0 {
+        bad.push(format!("PEEP {:.2} cmH2O off", s.peep_err));
+    }
+    bad
 }
 
 /// The slot image of `record` for an empty EEPROM.
@@ -335,15 +488,10 @@ fn eeprom_with(record: &[u8; RECORD_LEN]) -> Vec<(u16, Vec<u8>)> {
 }
 
 /// A stored model for row 1's lung: the firmware's state machine (compiled for the host)
-/// identifies it on `pump_sim`'s rig, the PEEP valve at 0.
+/// identifies it on `pump_sim`'s rig, the PEEP valve at 0 (the host benchmark's power-up
+/// plant).
 fn stored_row1_model() -> Vec<(u16, Vec<u8>)> {
-    let l = iso_lung(1);
-    let plant = PlantArgs {
-        compliance: Some(l.compliance),
-        resistance: Some(l.resistance),
-        peep: Some(0.0),
-        ..PlantArgs::default()
-    };
+    let plant = power_up_plant(&iso_lung(1));
     let (_, sm, _) = identify_with(&plant, 3, &DEFAULT_CONFIG).expect("identification");
     eeprom_with(&sm.persist_bytes().expect("model"))
 }
