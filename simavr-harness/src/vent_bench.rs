@@ -1,8 +1,9 @@
 //! The ventilation benchmark on the ATmega2560 image (issue 32, *Targets*): what
 //! `pump_sim::vent_bench` measures on the host, run on the whole image in simavr with the
 //! controller the firmware runs there (the power-up design, frozen: this board has no
-//! re-identification), scored with the host bench's own rules ([`score`], [`change_verdict`])
-//! on the simulated lung's truth.
+//! re-identification), scored with the host bench's own rules
+//! ([`pump_sim::vent_bench::score`], [`pump_sim::vent_bench::change_verdict`]) on the
+//! simulated lung's truth.
 //!
 //! One [`Case`] is one ISO 80601-2-12 row's breath with one inspiratory wave, optionally with a
 //! sudden change of the lung ([`Change`]); [`run_case`] powers the image up into the case's
@@ -38,7 +39,8 @@ const fn named(name: &'static str, from: (f64, f64), to: (f64, f64)) -> NamedCha
 }
 
 /// The lung changes of the host's lung-change table (`vent-bench --table changes`), in its
-/// order, on row 1's breath.
+/// order, on row 1's breath (the host's list is private to its binary, so it is written again
+/// here).
 pub const CHANGES: [NamedChange; 6] = [
     named("C 50 → 10", (50.0, 5.0), (10.0, 5.0)),
     named("R 5 → 50", (50.0, 5.0), (50.0, 50.0)),
