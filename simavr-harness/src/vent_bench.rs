@@ -8,15 +8,19 @@
 //! One [`Case`] is one ISO 80601-2-12 row's breath with one inspiratory wave, optionally with a
 //! sudden change of the lung ([`Change`]); [`run_case`] powers the image up into the case's
 //! (first) lung with its PEEP valve at 0 (the firmware identifies and designs its controller,
-//! ~17 s of simulated time), sends the row's `VENT` line ([`vent_line`]: `ti` 1 s, the row's
+//! ~17 s of simulated time; or loads [`stored_model`] and designs), sends the row's `VENT` line ([`vent_line`]: `ti` 1 s, the row's
 //! PEEP, trim on, default bias and rise) as [`crate::ventilation::run`] does, runs the breaths
 //! and turns each into the host bench's [`Breath`] (the lung's truth, the firmware's `BREATH`
 //! figures beside it).
 
+use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::IsoRow;
-use pump_sim::vent_bench::{Breath, CellRun, ChangeAt};
+use pump_sim::vent_bench::{power_up_plant, Breath, CellRun, ChangeAt};
 use pump_sim::LungParams;
+use ridge_pump_firmware::persist::RECORD_LEN;
+use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use ridge_pump_firmware::setpoint::Shape;
+use ridge_pump_firmware::slots::{self, STORE_LEN};
 
 use crate::bench::LungChange;
 use crate::session::SessionConfig;
@@ -81,6 +85,9 @@ pub struct Case {
     pub change: Option<Change>,
     /// Sensor-noise seed.
     pub seed: u64,
+    /// Start from a stored model ([`stored_model`]: identified on the host's rig) instead of
+    /// the image's own power-up identification.
+    pub stored: bool,
 }
 
 impl Case {
@@ -93,6 +100,7 @@ impl Case {
             breaths,
             change: None,
             seed: 1,
+            stored: false,
         }
     }
 
@@ -118,6 +126,27 @@ impl Case {
             ..self.row.lung(&LungParams::adult())
         }
     }
+}
+
+/// The EEPROM contents (offset, bytes) holding `record` in the first slot of an empty store,
+/// as the firmware writes it.
+pub fn eeprom_with(record: &[u8; RECORD_LEN]) -> Result<Vec<(u16, Vec<u8>)>, String> {
+    let (at, bytes) = slots::slot_bytes(record, &slots::plan(&[0xFF; STORE_LEN]))
+        .ok_or("the record does not fit a slot")?;
+    Ok(vec![(at, bytes.to_vec())])
+}
+
+/// A stored model for `lung`: the firmware's state machine (compiled for the host) identifies
+/// it on `pump_sim`'s rig with sensor seed `seed` and the host benchmark's power-up plant
+/// ([`power_up_plant`]: `lung` with its PEEP valve at 0); the image loads it at reset and runs
+/// within ~2 s instead of identifying for ~17 s. EEPROM contents as [`eeprom_with`].
+pub fn stored_model(lung: &LungParams, seed: u64) -> Result<Vec<(u16, Vec<u8>)>, String> {
+    let (_, sm, _) =
+        identify_with(&power_up_plant(lung), seed, &DEFAULT_CONFIG).map_err(|e| e.to_string())?;
+    eeprom_with(
+        &sm.persist_bytes()
+            .ok_or("no model after the identification")?,
+    )
 }
 
 /// The console line of `row`'s breath with `wave`: `VENT vt=… rate=… ti=1 wave=… peep=…
@@ -205,6 +234,9 @@ pub fn run_case(elf: &std::path::Path, case: &Case) -> Result<CaseRun, String> {
     let mut session = SessionConfig::new(elf);
     session.bench.lung = Some(lung.clone());
     session.bench.seed = case.seed;
+    if case.stored {
+        session.bench.eeprom = stored_model(&lung, case.seed)?;
+    }
     let period = f64::from(breath.wave.period()) * 0.01;
     let ti = f64::from(breath.wave.inspiration()) * 0.01;
     // The power-up (~17 s), the lead-in, the breaths and one more closing, with a margin.

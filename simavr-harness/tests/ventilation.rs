@@ -27,21 +27,18 @@
 
 use std::path::PathBuf;
 
-use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::iso_row;
-use pump_sim::vent_bench::{change_verdict, power_up_plant, score, CellRun};
+use pump_sim::vent_bench::{change_verdict, score, CellRun};
 use pump_sim::{LungParams, Valve};
 use ridge_core::{ArxModel, Offset};
 use ridge_pump_firmware::persist::{self, RECORD_LEN};
-use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use ridge_pump_firmware::setpoint::Shape;
-use ridge_pump_firmware::slots::{self, STORE_LEN};
 use simavr_harness::bench::{Action, Bench, BenchConfig, LungChange, RunEnd};
 use simavr_harness::firmware;
 use simavr_harness::sensor::Fault;
 use simavr_harness::session::{SessionConfig, TICK_CYCLES};
 use simavr_harness::transcript::Line;
-use simavr_harness::vent_bench::{cell_run, vent_line};
+use simavr_harness::vent_bench::{self, cell_run, vent_line};
 use simavr_harness::ventilation::{self, within, VentConfig, VentOutcome};
 
 /// Tick budget, cycles (1.6 ms at 16 MHz).
@@ -483,17 +480,14 @@ fn change_targets(run: &CellRun) -> Vec<String> {
 
 /// The slot image of `record` for an empty EEPROM.
 fn eeprom_with(record: &[u8; RECORD_LEN]) -> Vec<(u16, Vec<u8>)> {
-    let (at, bytes) = slots::slot_bytes(record, &slots::plan(&[0xFF; STORE_LEN])).expect("slot");
-    vec![(at, bytes.to_vec())]
+    vent_bench::eeprom_with(record).expect("slot")
 }
 
 /// A stored model for row 1's lung: the firmware's state machine (compiled for the host)
 /// identifies it on `pump_sim`'s rig, the PEEP valve at 0 (the host benchmark's power-up
-/// plant).
+/// plant), sensor seed 3.
 fn stored_row1_model() -> Vec<(u16, Vec<u8>)> {
-    let plant = power_up_plant(&iso_lung(1));
-    let (_, sm, _) = identify_with(&plant, 3, &DEFAULT_CONFIG).expect("identification");
-    eeprom_with(&sm.persist_bytes().expect("model"))
+    vent_bench::stored_model(&iso_lung(1), 3).expect("identification")
 }
 
 /// A bench with row 1's lung and `eeprom`, run to the controller (`CTRL` or `FAULT`).

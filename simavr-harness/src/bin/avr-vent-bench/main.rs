@@ -10,8 +10,10 @@
 //!     --waves ramp --per-breath
 //! ```
 //!
-//! Every run powers the image up into its (first) lung: no stored model, so each run has the
-//! firmware's own identification and design. This file: the flags, turned into the runs'
+//! Every run powers the image up into its (first) lung, so each run has the firmware's own
+//! identification and design; `--stored-model` starts it from the model the firmware's state
+//! machine identifies on the host's rig instead (the image loads and designs it, ~15 s less
+//! simulated time a run). This file: the flags, turned into the runs'
 //! settings (`simavr_harness::vent_bench::Case`), run `--jobs` at a time; `print` prints the
 //! tables.
 
@@ -91,6 +93,10 @@ struct Args {
     /// Also print every run's breaths.
     #[arg(long)]
     per_breath: bool,
+    /// Start every run from a model the firmware's state machine identified on the host's rig
+    /// (same lung, same seed), loaded from the EEPROM, instead of the image's own power-up.
+    #[arg(long)]
+    stored_model: bool,
 }
 
 impl Args {
@@ -115,6 +121,7 @@ impl Args {
                 };
                 cases.push(Case {
                     seed: self.seed,
+                    stored: self.stored_model,
                     ..Case::row(row, wave, self.breaths)
                 });
             }
@@ -146,6 +153,7 @@ impl Args {
                 };
                 let case = Case {
                     seed: self.seed,
+                    stored: self.stored_model,
                     ..Case::change(ISO_ROWS[0], c.from, c.to, at)
                 };
                 cases.push((c.name, case));

@@ -74,8 +74,13 @@ fn breaths(what: &str, r: &CaseRun) {
 pub fn rows(cases: &[Case], runs: &[Result<CaseRun, String>], per_breath: bool) -> bool {
     let mut ok = true;
     println!(
-        "## ATmega2560 in simavr: ISO rows, frozen power-up controller, trim on, seed {}\n",
-        cases.first().map_or(1, |c| c.seed)
+        "## ATmega2560 in simavr: ISO rows, frozen power-up controller, trim on, seed {}{}\n",
+        cases.first().map_or(1, |c| c.seed),
+        if cases.first().is_some_and(|c| c.stored) {
+            ", from a stored model identified on the host's rig"
+        } else {
+            ""
+        }
     );
     println!(
         "| row | wave | worst \\|error\\| breaths ≥ 3 (%) | ±(4 mL + 5 %) from 3 | ±(4 mL + 15 %) from 3 | breath 1 error (%) | lung at breath 1's start − PEEP (cmH₂O) | peak pressure rise on the breath before, max: breaths ≥ 3 / breath 2 (cmH₂O) | \\|PEEP error\\| max (cmH₂O) | firmware vd: worst \\|error\\| ≥ 3 (%), max \\|vd − lung\\| (mL) | DRIFT, overruns, worst control tick (cycles) | wall (s) |"
@@ -137,8 +142,14 @@ pub fn changes(named: &[(&str, Case)], runs: &[Result<CaseRun, String>], per_bre
     };
     let at_breath = first.change.map_or(0, |c| c.breath);
     println!(
-        "## ATmega2560 in simavr: lung changes on row 1's breath (500 mL, 20 /min, Ti 1 s, PEEP 5, square, trim on), power-up into the first lung, change in breath {at_breath} of {}, seed {}\n",
-        first.breaths, first.seed
+        "## ATmega2560 in simavr: lung changes on row 1's breath (500 mL, 20 /min, Ti 1 s, PEEP 5, square, trim on), {} the first lung, change in breath {at_breath} of {}, seed {}\n",
+        if first.stored {
+            "a stored model identified on the host's rig in"
+        } else {
+            "power-up into"
+        },
+        first.breaths,
+        first.seed
     );
     println!("Counts from the change breath (= 1): the last breath outside the band (0: none).\n");
     println!(
