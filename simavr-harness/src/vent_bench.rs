@@ -8,10 +8,10 @@
 //! One [`Case`] is one ISO 80601-2-12 row's breath with one inspiratory wave, optionally with a
 //! sudden change of the lung ([`Change`]); [`run_case`] powers the image up into the case's
 //! (first) lung with its PEEP valve at 0 (the firmware identifies and designs its controller,
-//! ~17 s of simulated time; or loads [`stored_model`] and designs), sends the row's `VENT` line ([`vent_line`]: `ti` 1 s, the row's
-//! PEEP, trim on, default bias and rise) as [`crate::ventilation::run`] does, runs the breaths
-//! and turns each into the host bench's [`Breath`] (the lung's truth, the firmware's `BREATH`
-//! figures beside it).
+//! ~17 s of simulated time; or loads [`stored_model`] and designs), sends the row's `VENT`
+//! line ([`vent_line`]: `ti` 1 s, the row's PEEP, trim on, default bias and rise) as
+//! [`crate::ventilation::run`] does, runs the breaths and turns each into the host bench's
+//! [`Breath`] (the lung's truth, the firmware's `BREATH` figures beside it).
 
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::IsoRow;
