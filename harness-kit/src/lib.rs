@@ -11,6 +11,8 @@
 //! - [`validation`]: scoring a model on a record, the fresh host-side validation signal with
 //!   the loop's timing, the fit plot.
 //! - [`image`]: a firmware image's section sizes ([`image::Sizes`]).
+//! - [`console`]: the console's transcript as the tests read it: answers, log rows, the `RST`
+//!   lines, the `ridge-id` check of the pump's own identification.
 //! - [`firmware`]: a board's release image built from the workspace once per process
 //!   ([`firmware::Image`]).
 //! - [`run`]: run mode rebuilt tick by tick and checked against the `TRACK` lines
@@ -22,6 +24,7 @@
 //! - [`report`]: the report `scripts/simulate` prints for either board, one function per
 //!   section, with the board-specific figures labelled as such ([`report::Board`]).
 
+pub mod console;
 pub mod firmware;
 pub mod host;
 pub mod i2c_lines;

@@ -950,11 +950,8 @@ fn tracking_run(
         }
     };
     // The firmware's TRACK figures are those of the flow it was served.
-    if run.track_lines < 10 || run.track_mismatch > 0.002 || run.misaligned > 0 {
-        bad.push(format!(
-            "TRACK lines {} (≥ 10), recomputed difference {:.4} slm (≤ 0.002), misaligned {}",
-            run.track_lines, run.track_mismatch, run.misaligned
-        ));
+    if let Err(e) = run.track_check() {
+        bad.push(e);
     }
     match design_cycles(&o.bench) {
         Some(c) if c < session::DESIGN_BUDGET_CYCLES => {}

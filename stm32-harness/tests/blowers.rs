@@ -192,11 +192,8 @@ fn tracking_run(
             unreachable!()
         }
     };
-    if run.track_lines < 10 || run.track_mismatch > 0.002 || run.misaligned > 0 {
-        bad.push(format!(
-            "TRACK lines {} (≥ 10), recomputed difference {:.4} slm (≤ 0.002), misaligned {}",
-            run.track_lines, run.track_mismatch, run.misaligned
-        ));
+    if let Err(e) = run.track_check() {
+        bad.push(e);
     }
     let control: Vec<u64> = o.bench.machine.core().ticks.ticks[run.first_tick..]
         .iter()
