@@ -405,14 +405,13 @@ pub enum Event {
 
 /// What became of one re-estimate ([`crate::reid`]), as the `REID` line's `verdict=` names it.
 #[cfg(not(target_arch = "avr"))]
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ReidVerdict {
-    /// `accepted`: it passed every check and the running model no longer describes the lung
-    /// (its held-out fit below `crate::reid::ReidConfig::swap_below_fit`, off by default): swapped in at
-    /// the next breath boundary.
+    /// `accepted`: it passed every check and the swap rule (`crate::reid::SwapRule`; by
+    /// default: the volume alarm is raised): swapped in at the next breath boundary.
     Accepted,
-    /// `kept`: it passed every check, but the running model still describes the lung: reported,
-    /// the running controller kept.
+    /// `kept`: it passed every check, but not the swap rule: reported, the running controller
+    /// kept.
     Kept,
     /// `not-excited`: the window's input or output moved too little.
     NotExcited,
@@ -424,9 +423,11 @@ pub enum ReidVerdict {
     /// `numeric`: the fit's normal equations were not positive definite or its iterates not
     /// finite.
     Numeric,
-    /// `design`: the controller design for the accepted estimate was refused (the running one
-    /// stays).
-    Design,
+    /// `design`: the controller design for the accepted estimate was refused, for this reason
+    /// (the running one stays). The line adds `why=` and the reason in the words of the
+    /// `FAULT control` line: `why=margin margin=0.412 tries=4`, `why=slow-poles tries=4`,
+    /// `why=unstable`, `why=gain` (the estimate's gain is on the line already).
+    Design(ControlRefusal),
 }
 
 #[cfg(not(target_arch = "avr"))]
@@ -440,7 +441,7 @@ impl ReidVerdict {
             ReidVerdict::Model => "model",
             ReidVerdict::Fit => "fit",
             ReidVerdict::Numeric => "numeric",
-            ReidVerdict::Design => "design",
+            ReidVerdict::Design(_) => "design",
         }
     }
 }
@@ -792,6 +793,31 @@ where
     }
 }
 
+/// The `why=` tail of a `REID … verdict=design` line (see [`ReidVerdict::Design`]).
+#[cfg(not(target_arch = "avr"))]
+fn write_reid_refusal<W>(f: &mut Formatter<'_, W>, why: &ControlRefusal) -> Result<(), W::Error>
+where
+    W: uWrite + ?Sized,
+{
+    match why {
+        ControlRefusal::Model(ModelFault::Gain { .. }) => f.write_str(" why=gain"),
+        ControlRefusal::Model(m) => {
+            f.write_str(" why=")?;
+            write_model_fault(f, m)
+        }
+        ControlRefusal::Design {
+            error: DesignError::Margin { margin },
+            tries,
+        } => ufmt::uwrite!(
+            f,
+            " why=margin margin={} tries={}",
+            Fixed::new(*margin, 3),
+            Int::from(*tries)
+        ),
+        ControlRefusal::Design { .. } => ufmt::uwrite!(f, " why={}", why),
+    }
+}
+
 impl uDisplay for ControlRefusal {
     fn fmt<W>(&self, f: &mut Formatter<'_, W>) -> Result<(), W::Error>
     where
@@ -1012,16 +1038,22 @@ impl uDisplay for Event {
                 Fixed::new(*tidal, 1)
             ),
             #[cfg(not(target_arch = "avr"))]
-            Event::Reid(r) => ufmt::uwrite!(
-                f,
-                "REID breath={} verdict={} gain={} fit={}/{} v-rms={}",
-                Int::from(r.breath),
-                r.verdict.name(),
-                Fixed::new(r.gain, 3),
-                Fixed::new(r.fit, 1),
-                Fixed::new(r.running, 1),
-                Fixed::new(r.v_rms, 3)
-            ),
+            Event::Reid(r) => {
+                ufmt::uwrite!(
+                    f,
+                    "REID breath={} verdict={} gain={} fit={}/{} v-rms={}",
+                    Int::from(r.breath),
+                    r.verdict.name(),
+                    Fixed::new(r.gain, 3),
+                    Fixed::new(r.fit, 1),
+                    Fixed::new(r.running, 1),
+                    Fixed::new(r.v_rms, 3)
+                )?;
+                match &r.verdict {
+                    ReidVerdict::Design(why) => write_reid_refusal(f, why),
+                    _ => Ok(()),
+                }
+            }
             Event::Fault(reason) => ufmt::uwrite!(f, "FAULT {}", reason),
         }
     }

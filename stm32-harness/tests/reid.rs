@@ -6,8 +6,9 @@
 //! What it shows (numbers printed with `--nocapture`):
 //! - `REID` lines every other breath on both lungs, with no tick past 10 ms, the control
 //!   latency within 10 000 instructions and no `MISSED` line;
-//! - on the adult lung the estimates pass and are kept (the swap rule is off,
-//!   `ridge_pump_firmware::reid::ReidConfig::swap_below_fit`), their static gain within 30 % of
+//! - on the adult lung the estimates pass and are kept (the default swap rule,
+//!   `ridge_pump_firmware::reid::SwapRule::VolumeAlarm`, swaps only while the volume alarm is
+//!   raised, and the volumes stay within the band), their static gain within 30 % of
 //!   the plant's secant through the map (measured 16–24 % below it); on the stiff lung their
 //!   gain falls below the model check's 0.5 and they are refused (`verdict=model`), the
 //!   power-up controller runs on;
@@ -135,15 +136,21 @@ fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
     println!("stack high-water {stack} B");
     assert!(stack < 32 * 1024, "stack high-water {stack} B");
     // On the adult lung the estimates are made every other breath (one breath fitted, one
-    // held out), and the swap rule is off: every estimate that passes is kept.
+    // held out); no volume alarm is raised, so under the default swap rule every estimate
+    // that passes is kept.
     assert!(
         adult.len() >= 4,
         "REID lines before the change:\n{}",
         transcript(&b)
     );
     assert!(
+        b.find("ALARM volume").next().is_none(),
+        "{}",
+        transcript(&b)
+    );
+    assert!(
         all.iter().all(|r| r.verdict != "accepted"),
-        "a controller was swapped with the rule off:\n{}",
+        "a controller was swapped without a volume alarm:\n{}",
         transcript(&b)
     );
     assert!(
