@@ -425,7 +425,7 @@ pub enum ReidVerdict {
     Numeric,
     /// `design`: the controller design for the accepted estimate was refused, for this reason
     /// (the running one stays). The line adds `why=` and the reason in the words of the
-    /// `FAULT control` line: `why=margin margin=0.412 tries=4`, `why=slow-poles tries=4`,
+    /// `FAULT control` line: `why=margin margin=0.412 tries=4`, `why=slow-poles tries=1`,
     /// `why=unstable`, `why=gain` (the estimate's gain is on the line already).
     Design(ControlRefusal),
 }
