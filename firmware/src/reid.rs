@@ -42,7 +42,7 @@ use crate::units::{MODEL_SCALE, SLM_PER_COUNT};
 /// `λ = 7/8`).
 pub const SHIFT: u8 = 2;
 
-/// The re-identification's settings ([`Config::reid`]).
+/// The re-identification's settings ([`Config::reid`](crate::selfid::Config::reid)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReidConfig {
     /// A re-estimate starts at least every this many breaths (and at once on a drift or an
