@@ -227,7 +227,7 @@ impl RunTrace {
                         * f64::from(DUTY_FULL_SCALE))
                     .round() as u16;
                     let boundary = (phase == 0).then(|| v.breath());
-                    reid.after_pwm(table.at(applied), held, boundary, false);
+                    reid.after_pwm(table.at(applied), held, boundary, false, v.alarm());
                     if let Some(report) = reid.take_report() {
                         replayed.push(Event::Reid(report));
                     }
