@@ -638,9 +638,30 @@ pub struct ReidLine {
     pub running: f64,
     /// The window's input RMS about its mean, slm (`v-rms=`, 3 decimals).
     pub v_rms: f64,
+    /// Why the controller design was refused (`why=`, only with `verdict=design`): one of
+    /// [`ReidLine::WHY`].
+    pub why: Option<String>,
+    /// The refused design's modulus margin (`margin=`, with `why=margin`).
+    pub margin: Option<f64>,
+    /// Designs made before the refusal (`tries=`, with a design's `why=`).
+    pub tries: Option<u32>,
 }
 
 impl ReidLine {
+    /// The reasons a `verdict=design` line gives (`why=`): the model check's (`nonfinite`,
+    /// `unstable`, `gain`) and the design's (`spec`, `singular`, `slow-poles`, `poles`,
+    /// `margin`), the words of the `FAULT control` line.
+    pub const WHY: [&'static str; 8] = [
+        "nonfinite",
+        "unstable",
+        "gain",
+        "spec",
+        "singular",
+        "slow-poles",
+        "poles",
+        "margin",
+    ];
+
     /// The verdicts the firmware prints.
     pub const VERDICTS: [&'static str; 7] = [
         "accepted",
@@ -670,6 +691,25 @@ impl ReidLine {
                 expected: "verdict",
             })?;
         let (fit, running) = line.get("fit").and_then(|f| f.split_once('/')).unzip();
+        // `why=` with `verdict=design` only, and then required.
+        let why = match (verdict, line.get("why")) {
+            ("design", Some(w)) if Self::WHY.contains(&w) => Some(w.to_string()),
+            (_, None) if verdict != "design" => None,
+            _ => {
+                return Err(LineError::Field {
+                    key: "why",
+                    expected: "a design refusal's reason, with verdict=design only",
+                })
+            }
+        };
+        let margin = match why.as_deref() {
+            Some("margin") => Some(line.finite("margin")?),
+            _ => None,
+        };
+        let tries = match why.as_deref() {
+            Some("nonfinite" | "unstable" | "gain") | None => None,
+            Some(_) => Some(line.whole("tries")?),
+        };
         Ok(Self {
             breath: line.whole("breath")?,
             verdict: verdict.to_string(),
@@ -677,6 +717,9 @@ impl ReidLine {
             fit: num("fit", fit)?,
             running: num("fit", running)?,
             v_rms: num("v-rms", line.get("v-rms"))?,
+            why,
+            margin,
+            tries,
         })
     }
 }

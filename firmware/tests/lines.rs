@@ -464,10 +464,8 @@ fn expected(e: &Event) -> Expected {
             &["volume"],
             vec![("vd", f(delivered)), ("vt", f(tidal))],
         ),
-        Event::Reid(r) => exp(
-            "REID",
-            &[],
-            vec![
+        Event::Reid(r) => {
+            let mut fields = vec![
                 ("breath", int(r.breath)),
                 (
                     "verdict",
@@ -478,14 +476,42 @@ fn expected(e: &Event) -> Expected {
                         ReidVerdict::Model => "model",
                         ReidVerdict::Fit => "fit",
                         ReidVerdict::Numeric => "numeric",
-                        ReidVerdict::Design => "design",
+                        ReidVerdict::Design(_) => "design",
                     }),
                 ),
                 ("gain", f(r.gain)),
                 ("fit", V::P(f64::from(r.fit), f64::from(r.running))),
                 ("v-rms", f(r.v_rms)),
-            ],
-        ),
+            ];
+            if let ReidVerdict::Design(why) = r.verdict {
+                match why {
+                    ControlRefusal::Model(ModelFault::NonFinite) => {
+                        fields.push(("why", V::W("nonfinite")))
+                    }
+                    ControlRefusal::Model(ModelFault::Unstable) => {
+                        fields.push(("why", V::W("unstable")))
+                    }
+                    ControlRefusal::Model(ModelFault::Gain { .. }) => {
+                        fields.push(("why", V::W("gain")))
+                    }
+                    ControlRefusal::Design { error, tries } => {
+                        let word = match error {
+                            DesignError::Spec => "spec",
+                            DesignError::Singular => "singular",
+                            DesignError::SlowPoles => "slow-poles",
+                            DesignError::Poles => "poles",
+                            DesignError::Margin { margin } => {
+                                fields.push(("margin", f(margin)));
+                                "margin"
+                            }
+                        };
+                        fields.push(("why", V::W(word)));
+                        fields.push(("tries", int(tries)));
+                    }
+                }
+            }
+            exp("REID", &[], fields)
+        }
         Event::Fault(r) => {
             let (words, fields) = fault(r);
             exp("FAULT", &words, fields)
@@ -502,7 +528,16 @@ fn reids() -> Vec<ReidReport> {
         ReidVerdict::Model,
         ReidVerdict::Fit,
         ReidVerdict::Numeric,
-        ReidVerdict::Design,
+        ReidVerdict::Design(ControlRefusal::Design {
+            error: DesignError::Margin { margin: 0.375 },
+            tries: 4,
+        }),
+        ReidVerdict::Design(ControlRefusal::Design {
+            error: DesignError::SlowPoles,
+            tries: 1,
+        }),
+        ReidVerdict::Design(ControlRefusal::Model(ModelFault::Unstable)),
+        ReidVerdict::Design(ControlRefusal::Model(ModelFault::Gain { gain: 0.25 })),
     ];
     all.iter()
         .enumerate()
@@ -534,18 +569,46 @@ fn reid_lines_parse_back_equal() {
         check(&t, &expected(&Event::Reid(r)));
         let p = ReidLine::parse(&t).unwrap_or_else(|e| panic!("{t}: {e:?}"));
         assert_eq!(p.breath, r.breath, "{t}");
-        assert_eq!(
-            ReidLine::VERDICTS.iter().position(|v| *v == p.verdict),
-            Some(r.breath as usize - 12),
-            "{t}"
-        );
+        assert_eq!(p.verdict, r.verdict.name(), "{t}");
+        assert!(ReidLine::VERDICTS.contains(&p.verdict.as_str()), "{t}");
         let same = |a: f64, b: f32| a == f64::from(b) || (a.is_nan() && b.is_nan());
         assert!(
             same(p.gain, r.gain) && same(p.fit, r.fit) && same(p.running, r.running),
             "{t}"
         );
         assert_eq!(p.v_rms, 22.125, "{t}");
+        let (why, margin, tries) = match r.verdict {
+            ReidVerdict::Design(ControlRefusal::Design { error, tries }) => match error {
+                DesignError::Margin { margin } => ("margin", Some(f64::from(margin)), Some(tries)),
+                DesignError::SlowPoles => ("slow-poles", None, Some(tries)),
+                e => panic!("not in reids(): {e:?}"),
+            },
+            ReidVerdict::Design(ControlRefusal::Model(ModelFault::Unstable)) => {
+                ("unstable", None, None)
+            }
+            ReidVerdict::Design(ControlRefusal::Model(ModelFault::Gain { .. })) => {
+                ("gain", None, None)
+            }
+            ReidVerdict::Design(why) => panic!("not in reids(): {why:?}"),
+            _ => ("", None, None),
+        };
+        assert_eq!(p.why.as_deref(), Some(why).filter(|w| !w.is_empty()), "{t}");
+        assert_eq!(p.margin, margin, "{t}");
+        assert_eq!(p.tries, tries.map(u32::from), "{t}");
     }
+    assert_eq!(
+        text(&Event::Reid(reids()[6])),
+        "REID breath=18 verdict=design gain=1.125 fit=nan/nan v-rms=22.125 why=margin \
+         margin=0.375 tries=4"
+    );
+    // `why=` only with `verdict=design`, and required there.
+    assert!(ReidLine::parse(
+        "REID breath=3 verdict=kept gain=1.000 fit=90.0/80.0 v-rms=5.000 why=margin"
+    )
+    .is_err());
+    assert!(
+        ReidLine::parse("REID breath=3 verdict=design gain=1.000 fit=nan/nan v-rms=nan").is_err()
+    );
     assert_eq!(
         text(&Event::Reid(reids()[1])),
         "REID breath=13 verdict=kept gain=1.125 fit=92.5/60.5 v-rms=22.125"

@@ -11,14 +11,23 @@
 //! - [`validation`]: scoring a model on a record, the fresh host-side validation signal with
 //!   the loop's timing, the fit plot.
 //! - [`image`]: a firmware image's section sizes ([`image::Sizes`]).
+//! - [`console`]: the console's transcript as the tests read it: answers, log rows, the `RST`
+//!   lines, the `ridge-id` check of the pump's own identification.
+//! - [`firmware`]: a board's release image built from the workspace once per process
+//!   ([`firmware::Image`]).
 //! - [`run`]: run mode rebuilt tick by tick and checked against the `TRACK` lines
 //!   ([`run::RunTrace`]), scored as `pump_sim::baseline` scores its host runs.
 //! - [`sfm3300`]: the SFM3300's I2C side (commands, frames, NACKs, faults), which each
 //!   harness's bus feeds ([`sfm3300::SensorState`]).
+//! - [`i2c_lines`]: the I2C lines at the pin level beside the emulated I2C peripheral: pull-ups,
+//!   a slave holding SDA low, what the lines did ([`i2c_lines::Lines`]).
 //! - [`report`]: the report `scripts/simulate` prints for either board, one function per
 //!   section, with the board-specific figures labelled as such ([`report::Board`]).
 
+pub mod console;
+pub mod firmware;
 pub mod host;
+pub mod i2c_lines;
 pub mod image;
 pub mod report;
 pub mod run;

@@ -227,7 +227,7 @@ impl RunTrace {
                         * f64::from(DUTY_FULL_SCALE))
                     .round() as u16;
                     let boundary = (phase == 0).then(|| v.breath());
-                    reid.after_pwm(table.at(applied), held, boundary, false);
+                    reid.after_pwm(table.at(applied), held, boundary, false, v.alarm());
                     if let Some(report) = reid.take_report() {
                         replayed.push(Event::Reid(report));
                     }
@@ -322,6 +322,19 @@ impl RunTrace {
             vent_tick,
             replayed,
         })
+    }
+
+    /// Whether the firmware's `TRACK` figures are those of the flow it was served: at least 10
+    /// lines checked, none further than 0.002 slm from the rebuilt means (the printing's
+    /// rounding is 0.0005), none misaligned; `Err` gives the three figures.
+    pub fn track_check(&self) -> Result<(), String> {
+        if self.track_lines < 10 || self.track_mismatch > 0.002 || self.misaligned > 0 {
+            return Err(format!(
+                "TRACK lines {} (≥ 10), recomputed difference {:.4} slm (≤ 0.002), misaligned {}",
+                self.track_lines, self.track_mismatch, self.misaligned
+            ));
+        }
+        Ok(())
     }
 
     /// The run's scores (steps, breaths, duty variation) from the true flow, as

@@ -41,17 +41,17 @@ pub fn fresh_signal(
     frac: impl Fn(u16) -> f64,
 ) -> (Samples, usize) {
     let latency = latency.unwrap_or(FRESH_LATENCY_DEFAULT);
-    let rec = fresh_record(
+    let fresh = FreshRecord {
         pump,
         lung,
         sensor,
-        seed.wrapping_add(FRESH_SEED_OFFSET),
-        FRESH_RECORD,
+        seed: seed.wrapping_add(FRESH_SEED_OFFSET),
+        record: FRESH_RECORD,
         map,
-        FRESH_BASE,
+        base: FRESH_BASE,
         latency,
-        frac,
-    );
+    };
+    let rec = fresh_record(&fresh, frac);
     (rec, latency)
 }
 
@@ -74,24 +74,45 @@ pub fn score(model: &ArxModel<f64>, samples: &Samples) -> (Option<f64>, Option<f
     )
 }
 
-/// A fresh validation signal on the host, with the loop's timing: the plant (blower `pump`,
-/// test lung `lung` if any) sub-stepped as in the benches ([`SUBSTEPS`]), the reading taken at
-/// the tick, the new duty applied `latency` sub-steps later as the fraction `frac(duty)` the
-/// board's PWM timer makes of it, the sensor noise from `seed`. Starts from `base` duty held
-/// for 2 s, as the firmware settles. `map`: the model's map, kept with the samples for
+/// What a fresh validation signal is made of ([`fresh_record`]); each harness adds how its
+/// board's PWM timer makes the duty.
+#[derive(Clone, Copy, Debug)]
+pub struct FreshRecord<'a> {
+    /// The blower.
+    pub pump: &'a PumpParams,
+    /// The test lung, if any (its exhalation valve open, as in the identification).
+    pub lung: Option<&'a LungParams>,
+    /// The sensor model.
+    pub sensor: &'a Sfm3300Params,
+    /// The sensor-noise seed.
+    pub seed: u64,
+    /// The excitation preset.
+    pub record: Record,
+    /// The model's map, kept with the samples for scoring.
+    pub map: Option<InputMap>,
+    /// The duty held for 2 s before the record, 1/10 000.
+    pub base: u16,
+    /// Plant sub-steps (0.5 ms) from the tick's reading to the new duty.
+    pub latency: usize,
+}
+
+/// A fresh validation signal on the host, with the loop's timing: the plant (blower `f.pump`,
+/// test lung `f.lung` if any) sub-stepped as in the benches ([`SUBSTEPS`]), the reading taken at
+/// the tick, the new duty applied `f.latency` sub-steps later as the fraction `frac(duty)` the
+/// board's PWM timer makes of it, the sensor noise from `f.seed`. Starts from `f.base` duty held
+/// for 2 s, as the firmware settles. `f.map`: the model's map, kept with the samples for
 /// scoring.
-#[allow(clippy::too_many_arguments)]
-pub fn fresh_record(
-    pump: &PumpParams,
-    lung: Option<&LungParams>,
-    sensor: &Sfm3300Params,
-    seed: u64,
-    record: Record,
-    map: Option<InputMap>,
-    base: u16,
-    latency: usize,
-    frac: impl Fn(u16) -> f64,
-) -> Samples {
+pub fn fresh_record(f: &FreshRecord<'_>, frac: impl Fn(u16) -> f64) -> Samples {
+    let FreshRecord {
+        pump,
+        lung,
+        sensor,
+        seed,
+        record,
+        map,
+        base,
+        latency,
+    } = *f;
     let mut p = pump.clone();
     p.ts_s /= SUBSTEPS as f64;
     p.delay_samples *= SUBSTEPS;

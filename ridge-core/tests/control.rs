@@ -706,6 +706,9 @@ fn refusals() {
         design(&oscillating, &Spec::new(TS)),
         Err(DesignError::SlowPoles)
     );
+    // The slow poles are the model's, whatever the speed: one design, not a slower retry.
+    let (refused, tries) = design_slower_on_failure(&oscillating, &Spec::new(TS), 5, 1.5, || {});
+    assert_eq!((refused, tries), (Err(DesignError::SlowPoles), 1));
     // Nonsense settings.
     let bad = Spec {
         tau: Some(f64::NAN),

@@ -1,46 +1,17 @@
-//! The ATmega2560 firmware image: where it is, how to build it, how big it is.
+//! The ATmega2560 firmware image: where it is, how to build it (the build itself:
+//! `harness_kit::firmware`), how big it is.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::sync::OnceLock;
 
-/// Workspace root (parent of `simavr-harness/`).
-pub fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .expect("simavr-harness lives in the workspace")
-        .to_path_buf()
-}
+use harness_kit::firmware::Image;
 
-/// Cargo target directory (`CARGO_TARGET_DIR` or `<root>/target`).
-pub fn target_dir() -> PathBuf {
-    std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .map(|p| {
-            if p.is_absolute() {
-                p
-            } else {
-                workspace_root().join(p)
-            }
-        })
-        .unwrap_or_else(|| workspace_root().join("target"))
-}
-
-/// Where the release ELF of the ATmega2560 image lands.
-pub fn default_elf() -> PathBuf {
-    if let Some(p) = std::env::var_os("RIDGE_PUMP_ELF") {
-        return PathBuf::from(p);
-    }
-    target_dir().join("avr-none/release/atmega2560.elf")
-}
-
-/// Builds the image with the ATmega2560 step of `scripts/build-boards` (nightly,
-/// `--target avr-none -Zbuild-std=core`; the script also builds the STM32 image and checks the
-/// size budgets). Output goes to stderr. Environment that would leak the calling cargo's
-/// settings into the nightly cross build (RUSTFLAGS, RUSTC, …) is removed.
-pub fn build() -> Result<PathBuf, String> {
-    let root = workspace_root();
-    let mut cmd = Command::new("cargo");
-    cmd.args([
+/// The image as the ATmega2560 step of `scripts/build-boards` builds it (nightly, `--target
+/// avr-none -Zbuild-std=core`; the script also builds the STM32 image and checks the size
+/// budgets); `RIDGE_PUMP_ELF` names another. The toolchain the calling cargo chose and its AVR
+/// runner are removed from the build's environment too.
+const IMAGE: Image = Image {
+    cargo_args: &[
         "+nightly",
         "build",
         "-q",
@@ -54,51 +25,28 @@ pub fn build() -> Result<PathBuf, String> {
         "--target",
         "avr-none",
         "-Zbuild-std=core",
-    ]);
-    cmd.current_dir(&root);
-    for v in [
-        "RUSTFLAGS",
-        "CARGO_ENCODED_RUSTFLAGS",
-        "RUSTC",
-        "RUSTC_WRAPPER",
-        "RUSTC_WORKSPACE_WRAPPER",
-        "RUSTDOC",
-        "CARGO",
-        "CARGO_BUILD_TARGET",
-        "RUSTUP_TOOLCHAIN",
-        "CARGO_MAKEFLAGS",
-        "MAKEFLAGS",
-        "CARGO_TARGET_AVR_NONE_RUNNER",
-    ] {
-        cmd.env_remove(v);
-    }
-    let status = cmd
-        .status()
-        .map_err(|e| format!("cannot run the firmware build: {e}"))?;
-    if !status.success() {
-        return Err(format!("firmware build failed ({status})"));
-    }
-    let elf = default_elf();
-    if elf.is_file() {
-        Ok(elf)
-    } else {
-        Err(format!("build succeeded but {} is missing", elf.display()))
-    }
+    ],
+    elf: "avr-none/release/atmega2560.elf",
+    elf_var: "RIDGE_PUMP_ELF",
+    unset: &["RUSTUP_TOOLCHAIN", "CARGO_TARGET_AVR_NONE_RUNNER"],
+};
+
+/// Where the release ELF of the ATmega2560 image lands (`RIDGE_PUMP_ELF` names another).
+pub fn default_elf() -> PathBuf {
+    IMAGE.default_elf()
+}
+
+/// Builds the image (output to stderr), with the environment that would leak the calling
+/// cargo's settings into the nightly cross build (RUSTFLAGS, RUSTC, …) removed.
+pub fn build() -> Result<PathBuf, String> {
+    IMAGE.build()
 }
 
 /// The ELF, brought up to date by one (incremental) build per process, so that tests never run
 /// a stale image. `RIDGE_PUMP_ELF` names a prebuilt image instead (no build).
 pub fn ensure_elf() -> Result<PathBuf, String> {
-    static BUILT: std::sync::OnceLock<Result<PathBuf, String>> = std::sync::OnceLock::new();
-    if std::env::var_os("RIDGE_PUMP_ELF").is_some() {
-        let elf = default_elf();
-        return if elf.is_file() {
-            Ok(elf)
-        } else {
-            Err(format!("RIDGE_PUMP_ELF: no such file {}", elf.display()))
-        };
-    }
-    BUILT.get_or_init(build).clone()
+    static BUILT: OnceLock<Result<PathBuf, String>> = OnceLock::new();
+    IMAGE.ensure_elf(&BUILT)
 }
 
 /// Section sizes of an AVR ELF: text = `.text` (code and vectors, includes `.progmem`), bss =

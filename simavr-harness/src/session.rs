@@ -12,15 +12,13 @@ use std::time::Instant;
 
 pub use harness_kit::host::{coefficient_error, firmware_search, host_search, host_search_in};
 pub use harness_kit::samples::Samples;
-pub use harness_kit::validation::{plot, score};
+pub use harness_kit::validation::{plot, score, FreshRecord};
 
 use crate::bench::{Bench, BenchConfig, RunEnd, TickTiming};
 use crate::firmware::{self, Sizes};
 use crate::transcript::Line;
 use harness_kit::{samples, validation};
-use pump_sim::{LungParams, PumpParams, Sfm3300Params};
 use ridge_core::InputMap;
-use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::lines::{IdLine, MapLine, ParsedLine};
 use ridge_pump_firmware::pump::duty_to_counts;
 
@@ -398,28 +396,8 @@ pub fn rebuild(bench: &Bench, idx: usize) -> Option<Samples> {
 /// A fresh validation signal on the host with the loop's timing
 /// (`harness_kit::validation::fresh_record`), the duty as the board's timer makes it
 /// ([`pwm_counts`] of [`PWM_MAX`]).
-#[allow(clippy::too_many_arguments)]
-pub fn fresh_record(
-    pump: &PumpParams,
-    lung: Option<&LungParams>,
-    sensor: &Sfm3300Params,
-    seed: u64,
-    record: Record,
-    map: Option<InputMap>,
-    base: u16,
-    latency: usize,
-) -> Samples {
-    validation::fresh_record(
-        pump,
-        lung,
-        sensor,
-        seed,
-        record,
-        map,
-        base,
-        latency,
-        pwm_fraction,
-    )
+pub fn fresh_record(fresh: &FreshRecord<'_>) -> Samples {
+    validation::fresh_record(fresh, pwm_fraction)
 }
 
 /// Median sub-steps between a read and the PWM change that follows it in the same tick, over

@@ -28,6 +28,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Parser;
+use harness_kit::console::{
+    self, device_argv, is_answer, rising_crossings, rst_polynomials, LogRow,
+};
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::sfm3300::raw_to_flow;
 use pump_sim::{Blower, Outlet, PlantArgs, Sfm3300Params};
@@ -98,14 +101,6 @@ fn transcript(b: &Bench) -> String {
     out
 }
 
-/// An answer to a console command (not a log row, not a periodic report).
-fn is_answer(text: &str) -> bool {
-    ["OK ", "ERR ", "STATUS ", "MODEL ", "MAP ", "RST "]
-        .iter()
-        .any(|k| text.starts_with(k))
-        || text == ridge_pump_firmware::console::LOG_HEADER
-}
-
 /// Sends `line` (with `\n`) now and runs until its first answer line; returns the transmission
 /// and that line's index.
 fn command(b: &mut Bench, line: &str) -> (SendId, usize) {
@@ -138,36 +133,10 @@ fn answers_since(b: &Bench, from: usize) -> Vec<&str> {
         .collect()
 }
 
-/// One log row (`t,u,y,r,phase`) and its line index.
-#[derive(Clone, Debug)]
-struct Row {
-    line: usize,
-    /// Ticks (t · 100).
-    tick: i64,
-    u: f64,
-    y: f64,
-    r: Option<f64>,
-    phase: String,
-}
-
-fn rows(b: &Bench, from: usize, to: usize) -> Vec<Row> {
-    b.lines[from..to]
-        .iter()
-        .enumerate()
-        .filter(|(_, l)| classify(l.text.as_bytes()) == Kind::Row)
-        .map(|(i, l)| {
-            let c: Vec<&str> = l.text.split(',').collect();
-            let num = |s: &str| s.parse::<f64>().unwrap_or_else(|_| panic!("{}", l.text));
-            Row {
-                line: from + i,
-                tick: (num(c[0]) * 100.0).round() as i64,
-                u: num(c[1]),
-                y: num(c[2]),
-                r: (!c[3].is_empty()).then(|| num(c[3])),
-                phase: c[4].to_string(),
-            }
-        })
-        .collect()
+/// The log rows among lines `from..to` (`harness_kit::console::log_rows`).
+fn rows(b: &Bench, from: usize, to: usize) -> Vec<LogRow> {
+    console::log_rows(b.lines[from..to].iter().map(|l| l.text.as_str()), from)
+        .unwrap_or_else(|l| panic!("{l}"))
 }
 
 /// Index of the bench tick in progress at `cycle`.
@@ -197,16 +166,8 @@ fn counts_at(b: &Bench, cycle: u64) -> u32 {
 /// tick), `y` = the frame the sensor served in that tick (counts / 120, 5 decimals), `u` = the
 /// duty on the pin when that frame was read (the interval that ended with the reading).
 /// Returns the bench tick of the first row.
-fn check_rows(b: &Bench, rows: &[Row]) -> Result<usize, String> {
-    let first = rows.first().ok_or("no log rows")?;
-    for w in rows.windows(2) {
-        if w[1].tick != w[0].tick + 1 {
-            return Err(format!(
-                "rows not consecutive: t {} then {} (line {})",
-                w[0].tick, w[1].tick, w[1].line
-            ));
-        }
-    }
+fn check_rows(b: &Bench, rows: &[LogRow]) -> Result<usize, String> {
+    let first = console::consecutive(rows)?;
     let near = tick_of(b, b.line_starts[first.line]);
     'candidate: for j0 in near.saturating_sub(4)..=near {
         for (i, r) in rows.iter().enumerate() {
@@ -244,19 +205,6 @@ fn mean_flow(b: &Bench, from: u64, to: u64) -> f64 {
         .collect();
     assert!(!v.is_empty(), "no plant samples in {from}..{to}");
     v.iter().sum::<f64>() / v.len() as f64
-}
-
-/// Rising crossings of `level` in `x` (sample indices), and their mean spacing.
-fn period(x: &[f64], level: f64) -> (Vec<usize>, f64) {
-    let ups: Vec<usize> = (1..x.len())
-        .filter(|&i| x[i - 1] < level && x[i] >= level)
-        .collect();
-    let p = if ups.len() >= 2 {
-        (ups[ups.len() - 1] - ups[0]) as f64 / (ups.len() - 1) as f64
-    } else {
-        f64::NAN
-    };
-    (ups, p)
 }
 
 /// Writes to the pump's compare register (OCR4A low byte, which completes the 16-bit write)
@@ -479,7 +427,7 @@ fn commands_on_the_running_pump() {
         let sp: Vec<f64> = r.iter().map(|r| r.r.expect("r in run mode")).collect();
         let mid = (peak + bias) / 2.0;
         let want = 6000.0 / rate; // ticks per breath
-        let (ups, p) = period(&sp, mid);
+        let (ups, p) = rising_crossings(&sp, mid);
         assert!(
             ups.len() >= 3 && (p - want).abs() <= 1.0,
             "{line}: setpoint period {p} ticks ({} breaths), want {want}",
@@ -497,7 +445,7 @@ fn commands_on_the_running_pump() {
             .filter(|s| s.cycle >= from_cycle)
             .map(|s| s.flow)
             .collect();
-        let (fups, fp) = period(&flow, mid);
+        let (fups, fp) = rising_crossings(&flow, mid);
         assert!(
             fups.len() >= 3 && (fp - want).abs() <= 2.0,
             "{line}: true flow period {fp} ticks ({} breaths), want {want}",
@@ -665,13 +613,8 @@ fn commands_on_the_running_pump() {
     );
     // The controller, one polynomial per line: R monic, and the static gain of the loop from
     // setpoint to flow is one only if T(1) = S(1) (integral action, R(1) = 0).
-    let poly = |k: usize, name: &str| {
-        let l = b.lines.get(i + k).map(|l| l.parsed()).unwrap_or_default();
-        assert_eq!(l.keyword, "RST", "{}", transcript(&b));
-        l.list(name)
-            .unwrap_or_else(|| panic!("no {name}=:\n{}", transcript(&b)))
-    };
-    let (r, s, t) = (poly(2, "r"), poly(3, "s"), poly(4, "t"));
+    let [r, s, t] = rst_polynomials([2, 3, 4].map(|k| b.lines.get(i + k).map(|l| l.parsed())))
+        .unwrap_or_else(|e| panic!("{e}:\n{}", transcript(&b)));
     assert_eq!(r.first().copied(), Some(1.0));
     let sum = |v: &[f64]| v.iter().sum::<f64>();
     assert!(sum(&r).abs() < 1e-5, "R(1) = {}", sum(&r));
@@ -709,29 +652,6 @@ fn commands_on_the_running_pump() {
 /// Whether slot `k` of `store` holds a written record (its sequence number is not 0xFF).
 fn at_slot(store: &[u8], k: usize) -> bool {
     store[k * SLOT_LEN + RECORD_LEN] != slots::UNWRITTEN
-}
-
-/// The options docs/boards.md and docs/real-logs.md give for checking the pump's own
-/// identification from its log: `--device` (the firmware's search settings) with the segment
-/// options spelled out.
-fn device_argv(capture: &Path) -> Vec<String> {
-    let path = capture.to_str().expect("UTF-8 path");
-    [
-        "ridge-id",
-        "identify",
-        "--input",
-        path,
-        "--device",
-        "--phase",
-        "excite",
-        "--attempt",
-        "1",
-        "--operating-point",
-        "log",
-        "--json",
-    ]
-    .map(String::from)
-    .into()
 }
 
 /// One boot with a blank EEPROM and the log on from the first line (what `scripts/simulate
@@ -772,7 +692,7 @@ fn identification_on_the_log_matches_ridge_id() {
 
     // The log: every excite row is a sample the sensor served, with the duty on the pin.
     let excite_at = b.find_lines("EXCITE").next().expect("EXCITE").0;
-    let excite: Vec<Row> = rows(b, excite_at, id_at)
+    let excite: Vec<LogRow> = rows(b, excite_at, id_at)
         .into_iter()
         .filter(|r| r.phase == "excite")
         .collect();
@@ -799,7 +719,7 @@ fn identification_on_the_log_matches_ridge_id() {
     let path = dir.join("capture.csv");
     let counts = capture::write_capture(b, &path).expect("capture");
     assert_eq!(counts.bad, 0);
-    let argv = device_argv(&path);
+    let argv = device_argv(&path).expect("UTF-8 path");
     let cli = Cli::try_parse_from(&argv).unwrap_or_else(|e| panic!("{argv:?}: {e}"));
     let Command::Identify(args) = cli.command else {
         panic!("not identify: {argv:?}");

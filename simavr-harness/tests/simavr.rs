@@ -245,16 +245,16 @@ fn check_identification(o: &Outcome, budgets: bool) -> Vec<String> {
                 .as_ref()
                 .map_or(2, |e| session::write_latency(&o.bench, e));
             let cfg = o.bench.config();
-            let fresh = session::fresh_record(
-                &cfg.pump,
-                cfg.lung.as_ref(),
-                &cfg.sensor,
-                cfg.seed + 1000,
-                FRESH_RECORD,
-                o.map,
-                3_000,
-                lat,
-            );
+            let fresh = session::fresh_record(&session::FreshRecord {
+                pump: &cfg.pump,
+                lung: cfg.lung.as_ref(),
+                sensor: &cfg.sensor,
+                seed: cfg.seed + 1000,
+                record: FRESH_RECORD,
+                map: o.map,
+                base: 3_000,
+                latency: lat,
+            });
             let (free, _, _) = session::score(&model, &fresh);
             match free {
                 Some(f) if f >= MIN_FRESH_FIT => {}
@@ -563,17 +563,7 @@ const SDA_STUCK_BOUND_S: f64 = 0.055;
 /// Every SCL phase in cycles `from..to` that the bus model saw is as long as standard-mode I2C
 /// asks (a high phase longer than 1 ms is the idle bus between two recoveries, not a phase).
 fn check_clock(bus: &BusState, from: u64, to: u64, what: &str) {
-    let edges: Vec<(u64, bool)> = bus
-        .events
-        .iter()
-        .filter_map(|e| match *e {
-            BusEvent::Scl(c, high) if (from..to).contains(&c) => Some((c, high)),
-            _ => None,
-        })
-        .collect();
-    for w in edges.windows(2) {
-        let ((c0, high), (c1, _)) = (w[0], w[1]);
-        let len = c1 - c0;
+    for (c0, high, len) in bus.scl_phases(from, to) {
         if high {
             assert!(
                 len >= I2C_HIGH_MIN || len > 16_000,
@@ -608,8 +598,8 @@ fn sda_held_low_by_the_sensor_is_clocked_free() {
         let bus = bench.bus.borrow();
         let what = format!("released after {k} clocks");
         let within = |c: &u64| (armed..end).contains(c);
-        let holds = bus.cycles(|e| matches!(e, BusEvent::Hold(c) if within(c)));
-        let releases = bus.cycles(|e| matches!(e, BusEvent::Release(c) if within(c)));
+        let holds = bus.times(|e| matches!(e, BusEvent::Hold(c) if within(c)));
+        let releases = bus.times(|e| matches!(e, BusEvent::Release(c) if within(c)));
         assert!(
             holds.len() == 1 && releases.len() == 1,
             "{what}: holds {holds:?}, releases {releases:?}"
@@ -619,9 +609,9 @@ fn sda_held_low_by_the_sensor_is_clocked_free() {
         assert_eq!(pulses, usize::from(k), "{what}: clock pulses");
         assert!(pulses <= 9, "{what}: {pulses} clock pulses");
         check_clock(&bus, hold, end, &what);
-        let blocked = bus.cycles(|e| matches!(e, BusEvent::BlockedStart(c) if within(c)));
+        let blocked = bus.times(|e| matches!(e, BusEvent::BlockedStart(c) if within(c)));
         assert_eq!(blocked.len(), 1, "{what}: START requests on the held bus");
-        let stops = bus.cycles(|e| matches!(e, BusEvent::Stop(c) if within(c)));
+        let stops = bus.times(|e| matches!(e, BusEvent::Stop(c) if within(c)));
         assert!(
             stops.len() == 1 && stops[0] > release,
             "{what}: STOP conditions {stops:?}, release at {release}"
@@ -685,7 +675,7 @@ fn sda_held_low_for_good_stops_the_pump_within_its_bound() {
     assert_eq!(bench.lines[idx].text, "FAULT sensor=bus n=5");
     assert_stopped(&bench, idx, "SDA held low");
     let bus = bench.bus.borrow();
-    let hold = bus.cycles(|e| matches!(e, BusEvent::Hold(_)));
+    let hold = bus.times(|e| matches!(e, BusEvent::Hold(_)));
     assert_eq!(hold.len(), 1, "holds");
     let hold = hold[0];
     let line = bench.line_starts[idx];
@@ -703,7 +693,7 @@ fn sda_held_low_for_good_stops_the_pump_within_its_bound() {
         SDA_STUCK_BOUND_S * 1e3
     );
     // One failed read per tick, each followed by the full 9 clocks; the fifth in a row faults.
-    let blocked = bus.cycles(|e| matches!(e, BusEvent::BlockedStart(c) if *c < line));
+    let blocked = bus.times(|e| matches!(e, BusEvent::BlockedStart(c) if *c < line));
     assert_eq!(
         blocked.len(),
         usize::from(Config::default().sensor_fault_limit),
@@ -720,7 +710,7 @@ fn sda_held_low_for_good_stops_the_pump_within_its_bound() {
     check_clock(&bus, hold, line, "SDA held for good");
     let after = |c: &u64| *c > hold;
     assert!(
-        bus.cycles(|e| matches!(e, BusEvent::Release(c) | BusEvent::Stop(c) if after(c)))
+        bus.times(|e| matches!(e, BusEvent::Release(c) | BusEvent::Stop(c) if after(c)))
             .is_empty(),
         "SDA rose while held: {:?}",
         bus.events
@@ -960,11 +950,8 @@ fn tracking_run(
         }
     };
     // The firmware's TRACK figures are those of the flow it was served.
-    if run.track_lines < 10 || run.track_mismatch > 0.002 || run.misaligned > 0 {
-        bad.push(format!(
-            "TRACK lines {} (≥ 10), recomputed difference {:.4} slm (≤ 0.002), misaligned {}",
-            run.track_lines, run.track_mismatch, run.misaligned
-        ));
+    if let Err(e) = run.track_check() {
+        bad.push(e);
     }
     match design_cycles(&o.bench) {
         Some(c) if c < session::DESIGN_BUDGET_CYCLES => {}

@@ -10,10 +10,8 @@
 use std::time::Instant;
 
 use harness_kit::samples::{self, Samples};
-use harness_kit::validation;
-use pump_sim::{LungParams, PumpParams, Sfm3300Params};
+use harness_kit::validation::{self, FreshRecord};
 use ridge_core::InputMap;
-use ridge_pump_firmware::excitation::Record;
 use ridge_pump_firmware::lines::{IdLine, MapLine, ParsedLine};
 use ridge_pump_firmware::pump::duty_to_counts;
 
@@ -351,20 +349,8 @@ pub fn write_capture(
 /// A fresh validation signal on the host with the loop's timing
 /// (`harness_kit::validation::fresh_record`), the duty as TIM3 makes it of a `period`-count
 /// PWM period.
-#[allow(clippy::too_many_arguments)]
-pub fn fresh_record(
-    pump: &PumpParams,
-    lung: Option<&LungParams>,
-    sensor: &Sfm3300Params,
-    seed: u64,
-    record: Record,
-    map: Option<InputMap>,
-    base: u16,
-    latency: usize,
-    period: u32,
-) -> Samples {
-    let frac = |d: u16| duty_fraction(d, period);
-    validation::fresh_record(pump, lung, sensor, seed, record, map, base, latency, frac)
+pub fn fresh_record(fresh: &FreshRecord<'_>, period: u32) -> Samples {
+    validation::fresh_record(fresh, |d| duty_fraction(d, period))
 }
 
 /// Median plant sub-steps (0.5 ms) between a read of `samples` and the PWM change that

@@ -20,7 +20,7 @@ mod common;
 
 use common::elf;
 use harness_kit::host::{coefficient_error, host_search};
-use harness_kit::validation::score;
+use harness_kit::validation::{score, FreshRecord};
 use pump_sim::baseline::table::breath_pct;
 use pump_sim::PumpParams;
 use ridge_pump_firmware::excitation::Record;
@@ -106,14 +106,16 @@ fn check_identification(o: &Outcome) -> Vec<String> {
             let cfg = o.bench.config();
             let period = o.bench.duty_log.last().map_or(1, |d| d.period);
             let fresh = session::fresh_record(
-                &cfg.pump,
-                cfg.lung.as_ref(),
-                &cfg.sensor,
-                cfg.seed + 1000,
-                FRESH_RECORD,
-                o.map,
-                config.base_duty,
-                session::write_latency(&o.bench, est),
+                &FreshRecord {
+                    pump: &cfg.pump,
+                    lung: cfg.lung.as_ref(),
+                    sensor: &cfg.sensor,
+                    seed: cfg.seed + 1000,
+                    record: FRESH_RECORD,
+                    map: o.map,
+                    base: config.base_duty,
+                    latency: session::write_latency(&o.bench, est),
+                },
                 period,
             );
             match score(&model, &fresh).0 {
@@ -190,11 +192,8 @@ fn tracking_run(
             unreachable!()
         }
     };
-    if run.track_lines < 10 || run.track_mismatch > 0.002 || run.misaligned > 0 {
-        bad.push(format!(
-            "TRACK lines {} (≥ 10), recomputed difference {:.4} slm (≤ 0.002), misaligned {}",
-            run.track_lines, run.track_mismatch, run.misaligned
-        ));
+    if let Err(e) = run.track_check() {
+        bad.push(e);
     }
     let control: Vec<u64> = o.bench.machine.core().ticks.ticks[run.first_tick..]
         .iter()

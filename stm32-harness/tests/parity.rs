@@ -230,17 +230,7 @@ const GPIOB_IDR: u32 = 0x4002_0410;
 /// Every SCL phase in `from..to` is as long as standard-mode I2C asks (a high phase longer
 /// than 1 ms is the idle bus between two recoveries, not a phase).
 fn check_clock(bus: &Lines, from: Time, to: Time, what: &str) {
-    let edges: Vec<(Time, bool)> = bus
-        .events
-        .iter()
-        .filter_map(|e| match *e {
-            BusEvent::Scl(t, high) if (from..to).contains(&t) => Some((t, high)),
-            _ => None,
-        })
-        .collect();
-    for w in edges.windows(2) {
-        let ((t0, high), (t1, _)) = (w[0], w[1]);
-        let len = t1 - t0;
+    for (t0, high, len) in bus.scl_phases(from, to) {
         if high {
             assert!(
                 len >= I2C_HIGH_MIN || len > ps(1e-3),

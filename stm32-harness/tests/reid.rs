@@ -6,9 +6,12 @@
 //! What it shows (numbers printed with `--nocapture`):
 //! - `REID` lines every other breath on both lungs, with no tick past 10 ms, the control
 //!   latency within 10 000 instructions and no `MISSED` line;
-//! - on the adult lung the estimates pass and are kept (the swap rule is off,
-//!   `ridge_pump_firmware::reid::ReidConfig::swap_below_fit`), their static gain within 30 % of
-//!   the plant's secant through the map (measured 16–24 % below it); on the stiff lung their
+//! - on the adult lung the estimates pass and are kept (the default swap rule,
+//!   `ridge_pump_firmware::reid::SwapRule::VolumeAlarm`, swaps only while the volume alarm is
+//!   raised, and the volumes stay within the band), their static gain within the plant's
+//!   response through the map over the inspiration against the closed valve (1.054 after 50
+//!   ticks to 0.951 after 100; the open valve's secant, 1.258, is 24 % above them); on the
+//!   stiff lung their
 //!   gain falls below the model check's 0.5 and they are refused (`verdict=model`), the
 //!   power-up controller runs on;
 //! - the host's replay of the firmware's code on what the bench observed (harness-kit) prints
@@ -17,7 +20,7 @@
 //!
 //! Truths: the simulated lung (its parameters, what it received), the breath timing the `VENT`
 //! line sets (rate 20 /min, Ti 1 s), pump-sim's linearisation of the plant through the model's
-//! map (`pump_sim::reid::linearisation` / `secant_through_map`, an independent computation from
+//! map (`pump_sim::reid::closed_valve_step` / `through_map`, an independent computation from
 //! the plant) for the re-estimated static gain, the bench's tick detector and fault injection.
 
 mod common;
@@ -25,7 +28,7 @@ mod common;
 use common::{assert_stopped, iso_lung, row1_in_run_mode, run_to, start_vent_row1, transcript};
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::iso_row;
-use pump_sim::reid::{linearisation, secant_through_map};
+use pump_sim::reid::{closed_valve_step, linearisation, secant_through_map, through_map};
 use pump_sim::vent_bench::power_up_plant;
 use pump_sim::{LungParams, Valve};
 use ridge_pump_firmware::command::VentArgs;
@@ -135,15 +138,21 @@ fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
     println!("stack high-water {stack} B");
     assert!(stack < 32 * 1024, "stack high-water {stack} B");
     // On the adult lung the estimates are made every other breath (one breath fitted, one
-    // held out), and the swap rule is off: every estimate that passes is kept.
+    // held out); no volume alarm is raised, so under the default swap rule every estimate
+    // that passes is kept.
     assert!(
         adult.len() >= 4,
         "REID lines before the change:\n{}",
         transcript(&b)
     );
     assert!(
+        b.find("ALARM volume").next().is_none(),
+        "{}",
+        transcript(&b)
+    );
+    assert!(
         all.iter().all(|r| r.verdict != "accepted"),
-        "a controller was swapped with the rule off:\n{}",
+        "a controller was swapped without a volume alarm:\n{}",
         transcript(&b)
     );
     assert!(
@@ -154,12 +163,14 @@ fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
         "{}",
         transcript(&b)
     );
-    // The adult estimates' static gain against the truth: the plant's secant between the bias
-    // flow (5 slm) and the inspiration's flow (30 slm) through the power-up model's map, on
-    // the adult lung with its PEEP valve (pump-sim's linearisation, not the firmware's code).
-    // That secant is of the lung's steady state with the exhalation valve open; the breaths
-    // fill it against the closed valve, and the estimates come out 16–24 % below it (1.258
-    // slm/slm against 0.954–1.058): bounded here at 30 %, the difference is not explained.
+    // The adult estimates' static gain against the truth (pump-sim's plant, not the firmware's
+    // code), through the power-up model's map: the inspiration against the closed exhalation
+    // valve, from the bias flow (5 slm) at the duty of the breath's 30 slm, the flow's response
+    // to the duty after 50 and 100 ticks (1 s, the inspiration; the response decays as the lung
+    // fills: measured 1.054 and 0.951 slm/slm). The estimates (0.954-0.957) lie in that band,
+    // within 5 %. Beside it, the open valve's steady state (the secant from 5 to 30 slm, 1.258;
+    // the local slope at 30 slm, 1.109) is what the power-up model saw, and 24 % above them:
+    // the breaths are not that plant.
     let l = iso_lung();
     let plant = power_up_plant(&l);
     let (_, sm, _) = identify_with(&plant, 3, &DEFAULT_CONFIG).expect("identification");
@@ -168,17 +179,25 @@ fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
         linearisation(&plant, &l, 5.0),
         linearisation(&plant, &l, 30.0),
     );
-    let truth = secant_through_map(&lo, &hi, &table);
+    let open = secant_through_map(&lo, &hi, &table);
+    let closed = |ticks| through_map(&closed_valve_step(&plant, &l, 5.0, 30.0, ticks), &table).gain;
+    let (c50, c100) = (closed(50), closed(100));
+    println!(
+        "closed valve through the map: {c50:.3} after 50 ticks, {c100:.3} after 100; \
+         open valve: secant {open:.3}, local at 30 slm {:.3}",
+        through_map(&hi, &table).gain
+    );
+    assert!(c100 < c50 && c50 < open, "{c100} {c50} {open}");
     for r in adult.iter().filter(|r| r.verdict == "kept") {
         println!(
-            "breath {}: gain {:.3}, secant through the map {truth:.3} slm/slm ({:+.1} %)",
+            "breath {}: gain {:.3} ({:+.1} % of the open secant)",
             r.breath,
             r.gain,
-            100.0 * (r.gain - truth) / truth
+            100.0 * (r.gain - open) / open
         );
         assert!(
-            (r.gain - truth).abs() <= 0.3 * truth,
-            "breath {}: gain {:.3} against {truth:.3}",
+            r.gain >= 0.95 * c100 && r.gain <= 1.05 * c50,
+            "breath {}: gain {:.3} outside the closed-valve band {c100:.3}-{c50:.3}",
             r.breath,
             r.gain
         );

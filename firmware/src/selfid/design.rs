@@ -99,10 +99,11 @@ impl<S: Settings> SelfIdentification<S> {
 impl<S: Settings> SelfIdentification<S> {
     /// Run mode's re-identification accepted an estimate for a swap: its controller designed
     /// here, as [`design`](Self::design) designs the power-up one (the model check, the design
-    /// slower on each failed check, the reference model; blocking, after the PWM write), then
+    /// slower on each failed check, the reference model; blocking, after the PWM write) but at
+    /// the power-up design's regulation speed ([`RunMode::speed`]), then
     /// swapped in by run mode at the next breath boundary as the controller sees it. A refused
-    /// model or design keeps the running model and controller and says so
-    /// (`REID … verdict=design`) into `event` if empty. Nothing when no estimate waits.
+    /// model or design keeps the running model and controller and says why
+    /// (`REID … verdict=design why=…`) into `event` if empty. Nothing when no estimate waits.
     ///
     /// The same steps as [`design`](Self::design), written again: sharing one function cost the
     /// ATmega2560 image 0.9 KB (its inlining changed), and the ATmega2560 does not run this.
@@ -114,18 +115,25 @@ impl<S: Settings> SelfIdentification<S> {
         let Some(model) = run.take_candidate() else {
             return;
         };
-        if check_model(&model, &c.model).is_err() {
-            run.swap_refused(&model, event);
+        if let Err(m) = check_model(&model, &c.model) {
+            run.swap_refused(&model, ControlRefusal::Model(m), event);
             return;
         }
-        match design_slower_on_failure(&model, &c.spec(), c.tries, SLOWDOWN, || {}) {
+        // At the power-up design's speed, not the one the default takes from the new model.
+        let spec = ridge_core::control::Spec {
+            tau: Some(run.speed()),
+            ..c.spec()
+        };
+        match design_slower_on_failure(&model, &spec, c.tries, SLOWDOWN, || {}) {
             (Ok(mut d), _) => {
                 if c.tau.is_none() {
                     d.set_reference(REFERENCE_POLE).ok();
                 }
                 run.set_swap(model, d, event);
             }
-            (Err(_), _) => run.swap_refused(&model, event),
+            (Err(error), tries) => {
+                run.swap_refused(&model, ControlRefusal::Design { error, tries }, event)
+            }
         }
     }
 }

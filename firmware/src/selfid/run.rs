@@ -23,7 +23,7 @@ use ridge_core::{ArxModel, MapTable};
 
 use crate::event::Event;
 #[cfg(not(target_arch = "avr"))]
-use crate::event::{ReidReport, ReidVerdict};
+use crate::event::{ControlRefusal, ReidReport, ReidVerdict};
 use crate::monitor::Monitor;
 #[cfg(not(target_arch = "avr"))]
 use crate::reid::Reid;
@@ -81,6 +81,11 @@ pub(super) struct RunMode {
     /// The designed swap, waiting for the breath boundary as the controller sees it.
     #[cfg(not(target_arch = "avr"))]
     swap: Option<(ArxModel<f32>, Design<f32>)>,
+    /// The regulation speed of the design run mode started with ([`Design::tau`], s): the
+    /// re-designs' (docs/ventilation.md: the default speed, from a re-estimate's slow pole,
+    /// made loops 0.54–4.96 times slower and the breaths short).
+    #[cfg(not(target_arch = "avr"))]
+    speed: f32,
 }
 
 impl RunMode {
@@ -139,6 +144,8 @@ impl RunMode {
             candidate: None,
             #[cfg(not(target_arch = "avr"))]
             swap: None,
+            #[cfg(not(target_arch = "avr"))]
+            speed: design.tau,
         }
     }
 
@@ -226,9 +233,13 @@ impl RunMode {
             return;
         }
         let boundary = (phase == 0).then(|| self.vent.breath());
-        let trigger = drift || self.vent.alarm() || self.tracking.alarm();
+        let volume_alarm = self.vent.alarm();
+        let trigger = drift || volume_alarm || self.tracking.alarm();
         let v = self.table.at(self.applied);
-        if let Some(model) = self.reid.after_pwm(v, reading, boundary, trigger) {
+        if let Some(model) = self
+            .reid
+            .after_pwm(v, reading, boundary, trigger, volume_alarm)
+        {
             self.candidate = Some(model);
         }
         // An accepted estimate's line waits for its re-design's verdict (`redesign`, in the
@@ -236,6 +247,12 @@ impl RunMode {
         if event.is_none() && self.candidate.is_none() {
             *event = self.reid.take_report().map(Event::Reid);
         }
+    }
+
+    /// The regulation speed the re-designs use: the power-up design's `τ`, s.
+    #[cfg(not(target_arch = "avr"))]
+    pub(super) fn speed(&self) -> f32 {
+        self.speed
     }
 
     /// The re-estimate accepted for a swap, once: its controller is to be designed
@@ -261,14 +278,19 @@ impl RunMode {
         }
     }
 
-    /// The design for the accepted re-estimate `model` was refused: the running model and
-    /// controller stay; the `REID … verdict=design` line into `event` if empty, else at the
-    /// next tick without another event.
+    /// The design for the accepted re-estimate `model` was refused (`why`): the running model
+    /// and controller stay; the `REID … verdict=design why=…` line into `event` if empty, else
+    /// at the next tick without another event.
     #[cfg(not(target_arch = "avr"))]
-    pub(super) fn swap_refused(&mut self, model: &ArxModel<f32>, event: &mut Option<Event>) {
+    pub(super) fn swap_refused(
+        &mut self,
+        model: &ArxModel<f32>,
+        why: ControlRefusal,
+        event: &mut Option<Event>,
+    ) {
         self.reid.report(ReidReport {
             breath: self.vent.breath(),
-            verdict: ReidVerdict::Design,
+            verdict: ReidVerdict::Design(why),
             gain: model.static_gain(),
             fit: f32::NAN,
             running: f32::NAN,

@@ -68,6 +68,21 @@ fn runs(study: &Study, seeds: u64) -> Vec<StudyRun> {
         .collect()
 }
 
+/// `base` with `mode`, `dither` and the paper's Ridge-M at `max_iter` iterates per re-estimate,
+/// run at `max_iter / 200` units a tick (the paper's 200 iterates: one unit a tick).
+fn at_iterates(base: &Study, mode: Mode, dither: Option<Dither>, max_iter: u32) -> Study {
+    Study {
+        mode,
+        dither,
+        method: RidgeM {
+            max_iter,
+            ..RidgeM::PAPER
+        },
+        units: max_iter / 200,
+        ..base.clone()
+    }
+}
+
 fn truth(study: &Study, breath: u32) -> [Linearisation; 3] {
     let lung = study.lung_at(breath);
     [10.0, 35.0, 60.0].map(|f| linearisation(&study.plant, &lung, f))
@@ -176,17 +191,10 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for max_iter in [200u32, 5000] {
         for dither in [None, Some(DITHER)] {
-            let study = Study {
-                mode: Mode::Observe,
-                dither,
-                method: RidgeM {
-                    max_iter,
-                    ..RidgeM::PAPER
-                },
-                units: max_iter / 200,
-                ..base.clone()
-            };
-            let all = runs(&study, args.seeds);
+            let all = runs(
+                &at_iterates(&base, Mode::Observe, dither, max_iter),
+                args.seeds,
+            );
             for (label, from, to) in ESTIMATED {
                 let t = if (10..30).contains(&from) {
                     &stiff
@@ -387,17 +395,7 @@ fn main() {
             5000,
         ),
     ] {
-        let study = Study {
-            mode,
-            dither,
-            method: RidgeM {
-                max_iter,
-                ..RidgeM::PAPER
-            },
-            units: max_iter / 200,
-            ..base.clone()
-        };
-        let all = runs(&study, args.seeds);
+        let all = runs(&at_iterates(&base, mode, dither, max_iter), args.seeds);
         for (label, from, to) in PHASES {
             let b: Vec<_> = all.iter().flat_map(|r| breaths_in(r, from, to)).collect();
             let rms: Vec<f64> = b.iter().map(|b| b.rms).collect();

@@ -401,7 +401,9 @@ pub fn design<T: Real>(model: &ArxModel<T>, spec: &Spec<T>) -> Result<Design<T>,
 /// Designs with `spec`, and while the margin or the pole check fails, again up to
 /// `tries − 1` times, each [`Spec::slower`] by `factor`, calling `progress` after each design
 /// (a watchdog). Returns the first design that passes with the number of designs made, or the
-/// last refusal with that number.
+/// last refusal with that number. The refusals a slower design cannot change
+/// ([`DesignError::Spec`], [`DesignError::Singular`], [`DesignError::SlowPoles`]: the settings
+/// or the model's own poles) end it at once.
 pub fn design_slower_on_failure<T: Real>(
     model: &ArxModel<T>,
     spec: &Spec<T>,
@@ -415,7 +417,10 @@ pub fn design_slower_on_failure<T: Real>(
         last = design(model, &spec);
         progress();
         match last {
-            Ok(_) | Err(DesignError::Spec) | Err(DesignError::Singular) => return (last, k),
+            Ok(_)
+            | Err(DesignError::Spec)
+            | Err(DesignError::Singular)
+            | Err(DesignError::SlowPoles) => return (last, k),
             Err(_) => spec = spec.slower(factor),
         }
     }
