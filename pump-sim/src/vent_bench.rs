@@ -109,6 +109,40 @@ pub struct LungChange {
     pub lung: LungParams,
 }
 
+/// A lung change of the lung-change tables: its name, `(C, R)` before and after (mL/cmH₂O,
+/// cmH₂O/(L/s)); the PEEP valve and the rest are row 1's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NamedChange {
+    /// As the tables print it, e.g. `C 50 → 10`.
+    pub name: &'static str,
+    /// The lung at power-up.
+    pub from: (f64, f64),
+    /// The lung from the change on.
+    pub to: (f64, f64),
+}
+
+const fn named(name: &'static str, from: (f64, f64), to: (f64, f64)) -> NamedChange {
+    NamedChange { name, from, to }
+}
+
+/// The lung changes of the lung-change tables (`vent-bench --table changes` on the host,
+/// `avr-vent-bench --table changes` on the ATmega2560 image), on row 1's breath: the C
+/// 50 → 10, R 5 → 50, both, and each reverse.
+pub const CHANGES: [NamedChange; 6] = [
+    named("C 50 → 10", (50.0, 5.0), (10.0, 5.0)),
+    named("R 5 → 50", (50.0, 5.0), (50.0, 50.0)),
+    named("C 50 → 10 and R 5 → 50", (50.0, 5.0), (10.0, 50.0)),
+    named("C 10 → 50", (10.0, 5.0), (50.0, 5.0)),
+    named("R 50 → 5", (50.0, 50.0), (50.0, 5.0)),
+    named("C 10 → 50 and R 50 → 5", (10.0, 50.0), (50.0, 5.0)),
+];
+
+/// The breath in which the lung changes in the lung-change tables (counted from 1; the change
+/// breath is 1 in their "breaths after" counts).
+pub const CHANGE_BREATH: u32 = 6;
+/// Breaths run in the lung-change tables.
+pub const CHANGE_RUN: u32 = 14;
+
 /// One benchmark run's settings (see the [module docs](self)).
 #[derive(Clone, Debug)]
 pub struct Cell {

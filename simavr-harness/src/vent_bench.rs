@@ -15,7 +15,7 @@
 
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::IsoRow;
-use pump_sim::vent_bench::{power_up_plant, Breath, CellRun, ChangeAt};
+use pump_sim::vent_bench::{power_up_plant, Breath, CellRun, ChangeAt, CHANGE_BREATH, CHANGE_RUN};
 use pump_sim::LungParams;
 use ridge_pump_firmware::persist::RECORD_LEN;
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
@@ -25,39 +25,6 @@ use ridge_pump_firmware::slots::{self, STORE_LEN};
 use crate::bench::LungChange;
 use crate::session::SessionConfig;
 use crate::ventilation::{self, VentConfig, VentOutcome};
-
-/// A lung change of the lung-change table: its name, `(C, R)` before and after (mL/cmH₂O,
-/// cmH₂O/(L/s)).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NamedChange {
-    /// As the tables print it, e.g. `C 50 → 10`.
-    pub name: &'static str,
-    /// The lung at power-up.
-    pub from: (f64, f64),
-    /// The lung from the change on.
-    pub to: (f64, f64),
-}
-
-const fn named(name: &'static str, from: (f64, f64), to: (f64, f64)) -> NamedChange {
-    NamedChange { name, from, to }
-}
-
-/// The lung changes of the host's lung-change table (`vent-bench --table changes`), in its
-/// order, on row 1's breath (the host's list is private to its binary, so it is written again
-/// here).
-pub const CHANGES: [NamedChange; 6] = [
-    named("C 50 → 10", (50.0, 5.0), (10.0, 5.0)),
-    named("R 5 → 50", (50.0, 5.0), (50.0, 50.0)),
-    named("C 50 → 10 and R 5 → 50", (50.0, 5.0), (10.0, 50.0)),
-    named("C 10 → 50", (10.0, 5.0), (50.0, 5.0)),
-    named("R 50 → 5", (50.0, 50.0), (50.0, 5.0)),
-    named("C 10 → 50 and R 50 → 5", (10.0, 50.0), (50.0, 5.0)),
-];
-
-/// The breath in which the lung changes, as on the host (change breath = 1 in the counts).
-pub const CHANGE_BREATH: u32 = 6;
-/// Breaths run with a lung change, as on the host.
-pub const CHANGE_RUN: u32 = 14;
 
 /// A sudden change of the lung.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -1,15 +1,18 @@
 //! One lung change's breaths under every controller, one seed (`--table breaths`), and the
 //! adaptive run's re-estimates against the truth.
 
-use crate::run::{change_cell, power_ups_on, refused, Change, Knobs, CHANGE_BREATH, CHANGE_RUN};
+use crate::run::{change_cell, power_ups_on, refused, Knobs};
 use crate::truth::{truth_of, Truth, INSPIRATION_FLOW};
 use pump_sim::reid;
-use pump_sim::vent_bench::{outcomes, run_cell, CellRun, ChangeAt, Ctrl, PowerUp};
+use pump_sim::vent_bench::{
+    outcomes, run_cell, CellRun, ChangeAt, Ctrl, NamedChange, PowerUp, CHANGE_BREATH, CHANGE_RUN,
+};
 
 /// Prints the lung change `change`'s breaths (`at` in its breath) under every controller, the
 /// adaptive one with `knobs`, from the power-up of `seed`; then the adaptive run's
 /// re-estimates.
-pub fn print(&(name, from, to): &Change, at: ChangeAt, seed: u64, knobs: Knobs) {
+pub fn print(change: &NamedChange, at: ChangeAt, seed: u64, knobs: Knobs) {
+    let NamedChange { name, from, to } = *change;
     let ups = power_ups_on(from, seed);
     let Some(p) = ups.iter().find(|p| p.seed == seed) else {
         return;

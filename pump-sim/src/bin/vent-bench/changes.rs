@@ -1,9 +1,12 @@
 //! The lung-change table: row 1's breath, the lung changed mid-run, under each controller;
 //! then what the ideal lung allows under a pressure limit.
 
-use crate::run::{change_cell, max, power_ups_on, runs, Knobs, CASES, CHANGE_BREATH, CHANGE_RUN};
+use crate::run::{change_cell, max, power_ups_on, runs, Knobs};
 use pump_sim::iso::ISO_ROWS;
-use pump_sim::vent_bench::{last_outside, pressure_limited, score, ChangeAt, Ctrl};
+use pump_sim::vent_bench::{
+    last_outside, pressure_limited, score, ChangeAt, Ctrl, NamedChange, CHANGES, CHANGE_BREATH,
+    CHANGE_RUN,
+};
 
 /// Prints the lung-change table (seeds 1 to `seeds`, the adaptive controller with `knobs`) and
 /// what the ideal lung allows.
@@ -19,7 +22,7 @@ pub fn print(seeds: u64, knobs: Knobs) {
         "| change | at | controller | last outside ±(4 mL + 15 %) | last outside ±(4 mL + 5 %) | worst breath error (%) | peak pressure vs previous breath, max (cmH₂O) | peak pressure before → after (cmH₂O) | \\|PEEP error\\| max (cmH₂O) |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
-    for (name, from, to) in CASES {
+    for NamedChange { name, from, to } in CHANGES {
         let ups = power_ups_on(from, seeds);
         for at in [ChangeAt::Boundary, ChangeAt::Mid] {
             for ctrl in Ctrl::ALL {
@@ -74,7 +77,7 @@ pub fn print(seeds: u64, knobs: Knobs) {
     );
     println!("| change | elastic pressure VT/C before → after (cmH₂O) | peak before → after (cmH₂O) | change breath's volume under +5 cmH₂O (%) | breath within ±(4 mL + 15 %) | breath within ±(4 mL + 5 %) |");
     println!("|---|---|---|---|---|---|");
-    for (name, from, to) in CASES {
+    for NamedChange { name, from, to } in CHANGES {
         let p = pressure_limited(row.tidal, row.ti(), row.peep, from, to, 5.0);
         println!(
             "| {name} | {:.0} → {:.0} | {:.1} → {:.1} | {:+.1} | {} | {} |",

@@ -1,10 +1,10 @@
 //! The adaptive controller's re-estimates on the lung changes by where their window lies,
 //! against the truth (`--table estimates`).
 
-use crate::run::{change_cell, power_ups_on, runs, CASES, CHANGE_BREATH};
+use crate::run::{change_cell, power_ups_on, runs};
 use crate::truth::{truth_of, INSPIRATION_FLOW};
 use pump_sim::reid::{self, mean_sd};
-use pump_sim::vent_bench::{ChangeAt, Ctrl};
+use pump_sim::vent_bench::{ChangeAt, Ctrl, NamedChange, CHANGES, CHANGE_BREATH};
 
 /// Prints the adaptive (swap always) runs' re-estimates on the lung changes at the boundary
 /// (seeds 1 to `seeds`), by where their window lies, against the truth; the regulation speed of the designs swapped in.
@@ -21,7 +21,7 @@ pub fn print(seeds: u64) {
     );
     println!("| change | window | models (accepted) | gain | 63 % rise | truth: open gain / rise, closed at 50 / 100 | designs swapped in: τ (power-up) |");
     println!("|---|---|---|---|---|---|---|");
-    for &(name, from, to) in CASES.iter().take(3) {
+    for &NamedChange { name, from, to } in CHANGES.iter().take(3) {
         let ups = power_ups_on(from, seeds);
         let Some(table) = ups.first().map(|p| p.switchover.map.table()) else {
             continue;

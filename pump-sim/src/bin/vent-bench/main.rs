@@ -23,8 +23,9 @@ mod truth;
 
 use clap::{Parser, ValueEnum};
 use pump_sim::iso::{iso_row, IsoRow, ISO_ROWS};
+use pump_sim::vent_bench::CHANGES;
 use pump_sim::vent_bench::{ChangeAt, Policy, SwapWhen};
-use run::{Knobs, CASES};
+use run::Knobs;
 
 /// Which tables to print.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -183,9 +184,9 @@ fn main() {
         swap::print(args.seeds);
     }
     if args.table == Table::Breaths {
-        match args.change.checked_sub(1).and_then(|i| CASES.get(i)) {
+        match args.change.checked_sub(1).and_then(|i| CHANGES.get(i)) {
             Some(change) => breaths::print(change, args.at(), args.seed, args.knobs()),
-            None => eprintln!("--change: 1 to {}", CASES.len()),
+            None => eprintln!("--change: 1 to {}", CHANGES.len()),
         }
     }
     if args.table == Table::Policy {

@@ -1,12 +1,11 @@
 //! The adaptive controller's candidate swap policies (`--table policy`) on the lung changes
 //! and on the ISO rows.
 
-use crate::run::{
-    change_cell, max, power_ups, power_ups_on, refused, runs, CASES, CHANGE_BREATH, CHANGE_RUN,
-};
+use crate::run::{change_cell, max, power_ups, power_ups_on, refused, runs};
 use pump_sim::iso::IsoRow;
 use pump_sim::vent_bench::{
-    change_verdict, outcomes, row_lung, score, Cell, ChangeAt, Ctrl, Policy, PowerUp, SwapWhen,
+    change_verdict, outcomes, row_lung, score, Cell, ChangeAt, Ctrl, NamedChange, Policy, PowerUp,
+    SwapWhen, CHANGES, CHANGE_BREATH, CHANGE_RUN,
 };
 use ridge_pump_firmware::setpoint::Shape;
 
@@ -133,15 +132,15 @@ pub fn print(rows: &[IsoRow], breaths: u32, seeds: u64, rms_above: f32) {
     );
     println!("|---|---|---|---|---|---|---|---|");
     // Power-ups once per first lung.
-    let ups: Vec<Vec<PowerUp>> = CASES
+    let ups: Vec<Vec<PowerUp>> = CHANGES
         .iter()
-        .map(|(_, from, _)| power_ups_on(*from, seeds))
+        .map(|c| power_ups_on(c.from, seeds))
         .collect();
     for (name, trim, policy) in &cands {
         let (mut m15, mut m5, mut m35, mut worst, mut peak) = (0, 0, 0, 0.0f64, 0.0f64);
         let mut est = Vec::new();
         let mut ratios: Vec<f64> = Vec::new();
-        for ((_, from, to), ups) in CASES.iter().zip(&ups) {
+        for (NamedChange { from, to, .. }, ups) in CHANGES.iter().zip(&ups) {
             for at in [ChangeAt::Boundary, ChangeAt::Mid] {
                 let cell = under(change_cell(*from, *to, at, Ctrl::Adaptive), *trim, *policy);
                 let all = runs(ups, &cell);

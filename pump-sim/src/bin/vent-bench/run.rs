@@ -1,31 +1,13 @@
 //! What the tables share: the power-ups and cells they run (failures printed and skipped), the
-//! lung changes of the lung-change tables, the adaptive controller's knobs under study.
+//! lung-change tables' cell, the adaptive controller's knobs under study.
 
 use pump_sim::iso::{iso_row, IsoRow, ISO_ROWS};
 use pump_sim::vent_bench::{
     power_up, row_lung, run_cell, zn_for, Cell, CellRun, ChangeAt, Ctrl, LungChange, Outcomes,
-    Policy, PowerUp,
+    Policy, PowerUp, CHANGE_BREATH, CHANGE_RUN,
 };
 use pump_sim::LungParams;
 use ridge_pump_firmware::setpoint::Shape;
-
-/// The lung changes: name, `(C, R)` before and after.
-pub type Change = (&'static str, (f64, f64), (f64, f64));
-
-/// The changes of the lung-change table.
-pub const CASES: [Change; 6] = [
-    ("C 50 → 10", (50.0, 5.0), (10.0, 5.0)),
-    ("R 5 → 50", (50.0, 5.0), (50.0, 50.0)),
-    ("C 50 → 10 and R 5 → 50", (50.0, 5.0), (10.0, 50.0)),
-    ("C 10 → 50", (10.0, 5.0), (50.0, 5.0)),
-    ("R 50 → 5", (50.0, 50.0), (50.0, 5.0)),
-    ("C 10 → 50 and R 50 → 5", (10.0, 50.0), (50.0, 5.0)),
-];
-
-/// The breath of the lung-change table: row 1's.
-pub const CHANGE_BREATH: u32 = 6;
-/// Breaths run in the lung-change table.
-pub const CHANGE_RUN: u32 = 14;
 
 /// The adaptive controller's knobs under study in the lung-change tables (`--trim`,
 /// `--swap-when` and the policy's other flags).

@@ -25,10 +25,10 @@ use std::sync::Mutex;
 
 use clap::{Parser, ValueEnum};
 use pump_sim::iso::{iso_row, IsoRow, ISO_ROWS};
-use pump_sim::vent_bench::ChangeAt;
+use pump_sim::vent_bench::{ChangeAt, CHANGES};
 use ridge_pump_firmware::setpoint::Shape;
 use simavr_harness::firmware;
-use simavr_harness::vent_bench::{run_case, Case, CaseRun, CHANGES};
+use simavr_harness::vent_bench::{run_case, Case, CaseRun};
 
 /// Which tables to run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
