@@ -15,33 +15,24 @@
 //! like the PWM: each closing of the valve starts a breath, and the bench records each
 //! breath's truth from the lung ([`BreathTruth`]: delivered volume, peak airway pressure, PEEP).
 //!
-//! Timing is measured from the core's cycle counter, with no help from the firmware:
-//! - **tick start**: entry into the tick interrupt (TIMER3_COMPA, vector 32, by default);
-//! - **tick end**: the tick ISR's return, and — for boards that do the tick's work in the main
-//!   loop after the ISR released it — the first instruction back in the main loop's idle
-//!   wait. The idle loop is learned from the addresses the tick ISR interrupts (the most
-//!   frequent one and its neighbours within 16 bytes), so no marker pin is needed;
-//! - a tick is **missed** when the ISR finds the main loop outside its idle wait (the previous
-//!   tick's work was still running);
-//! - **control latency** of a tick: from the tick ISR's entry to the end of the first
-//!   instruction in that tick that writes the pump channel's compare register (`OCRnX` low
-//!   byte, which completes the 16-bit update) or its `TCCRnA` (output connected/disconnected).
-//!   Those `STS` instructions are found by scanning the flash at load, so this too needs no
-//!   marker in the firmware. It covers the sensor read, the state machine with the statistics
-//!   update, and the PWM write; report lines and persistence that follow are in `busy` only.
+//! Timing is measured from the core's cycle counter, with no help from the firmware
+//! ([`crate::ticks`]: tick start and end, missed ticks, control latency).
 
 use std::cell::{Cell, RefCell};
-use std::collections::HashMap;
+
 use std::path::PathBuf;
 use std::rc::Rc;
 
 use crate::bus::{self, BusState, SdaHold};
-use crate::machine::{Halt, IrqEvent, Machine, UartByte};
+use crate::machine::{Halt, Machine, UartByte};
 use crate::pwm::{self, Channel};
 use crate::sensor::{Fault, SensorState, Sfm3300Slave};
+use crate::ticks::TickMeter;
 use crate::transcript::{Line, LineSplitter};
 use crate::uart::{SendId, SerialLine, Transmission, UartInput, UartTiming, BAUD};
 use pump_sim::{Lung, LungParams, Pump, PumpParams, Sfm3300, Sfm3300Params, Valve};
+
+pub use crate::ticks::TickTiming;
 
 /// Plant sub-steps per 10 ms sample (0.5 ms each: the SFM3300 update period).
 pub const SUBSTEPS: usize = 20;
@@ -152,206 +143,6 @@ pub struct PlantSample {
     /// True flow, slm.
     pub flow: f64,
 }
-
-/// Timing of one tick.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct TickTiming {
-    /// ISR entry cycle.
-    pub start: u64,
-    /// Cycles from ISR entry to the end of the tick's work: back in the idle wait when the ISR
-    /// found the main loop idle; otherwise up to the ISR's return (or to the next tick's ISR).
-    pub busy: u64,
-    /// The tick did not end in the idle wait: the ISR found the main loop busy (a blocking job
-    /// such as the search, or the previous tick overrunning), or the next tick fired first.
-    pub interrupted_busy: bool,
-    /// Cycles from ISR entry to the end of the tick's first write of the pump PWM registers
-    /// (see the module docs); `None` if the tick wrote none (or the ISR found the loop busy).
-    pub control: Option<u64>,
-}
-
-#[derive(Debug, Default)]
-struct TickMeter {
-    vector: Option<u8>,
-    events: Option<Rc<RefCell<Vec<IrqEvent>>>>,
-    seen: usize,
-    /// Last (program counter, stack pointer) pairs (ring), to learn the idle loop.
-    ring: Vec<(u32, u16)>,
-    ring_pos: usize,
-    /// For each learning tick: the distinct (PC, SP) executed just before the ISR fired.
-    learning: Vec<Vec<(u32, u16)>>,
-    /// The idle wait's (instruction address, stack pointer) pairs (sorted), once learned. The
-    /// stack pointer tells the wait loop from the same code called deeper (e.g. the tick poll
-    /// inside a long job).
-    idle: Option<Vec<(u32, u16)>>,
-    /// Open tick: (start, isr_end, what it waits for).
-    open: Option<(u64, Option<u64>, Wait)>,
-    /// Control latency of the open tick, once its first PWM write executed.
-    open_control: Option<u64>,
-    /// Flash byte addresses of the instructions that write the pump PWM registers (sorted).
-    pwm_sites: Vec<u32>,
-    ticks: Vec<TickTiming>,
-    idle_cycles: u64,
-    last_cycle: u64,
-    last_idle: bool,
-}
-
-/// Learn the idle loop from this many tick-ISR entries.
-const LEARN_TICKS: usize = 32;
-/// PCs remembered before each ISR entry (the idle loop must be shorter).
-const RING: usize = 64;
-
-impl TickMeter {
-    fn is_idle(&self, pc: u32, sp: u16) -> bool {
-        self.idle
-            .as_ref()
-            .is_some_and(|v| v.binary_search(&(pc, sp)).is_ok())
-    }
-
-    /// The idle loop = the PCs found right before (at least 90 % of) the learning ISR entries.
-    fn learn(&mut self) {
-        let mut count: HashMap<(u32, u16), usize> = HashMap::new();
-        for set in &self.learning {
-            for &p in set {
-                *count.entry(p).or_default() += 1;
-            }
-        }
-        let need = self.learning.len() * 9 / 10;
-        let mut idle: Vec<(u32, u16)> = count
-            .into_iter()
-            .filter(|&(_, n)| n >= need)
-            .map(|(p, _)| p)
-            .collect();
-        idle.sort_unstable();
-        self.idle = Some(idle);
-    }
-
-    /// Called after every instruction with the cycle, PC and SP after it, SREG.I, and the
-    /// address of the instruction just executed.
-    fn after_step(&mut self, cycle: u64, pc: u32, sp: u16, int_enabled: bool, executed: u32) {
-        if self.last_idle {
-            self.idle_cycles += cycle - self.last_cycle;
-        }
-        self.last_cycle = cycle;
-        self.ring[self.ring_pos] = (pc, sp);
-        self.ring_pos = (self.ring_pos + 1) % RING;
-        if let Some(ev) = &self.events {
-            let n = ev.borrow().len();
-            if n != self.seen {
-                let new: Vec<IrqEvent> = ev.borrow()[self.seen..].to_vec();
-                self.seen = n;
-                for e in new {
-                    self.on_event(e);
-                }
-            }
-        }
-        if let Some((start, _, wait)) = self.open {
-            if wait != Wait::Busy
-                && self.open_control.is_none()
-                && self.pwm_sites.binary_search(&executed).is_ok()
-            {
-                self.open_control = Some(cycle - start);
-            }
-        }
-        let idle_now = self.is_idle(pc, sp);
-        self.last_idle = idle_now;
-        match self.open {
-            // ISR returned into the idle wait: the tick's work starts when the main loop
-            // leaves it (an instruction outside the wait with interrupts enabled, i.e. not
-            // another ISR such as the UART's) ...
-            Some((start, Some(ret), Wait::Leave)) if !idle_now && int_enabled => {
-                self.open = Some((start, Some(ret), Wait::Return));
-            }
-            // ... and ends when it is back: tentatively at the first instruction back in the
-            // wait, confirmed once the loop has stayed there for `CONFIRM` cycles (the tick poll
-            // shares its tail with the path that detects the tick) ...
-            Some((start, Some(ret), Wait::Return)) if idle_now => {
-                self.open = Some((start, Some(ret), Wait::Confirm(cycle)));
-            }
-            Some((start, Some(ret), Wait::Confirm(_))) if !idle_now && int_enabled => {
-                self.open = Some((start, Some(ret), Wait::Return));
-            }
-            Some((start, Some(_), Wait::Confirm(end))) if cycle - end >= CONFIRM => {
-                self.close(start, end);
-            }
-            _ => {}
-        }
-    }
-
-    fn close(&mut self, start: u64, end: u64) {
-        self.open = None;
-        self.ticks.push(TickTiming {
-            start,
-            busy: end - start,
-            interrupted_busy: false,
-            control: self.open_control.take(),
-        });
-    }
-
-    fn on_event(&mut self, e: IrqEvent) {
-        if e.running {
-            if self.idle.is_none() {
-                // The newest ring entry is the vector itself: skip it.
-                let mut set: Vec<(u32, u16)> = (1..RING)
-                    .map(|k| self.ring[(self.ring_pos + RING - 1 - k) % RING])
-                    .collect();
-                set.push((e.ret_pc, e.ret_sp));
-                set.sort_unstable();
-                set.dedup();
-                self.learning.push(set);
-                if self.learning.len() >= LEARN_TICKS {
-                    self.learn();
-                }
-                return;
-            }
-            let was_idle = self.is_idle(e.ret_pc, e.ret_sp);
-            if let Some((start, Some(_), Wait::Confirm(end))) = self.open {
-                self.close(start, end);
-            }
-            if let Some((start, _, _)) = self.open.take() {
-                // The previous tick never got back to idle before this one fired.
-                self.ticks.push(TickTiming {
-                    start,
-                    busy: e.cycle - start,
-                    interrupted_busy: true,
-                    control: self.open_control.take(),
-                });
-            }
-            let wait = if was_idle { Wait::Leave } else { Wait::Busy };
-            self.open = Some((e.cycle, None, wait));
-            self.open_control = None;
-        } else if let Some((start, None, wait)) = self.open {
-            if wait == Wait::Busy {
-                // The ISR interrupted a busy main loop (the search, or an overrun): the tick
-                // itself is only the ISR.
-                self.open = None;
-                self.ticks.push(TickTiming {
-                    start,
-                    busy: e.cycle - start,
-                    interrupted_busy: true,
-                    control: None,
-                });
-            } else {
-                self.open = Some((start, Some(e.cycle), wait));
-            }
-        }
-    }
-}
-
-/// What an open tick waits for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Wait {
-    /// The main loop to leave the idle wait (after the ISR).
-    Leave,
-    /// The main loop to return to the idle wait.
-    Return,
-    /// Nothing: the ISR found the main loop busy.
-    Busy,
-    /// Back in the wait since this cycle; confirming.
-    Confirm(u64),
-}
-
-/// Cycles the main loop must stay in its idle wait for a tick to count as finished.
-const CONFIRM: u64 = 2_000;
 
 /// Scheduled change during a run.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -483,15 +274,12 @@ impl Bench {
             .iter()
             .flat_map(|c| [c.ocr_addr(), c.tccra_addr()])
             .collect();
-        let mut pwm_sites = machine.sts_sites(&targets);
-        pwm_sites.sort_unstable();
-        let ticks = TickMeter {
-            ring: vec![(0, 0); RING],
+        let pwm_sites = machine.sts_sites(&targets);
+        let ticks = TickMeter::new(
+            cfg.tick_vector,
+            cfg.tick_vector.map(|v| machine.watch_vector(v)),
             pwm_sites,
-            vector: cfg.tick_vector,
-            events: cfg.tick_vector.map(|v| machine.watch_vector(v)),
-            ..TickMeter::default()
-        };
+        );
         let step_cycles = u64::from(cfg.frequency) / 2_000;
         let uart_in = machine.uart_input('0')?;
         if cfg.uart_timing == UartTiming::Chip {
@@ -847,22 +635,22 @@ impl Bench {
     /// Tick timings measured so far (empty until the idle loop has been learned, i.e. the first
     /// 64 ticks).
     pub fn ticks(&self) -> &[TickTiming] {
-        &self.ticks.ticks
+        self.ticks.ticks()
     }
 
     /// Learned idle wait: (instruction address in bytes, stack pointer) pairs, if any.
     pub fn idle_pcs(&self) -> Option<&[(u32, u16)]> {
-        self.ticks.idle.as_deref()
+        self.ticks.idle()
     }
 
     /// Cycles spent in the idle wait so far.
     pub fn idle_cycles(&self) -> u64 {
-        self.ticks.idle_cycles
+        self.ticks.idle_cycles()
     }
 
     /// The tick vector watched.
     pub fn tick_vector(&self) -> Option<u8> {
-        self.ticks.vector
+        self.ticks.vector()
     }
 
     /// Lines whose keyword is `kw`, with their index.

@@ -31,6 +31,8 @@
 //! - [`capture`]: the firmware's UART output as the CSV `ridge-id capture` writes (its log).
 //! - [`stack`]: worst-case stack from the image's call graph ([`stack::StackAnalysis`], what
 //!   `avr-stack` prints).
+//! - [`ticks`]: each tick's timing from the core's cycle counter ([`ticks::TickTiming`]: busy
+//!   cycles, control latency, missed ticks), with no help from the firmware.
 //! - [`ventilation`]: a ventilated session (identify, design, then `VENT` over the console,
 //!   the exhalation valve on its pin), breath by breath against the lung's truth.
 //! - [`vent_bench`]: issue 32's ventilation targets on the image (ISO rows, lung changes),
@@ -46,6 +48,7 @@ pub mod relax;
 pub mod sensor;
 pub mod session;
 pub mod stack;
+pub mod ticks;
 pub mod tracking;
 pub mod transcript;
 pub mod uart;
