@@ -263,7 +263,7 @@ pub fn reid_fill(window: &mut ridge_core::reid::Window<'_>, ticks: u32) {
 
 /// Re-identification (`ridge_core::reid`): the window's statistics and the sliced fit (one
 /// unit per call, as a tick would run it), printed as integers and bit patterns, then `end`.
-/// A part of its own (the `AVR_ARITH=reid` image): with [`write`] the image would pass 64 KB
+/// A part of its own (the `AVR_ARITH=reid` image): with [`write()`] the image would pass 64 KB
 /// of flash (71 KB measured), where this check's `.data` copy is not yet shown to work.
 pub fn write_reid<W: ufmt::uWrite>(w: &mut W) {
     reid_lines(w);

@@ -4,7 +4,7 @@
 //! residual sum of squares. With `prune` on (the default) the search is exact but cheap:
 //! least squares minimises the RSS, so the criterion of the least-squares RSS is a
 //! lower bound of every estimator's criterion for that candidate. The bounds come a
-//! group of candidates at a time, bit-identical to factoring each ([`crate::bounds`]: one
+//! group of candidates at a time, bit-identical to factoring each (`crate::bounds`: one
 //! elimination per `p` and one small factorisation per `(p, d)` give every `q`); the
 //! estimator then runs on candidates in ascending bound order and stops when the next
 //! bound exceeds the best criterion found. The pick is identical to
@@ -446,7 +446,7 @@ impl<T: Real> Search<T> {
     }
 
     /// [`Search::run`], calling `progress()` after every group of bounds (one elimination
-    /// per `p`, one small factorisation per `(p, d)`, [`crate::bounds`]; one bound with
+    /// per `p`, one small factorisation per `(p, d)`, `crate::bounds`; one bound with
     /// [`Criterion::Validation`]), every Ridge-M iterate and every other estimator fit, so
     /// that no stretch between two calls is longer than one factorisation or one iterate
     /// (≤ 14 rows): firmware feeds its watchdog there. The result is identical to

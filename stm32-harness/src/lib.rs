@@ -16,7 +16,7 @@
 //!   DBGMCU, the bit-band alias.
 //! - [`sensor`]: the SFM3300 as an I2C slave, with faults; [`bus`]: the I2C lines at the
 //!   pins (a slave holding SDA low, the firmware's recovery clocks).
-//! - [`bench`]: the machine wired to the plant, closed loop; line capture; scheduled faults,
+//! - [`bench`](mod@bench): the machine wired to the plant, closed loop; line capture; scheduled faults,
 //!   resets and power cuts; bytes into the console.
 //! - [`ticks`]: the loop's ticks seen from the bus (no marker in the firmware).
 //! - [`session`]: one power-up and its figures (the records rebuilt, instructions per tick,

@@ -35,7 +35,7 @@ pub struct RandomShape {
     pub seed: u16,
 }
 
-/// A pseudo-random multistep (see the [module docs](self)). The `k`-th level is uniform in
+/// A pseudo-random multistep (see the [module docs](crate::excitation)). The `k`-th level is uniform in
 /// the lower half of `[low, high]` for even `k` and in the upper half for odd `k`; each is held
 /// for a number of samples uniform in `[hold_min, hold_max]`.
 #[derive(Clone, Debug, PartialEq, Eq)]

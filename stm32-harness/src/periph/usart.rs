@@ -4,7 +4,7 @@
 //! Modelled:
 //! - `USART_BRR` (§19.6.3) and the byte time: with OVER8 = 0 the baud rate is
 //!   f_PCLK / (16 × USARTDIV) and BRR holds 16 × USARTDIV (§19.3.4, equation 1), so a bit takes
-//!   BRR clocks of PCLK2; with OVER8 = 1 it takes 8 × USARTDIV = 8 × BRR[15:4] + BRR[2:0]. A
+//!   BRR clocks of PCLK2; with OVER8 = 1 it takes 8 × USARTDIV = 8 × `BRR[15:4]` + `BRR[2:0]`. A
 //!   frame is 1 start bit, 8 or 9 data bits (`CR1.M`), and 1, 2 (or 0.5, 1.5) stop bits
 //!   (`CR2.STOP`, §19.6.5).
 //! - transmitter (§19.3.2): a write to DR with TXE set moves the byte into the shift register
