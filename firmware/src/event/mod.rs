@@ -24,7 +24,7 @@
 //! | [`Event::Alarm`] | `ALARM track err=5.125 s=0.50` / `ALARM track clear` |
 //! | [`Event::Breath`] | `BREATH n=3 vt=500.0 peep=5.0 vd=497.2 cmd=512.3 peak=31.250 rms=1.234` |
 //! | [`Event::VolumeAlarm`] | `ALARM volume vd=612.5 vt=500.0` / `ALARM volume clear` |
-//! | `Event::Reid` | `REID breath=12 verdict=kept gain=1.035 fit=92.3/90.1 v-rms=22.150` (not on the ATmega2560; the verdicts: `ReidVerdict`; `nan` where a figure does not exist) |
+//! | `Event::Reid` | `REID breath=12 verdict=kept gain=1.035 fit=92.3/90.1 v-rms=22.150`, `REID breath=4 verdict=design gain=1.006 fit=nan/nan v-rms=nan why=slow-poles tries=1` (not on the ATmega2560; the verdicts: `ReidVerdict`; `nan` where a figure does not exist) |
 //! | [`Event::Residual`] | `RES rms=0.812 mean=-0.013 flow=50.125 n=100` |
 //! | [`Event::Drift`] | `DRIFT rms=3.200 mean=-2.997 flow=35.400 s=3 reid=0` |
 //! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125`, `FAULT sensor=frozen flow=19.058`, `FAULT noflow duty=30.00 flow=0.125 expect=19.058`, `FAULT control margin=0.412 tries=5`, `FAULT resets watchdog=2 brownout=1` |
