@@ -43,8 +43,17 @@ const DIAGONAL_MAX: i64 = i64::MAX - (1 << 32);
 /// a 64-bit host).
 #[derive(Debug)]
 pub struct Window<'a> {
-    layout: Layout,
+    /// The structure, the lag history and the counts (all but the storage).
+    state: WindowState,
     gram: &'a mut [i64],
+}
+
+/// A [`Window`] without its storage ([`Window::detach`]): the structure, the lag history and
+/// the counts, so that a caller can keep a window beside the storage it lends (a struct cannot
+/// hold both a buffer and a borrow of it) and [`Window::attach`] it again for each update.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WindowState {
+    layout: Layout,
     /// `y[k − 1] = y_{t−k}` before the sample `t` is taken.
     y: [i16; P_MAX],
     /// `u[k] = u_{t−k}` once `u_t` is taken.
@@ -55,21 +64,6 @@ pub struct Window<'a> {
     /// Rows accumulated since the last clear (not weighted).
     rows: u32,
     /// Rows accumulated, forgotten as the entries are.
-    weight: u32,
-    shift: u8,
-}
-
-/// A [`Window`] without its storage ([`Window::detach`]): the structure, the lag history and
-/// the counts, so that a caller can keep a window beside the storage it lends (a struct cannot
-/// hold both a buffer and a borrow of it) and [`Window::attach`] it again for each update.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct WindowState {
-    layout: Layout,
-    y: [i16; P_MAX],
-    u: [i16; L_MAX],
-    seeded: u8,
-    seed: u8,
-    rows: u32,
     weight: u32,
     shift: u8,
 }
@@ -96,16 +90,18 @@ impl<'a> Window<'a> {
             return Err(Error::InvalidStructure);
         }
         let mut w = Window {
-            layout,
+            state: WindowState {
+                layout,
+                y: [0; P_MAX],
+                u: [0; L_MAX],
+                seeded: 0,
+                // ≤ D_MAX + Q_MAX − 1 = 11.
+                seed: structure.seed_len() as u8,
+                rows: 0,
+                weight: 0,
+                shift,
+            },
             gram: storage,
-            y: [0; P_MAX],
-            u: [0; L_MAX],
-            seeded: 0,
-            // ≤ D_MAX + Q_MAX − 1 = 11.
-            seed: structure.seed_len() as u8,
-            rows: 0,
-            weight: 0,
-            shift,
         };
         w.clear();
         Ok(w)
@@ -113,16 +109,7 @@ impl<'a> Window<'a> {
 
     /// The window without its storage; the statistics stay in the storage, unchanged.
     pub fn detach(self) -> WindowState {
-        WindowState {
-            layout: self.layout,
-            y: self.y,
-            u: self.u,
-            seeded: self.seeded,
-            seed: self.seed,
-            rows: self.rows,
-            weight: self.weight,
-            shift: self.shift,
-        }
+        self.state
     }
 
     /// The window `state` again, on `storage` (which must hold what the window had when it was
@@ -134,15 +121,8 @@ impl<'a> Window<'a> {
             return Err(Error::InvalidStructure);
         }
         Ok(Window {
-            layout: state.layout,
+            state,
             gram: storage,
-            y: state.y,
-            u: state.u,
-            seeded: state.seeded,
-            seed: state.seed,
-            rows: state.rows,
-            weight: state.weight,
-            shift: state.shift,
         })
     }
 
@@ -151,9 +131,9 @@ impl<'a> Window<'a> {
         for g in self.gram.iter_mut() {
             *g = 0;
         }
-        self.seeded = 0;
-        self.rows = 0;
-        self.weight = 0;
+        self.state.seeded = 0;
+        self.state.rows = 0;
+        self.state.weight = 0;
     }
 
     /// Takes one sample: `u_t`, the input applied during the interval that ends with the
@@ -163,16 +143,16 @@ impl<'a> Window<'a> {
     /// with forgetting: the entries stay below `2^{30+k}` rows' worth); nothing is changed
     /// then but the lag history.
     pub fn push(&mut self, u: i16, y: i16) -> Result<()> {
-        self.u.copy_within(0..L_MAX - 1, 1);
-        self.u[0] = u;
-        let result = if self.seeded >= self.seed {
+        self.state.u.copy_within(0..L_MAX - 1, 1);
+        self.state.u[0] = u;
+        let result = if self.state.seeded >= self.state.seed {
             self.add_row(y)
         } else {
-            self.seeded += 1;
+            self.state.seeded += 1;
             Ok(())
         };
-        self.y.copy_within(0..P_MAX - 1, 1);
-        self.y[0] = y;
+        self.state.y.copy_within(0..P_MAX - 1, 1);
+        self.state.y[0] = y;
         result
     }
 
@@ -180,16 +160,16 @@ impl<'a> Window<'a> {
     fn value(&self, c: Col, y: i16) -> i16 {
         match c {
             Col::Y(0) => y,
-            Col::Y(k) => self.y.get(usize::from(k) - 1).copied().unwrap_or(0),
-            Col::U(k) => self.u.get(usize::from(k)).copied().unwrap_or(0),
+            Col::Y(k) => self.state.y.get(usize::from(k) - 1).copied().unwrap_or(0),
+            Col::U(k) => self.state.u.get(usize::from(k)).copied().unwrap_or(0),
             Col::One => 1,
         }
     }
 
     fn add_row(&mut self, y: i16) -> Result<()> {
-        let n = self.layout.len;
+        let n = self.state.layout.len;
         let mut z = [0i16; PARAMS_MAX + 1];
-        for (slot, c) in z.iter_mut().zip(self.layout.cols.iter()).take(n) {
+        for (slot, c) in z.iter_mut().zip(self.state.layout.cols.iter()).take(n) {
             *slot = self.value(*c, y);
         }
         z[n] = y;
@@ -213,58 +193,58 @@ impl<'a> Window<'a> {
                 }
             }
         }
-        self.rows = self.rows.saturating_add(1);
-        self.weight = self.weight.saturating_add(1);
+        self.state.rows = self.state.rows.saturating_add(1);
+        self.state.weight = self.state.weight.saturating_add(1);
         Ok(())
     }
 
     /// The breath boundary: forgets `2^{−k}` of everything accumulated so far (see the type's
     /// docs). `(n + 1)(n + 2) / 2` shifts and subtractions.
     pub fn end_breath(&mut self) {
-        if self.shift == 0 {
+        if self.state.shift == 0 {
             return;
         }
-        let k = u32::from(self.shift);
+        let k = u32::from(self.state.shift);
         for g in self.gram.iter_mut() {
             *g -= *g >> k;
         }
-        self.weight -= self.weight >> k;
+        self.state.weight -= self.state.weight >> k;
     }
 
     /// Number of coefficients `n`.
     pub fn params(&self) -> usize {
-        self.layout.len
+        self.state.layout.len
     }
 
     /// The structure.
     pub fn structure(&self) -> Structure {
-        self.layout.structure
+        self.state.layout.structure
     }
 
     /// The offset choice.
     pub fn offset(&self) -> Offset {
-        self.layout.offset
+        self.state.layout.offset
     }
 
     /// The forgetting shift `k` (`λ = 1 − 2^{−k}` per breath).
     pub fn shift(&self) -> u8 {
-        self.shift
+        self.state.shift
     }
 
     /// Rows accumulated since the last clear.
     pub fn rows(&self) -> u32 {
-        self.rows
+        self.state.rows
     }
 
     /// Rows accumulated, weighted as the entries are (the window's effective length).
     pub fn weight(&self) -> u32 {
-        self.weight
+        self.state.weight
     }
 
     /// Entry `(i, j)` of the statistics in internal order (index `n`: the target), counts²;
     /// 0 outside.
     pub fn entry(&self, i: usize, j: usize) -> i64 {
-        let n = self.layout.len;
+        let n = self.state.layout.len;
         if i > n || j > n {
             return 0;
         }
@@ -273,7 +253,7 @@ impl<'a> Window<'a> {
     }
 
     pub(crate) fn layout(&self) -> &Layout {
-        &self.layout
+        &self.state.layout
     }
 }
 
