@@ -134,8 +134,6 @@ pub struct Reid {
     /// Re-estimate at least every this many breaths, and the swap rule ([`ReidConfig`]).
     every: u32,
     swap: SwapRule,
-    /// Whether the volume alarm was raised at the last tick (the swap rule's).
-    volume_alarm: bool,
     /// A report waiting for a tick without another event.
     due: Option<ReidReport>,
 }
@@ -165,7 +163,6 @@ impl Reid {
             since: 0,
             every: cfg.every,
             swap: cfg.swap,
-            volume_alarm: false,
             due: None,
         }
     }
@@ -214,7 +211,6 @@ impl Reid {
         trigger: bool,
         volume_alarm: bool,
     ) -> Option<ArxModel<f32>> {
-        self.volume_alarm = volume_alarm;
         let state = self.window?;
         let Ok(mut window) = Window::attach(state, &mut self.store) else {
             self.window = None;
@@ -230,7 +226,7 @@ impl Reid {
         let mut swap = None;
         if let Some(breath) = boundary {
             self.since = self.since.saturating_add(1);
-            swap = self.judge();
+            swap = self.judge(volume_alarm);
             if matches!(self.job, Job::Idle) && (trigger || self.since >= self.every) {
                 // A window too short for the structure starts nothing (the next boundary tries).
                 let started = Window::attach(state, &mut self.store)
@@ -319,8 +315,8 @@ impl Reid {
     }
 
     /// At a breath boundary: the verdict of a held-out estimate once a breath of samples is
-    /// scored; the estimate when it is to be swapped in.
-    fn judge(&mut self) -> Option<ArxModel<f32>> {
+    /// scored (`volume_alarm` for the swap rule); the estimate when it is to be swapped in.
+    fn judge(&mut self, volume_alarm: bool) -> Option<ArxModel<f32>> {
         let Job::HoldingOut {
             holdout,
             model,
@@ -337,7 +333,7 @@ impl Reid {
         }
         match self.accept.judge(holdout) {
             Ok(v) => {
-                let swap = self.swap.allows(self.volume_alarm, v.running.fit);
+                let swap = self.swap.allows(volume_alarm, v.running.fit);
                 self.due = Some(ReidReport {
                     breath,
                     verdict: if swap {
