@@ -180,8 +180,9 @@ fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
         linearisation(&plant, &l, 30.0),
     );
     let open = secant_through_map(&lo, &hi, &table);
-    let closed = |ticks| through_map(&closed_valve_step(&plant, &l, 5.0, 30.0, ticks), &table).gain;
-    let (c50, c100) = (closed(50), closed(100));
+    // One inspiration (100 ticks); its step response holds the 50-tick value too.
+    let closed = through_map(&closed_valve_step(&plant, &l, 5.0, 30.0, 100), &table);
+    let (c50, c100) = (closed.step[49], closed.gain);
     println!(
         "closed valve through the map: {c50:.3} after 50 ticks, {c100:.3} after 100; \
          open valve: secant {open:.3}, local at 30 slm {:.3}",
