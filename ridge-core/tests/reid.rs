@@ -129,6 +129,90 @@ fn window_matches_a_brute_force_weighted_sum() {
     }
 }
 
+/// A window fed with segments of a record only (each breath's inspiration, say), its lag
+/// history restarted before each segment: the statistics are exactly the sum over the rows
+/// whose samples all lie in one segment (the first `m` of each segment only seed the lags),
+/// forgotten at each segment's end; a segment shorter than `m + 1` adds nothing. The samples
+/// between segments are never pushed.
+#[test]
+fn a_window_restarted_at_each_segment_sums_only_rows_within_a_segment() {
+    let s = Structure::new(3, 2, 2).unwrap();
+    let (u, y) = known_record(&[1.2, -0.5, 0.1], &[0.3, 0.2], 2, 40.0, 30.0, 2000, 11);
+    let m = s.seed_len();
+    // Segments [start, end): lengths from 2 (shorter than m + 1) to 120, gaps of 0 to 90.
+    let mut rng = Rng(5);
+    let mut segments = Vec::new();
+    let mut t = 3;
+    while t < u.len() {
+        let len = if segments.len() % 5 == 4 {
+            2
+        } else {
+            2 + (rng.next() % 119) as usize
+        };
+        let end = (t + len).min(u.len());
+        segments.push((t, end));
+        t = end + (rng.next() % 91) as usize;
+    }
+    assert!(segments.iter().any(|&(a, b)| b - a <= m));
+    for shift in [0u8, 2] {
+        let mut store = [0i64; WINDOW_LEN_MAX];
+        let mut w = Window::new(s, Offset::Intercept, shift, &mut store).unwrap();
+        let n = w.params();
+        let lambda = if shift == 0 {
+            1.0
+        } else {
+            1.0 - 0.5f64.powi(i32::from(shift))
+        };
+        let mut brute = vec![vec![0.0f64; n + 1]; n + 1];
+        let mut rows = 0usize;
+        for (k, &(a, b)) in segments.iter().enumerate() {
+            w.restart_lags();
+            for t in a..b {
+                w.push(u[t], y[t]).unwrap();
+            }
+            for t in (a + m)..b {
+                let z = row(s, Offset::Intercept, &u, &y, t);
+                for (r, zi) in brute.iter_mut().zip(&z) {
+                    for (x, zj) in r.iter_mut().zip(&z) {
+                        *x += zi * zj;
+                    }
+                }
+                rows += 1;
+            }
+            w.end_breath();
+            for r in brute.iter_mut() {
+                for x in r.iter_mut() {
+                    *x *= lambda;
+                }
+            }
+            assert_eq!(w.rows() as usize, rows, "segment {k}");
+        }
+        for (i, r) in brute.iter().enumerate() {
+            for (j, &want) in r.iter().enumerate() {
+                let got = w.entry(i, j) as f64;
+                let tol = segments.len() as f64 + 1e-12 * want.abs();
+                assert!(
+                    (got - want).abs() <= tol,
+                    "shift {shift} ({i}, {j}): {got} vs {want}"
+                );
+            }
+        }
+    }
+    // Without the restart the rows that span a gap are summed too: the statistics differ.
+    let mut store = [0i64; WINDOW_LEN_MAX];
+    let mut w = Window::new(s, Offset::Intercept, 0, &mut store).unwrap();
+    for &(a, b) in &segments {
+        for t in a..b {
+            w.push(u[t], y[t]).unwrap();
+        }
+    }
+    let within: usize = segments
+        .iter()
+        .map(|&(a, b)| (b - a).saturating_sub(m))
+        .sum();
+    assert!(w.rows() as usize > within);
+}
+
 /// A window kept apart from its storage between ticks (detached after each tick, attached for
 /// the next, as the firmware's run mode keeps it) sums what the brute force sums.
 #[test]

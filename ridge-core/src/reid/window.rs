@@ -136,6 +136,16 @@ impl<'a> Window<'a> {
         self.state.weight = 0;
     }
 
+    /// Restarts the lag history and keeps the statistics: the next `m = max(p, d + q − 1)`
+    /// samples only fill the lag history again (as after [`clear`](Self::clear)), so that no row
+    /// spans the gap. For a window fed with segments of the record only (e.g. each breath's
+    /// inspiration, the exhalation valve closed): call it before each segment's first sample;
+    /// every row then holds samples of one segment. Nothing else changes (entries, rows,
+    /// weight, forgetting).
+    pub fn restart_lags(&mut self) {
+        self.state.seeded = 0;
+    }
+
     /// Takes one sample: `u_t`, the input applied during the interval that ends with the
     /// reading `y_t` (counts). Once the lag history is full, adds the row `z_t zᵀ_t`.
     ///
