@@ -39,6 +39,7 @@
 //! [`Setpoint`]: ridge_pump_firmware::setpoint::Setpoint
 //! [`VolumeWave`]: ridge_pump_firmware::setpoint::VolumeWave
 
+use ridge_core::control::ModelLimits;
 use ridge_core::reid::window_len;
 use ridge_pump_firmware::command::VentArgs;
 use ridge_pump_firmware::event::Event;
@@ -56,7 +57,7 @@ use crate::baseline::simc::simc_pi;
 use crate::baseline::stepped::fraction_to_duty;
 use crate::iso::IsoRow;
 use crate::reid::{
-    acceptance, design, map_slm, Estimate, Mode, Reestimation, Rules, Running, WindowStore,
+    acceptance, design, map_slm, Estimate, Feed, Mode, Reestimation, Rules, Running, WindowStore,
 };
 use crate::sfm3300::raw_to_flow;
 use crate::{Blower, LungParams, Outlet, PlantArgs, Rig, Valve, TS_S};
@@ -164,6 +165,36 @@ pub struct Cell {
     /// The adaptive controller's swap policy (study knobs; [`Policy::ALWAYS`], today's, by
     /// default).
     pub policy: Policy,
+    /// The adaptive controller's model of the breath's plant (study knobs;
+    /// [`BreathPlant::TODAY`], the firmware's, by default).
+    pub breath_plant: BreathPlant,
+}
+
+/// The adaptive controller's model of the breath's plant (the breath-plant study,
+/// docs/control.md): which ticks its re-estimation takes and at which structure ([`Feed`]), and
+/// the model check its estimates pass. Applies to [`Ctrl::Adaptive`] only.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BreathPlant {
+    /// The window's ticks and structure.
+    pub feed: Feed,
+    /// The model check of the estimates (`Acceptance::model`); `None`: the firmware's.
+    pub model_limits: Option<ModelLimits<f32>>,
+    /// The re-design keeps the model's poles within this radius (`Spec::keep_radius`; `None`:
+    /// the firmware's 0.8); applies with [`Policy::fixed_speed`].
+    pub keep_radius: Option<f32>,
+    /// The held-out free-run fit an estimate needs (`Acceptance::min_fit`, percent; `None`:
+    /// the firmware's 70); it must beat the running model's all the same.
+    pub min_fit: Option<f32>,
+}
+
+impl BreathPlant {
+    /// The firmware's: every tick, the power-up structure, its model check.
+    pub const TODAY: BreathPlant = BreathPlant {
+        feed: Feed::ALL,
+        model_limits: None,
+        keep_radius: None,
+        min_fit: None,
+    };
 }
 
 /// When an accepted re-estimate is swapped in, and how the new controller is designed: the
@@ -230,6 +261,7 @@ impl Cell {
             trim: true,
             swap_below_fit: None,
             policy: Policy::ALWAYS,
+            breath_plant: BreathPlant::TODAY,
         }
     }
 }
@@ -391,6 +423,12 @@ enum Loop {
 
 /// Runs `cell` from the switch-over `p` (see the [module docs](self)).
 pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
+    run_cell_figures(p, cell).map(|(run, _)| run)
+}
+
+/// [`run_cell`], and per breath (from 1) the RMS of the true flow minus the program's setpoint
+/// over the breath's inspiration only (the valve closed), slm.
+pub fn run_cell_figures(p: &PowerUp, cell: &Cell) -> Result<(CellRun, Vec<f64>), ExperimentError> {
     let vb = vent_settings(&cell.row, cell.wave, cell.trim)?;
     let sw = &p.switchover;
     let mut rig = p.rig.clone();
@@ -441,17 +479,25 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         units: 1,
         swap_below_fit: cell.swap_below_fit,
         acceptance: ridge_core::reid::Acceptance {
-            holdout_min: period,
+            // One inspiration less its seed when the window takes the inspirations only.
+            holdout_min: if cell.breath_plant.feed.inspiration_only {
+                insp / 2
+            } else {
+                period
+            },
+            model: cell.breath_plant.model_limits.unwrap_or(acceptance().model),
+            min_fit: cell.breath_plant.min_fit.unwrap_or(acceptance().min_fit),
             ..acceptance()
         },
     };
     let mut store: WindowStore = [0; window_len(ridge_core::PARAMS_MAX)];
     let mut reest = match cell.ctrl {
-        Ctrl::Adaptive => Some(Reestimation::new(
+        Ctrl::Adaptive => Some(Reestimation::with_feed(
             &sw.model,
             cell.policy.shift,
             rules,
             &mut store,
+            cell.breath_plant.feed,
         )?),
         _ => None,
     };
@@ -464,6 +510,9 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
     let mut breaths: Vec<Breath> = Vec::new();
     let mut reported: Vec<(u32, f64, f64)> = Vec::new();
     let (mut sq, mut peak, mut volume_at_close) = (0.0, 0.0f64, 0.0);
+    // The inspiration's squared tracking errors summed (slm²) and ticks; per breath, its RMS.
+    let (mut sq_insp, mut n_insp) = (0.0f64, 0u32);
+    let mut insp_rms: Vec<f64> = Vec::new();
     let mut delivered = f64::NAN;
     let mut start_pressure = f64::NAN;
     let fixed_tau = designs
@@ -511,8 +560,10 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         if kb.is_some() && phase == 0 {
             if b > 1 {
                 breaths.push(finished(b - 1, &rig, delivered, peak, start_pressure, sq));
+                insp_rms.push((sq_insp / f64::from(n_insp.max(1))).sqrt());
             }
             (sq, peak) = (0.0, 0.0);
+            (sq_insp, n_insp) = (0.0, 0);
             start_pressure = lung_of(&rig).map_or(f64::NAN, |l| l.1);
             offsets.push((b, trim_offset));
             if let Some(r) = reest.as_mut() {
@@ -560,7 +611,14 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
                     if !allowed {
                         r.hold(i);
                     } else {
-                        match running.swapped_at(model, Mode::Adapt, &table, y, fixed_tau) {
+                        match running.swapped_keeping(
+                            model,
+                            Mode::Adapt,
+                            &table,
+                            y,
+                            fixed_tau,
+                            cell.breath_plant.keep_radius,
+                        ) {
                             Some((n, tau)) => {
                                 **running = n;
                                 let at = kb.unwrap_or(0).div_ceil(period);
@@ -612,6 +670,10 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         let (_, _, p_aw) = lung_of(&rig).unwrap_or_default();
         peak = peak.max(p_aw);
         sq += (flow - f64::from(next)).powi(2);
+        if inspiring && kb.is_some() {
+            sq_insp += (flow - f64::from(next)).powi(2);
+            n_insp += 1;
+        }
         // After the PWM write: the firmware's breath bookkeeping (with this tick's reading),
         // the re-estimation.
         let mut event = None;
@@ -627,7 +689,7 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         }
         ended = next;
         if let (Loop::Rst(running), Some(r), Some(_)) = (&ctrl, reest.as_mut(), kb) {
-            r.after_pwm(v_counts, raw_to_counts(raw), &running.model);
+            r.after_pwm_in(v_counts, raw_to_counts(raw), &running.model, inspiring);
         }
     }
     // The next tick's bookkeeping: the last breath's `BREATH` figures.
@@ -645,6 +707,7 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
         start_pressure,
         sq,
     ));
+    insp_rms.push((sq_insp / f64::from(n_insp.max(1))).sqrt());
     for (n, vd, cmd) in reported {
         let offset = offsets.iter().find(|o| o.0 == n).map_or(0.0, |o| o.1);
         if let Some(b) = breaths.iter_mut().find(|b| b.number == n) {
@@ -652,11 +715,12 @@ pub fn run_cell(p: &PowerUp, cell: &Cell) -> Result<CellRun, ExperimentError> {
             b.command_ml = f64::from((cmd as f32 + offset).clamp(vb.tidal - span, vb.tidal + span));
         }
     }
-    Ok(CellRun {
+    let run = CellRun {
         breaths,
         estimates: reest.map(Reestimation::into_estimates).unwrap_or_default(),
         designs,
-    })
+    };
+    Ok((run, insp_rms))
 }
 
 /// What became of re-estimates: counts by outcome.

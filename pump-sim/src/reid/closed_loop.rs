@@ -6,10 +6,10 @@
 //! ([`swap_allowed`]), as [`Rules`] and [`Mode`] say.
 
 use ridge_core::control::Limits;
-use ridge_core::control::{Controller, Design};
+use ridge_core::control::{Controller, Design, DesignError};
 use ridge_core::input_map::MapTable;
 use ridge_core::reid::{window_len, Acceptance, Holdout, Refit, RefitStep, Rejection, Window};
-use ridge_core::{ArxModel, RidgeM};
+use ridge_core::{ArxModel, RidgeM, Structure};
 use ridge_pump_firmware::selfid::{duty_for_flow, preview_ticks, REFERENCE_POLE};
 use ridge_pump_firmware::units::{DUTY_FULL_SCALE, MODEL_SCALE, SLM_PER_COUNT};
 
@@ -75,21 +75,35 @@ pub fn design_at(model: &ArxModel<f32>, tau: Option<f32>) -> Option<Design<f32>>
     let Some(tau) = tau else {
         return design(model);
     };
+    let mut d = design_verdict(model, tau, None).ok()?;
+    d.set_reference(REFERENCE_POLE).ok()?;
+    Some(d)
+}
+
+/// The design of [`design_at`] at the regulation speed `tau` (s), before the reference model,
+/// with the model's poles within `keep_radius` kept in the closed loop (`Spec::keep_radius`;
+/// `None`: the firmware's 0.8): the design, or why the last of the firmware's retries refused
+/// `model` (the firmware's `FAULT control why=…`).
+pub fn design_verdict(
+    model: &ArxModel<f32>,
+    tau: f32,
+    keep_radius: Option<f32>,
+) -> Result<Design<f32>, DesignError<f32>> {
     let c = &EXPERIMENT_CONFIG.control;
+    let base = c.spec();
     let spec = ridge_core::control::Spec {
         tau: Some(tau),
-        ..c.spec()
+        keep_radius: keep_radius.unwrap_or(base.keep_radius),
+        ..base
     };
-    let (d, _) = ridge_core::control::design_slower_on_failure(
+    ridge_core::control::design_slower_on_failure(
         model,
         &spec,
         c.tries,
         ridge_pump_firmware::selfid::SLOWDOWN,
         || {},
-    );
-    let mut d = d.ok()?;
-    d.set_reference(REFERENCE_POLE).ok()?;
-    Some(d)
+    )
+    .0
 }
 
 /// The firmware's running controller (run mode through the static map) with its model (the
@@ -146,12 +160,33 @@ impl Running {
         y: f32,
         tau: Option<f32>,
     ) -> Option<(Self, f32)> {
+        self.swapped_keeping(model, mode, table, y, tau, None)
+    }
+
+    /// [`swapped_at`](Self::swapped_at) with the new design keeping the model's poles within
+    /// `keep_radius` ([`design_verdict`]; `None`, or no `tau`: [`design_at`]'s).
+    pub fn swapped_keeping(
+        &self,
+        model: ArxModel<f32>,
+        mode: Mode,
+        table: &MapTable,
+        y: f32,
+        tau: Option<f32>,
+        keep_radius: Option<f32>,
+    ) -> Option<(Self, f32)> {
         let model = if mode == Mode::Restart {
             self.model
         } else {
             model
         };
-        let d = design_at(&model, tau)?;
+        let d = match (tau, keep_radius) {
+            (Some(t), Some(_)) => {
+                let mut d = design_verdict(&model, t, keep_radius).ok()?;
+                d.set_reference(REFERENCE_POLE).ok()?;
+                d
+            }
+            _ => design_at(&model, tau)?,
+        };
         Some((Running::new(model, &d, table, self.ctrl.last(), y), d.tau))
     }
 
@@ -186,7 +221,46 @@ pub fn map_slm(table: &MapTable, duty: u16) -> f32 {
 enum Job {
     Idle,
     Fitting(Box<Refit<f32>>, usize),
+    /// Fitted and checked, waiting for the next inspiration's start to be held out
+    /// ([`Feed::inspiration_only`]).
+    Ready(ArxModel<f32>, usize),
     HoldingOut(Box<Holdout<f32>>, usize),
+}
+
+/// Which ticks the re-estimation's window takes and at which structure: the candidate models
+/// of the breath's plant (the breath-plant study, docs/control.md). [`Feed::ALL`] is the
+/// firmware's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Feed {
+    /// Only the inspiration's ticks (the exhalation valve closed), the window's lag history
+    /// restarted at each inspiration's start ([`Window::restart_lags`], the statistics kept);
+    /// the hold-out is one whole inspiration, its predictors seeded at the inspiration's start.
+    /// `false`: every tick, expiration included.
+    pub inspiration_only: bool,
+    /// Output lags added to the running model's `p` (the structure re-estimated).
+    pub extra_p: u8,
+    /// Input lags added to its `q`.
+    pub extra_q: u8,
+}
+
+impl Feed {
+    /// Every tick, the running model's structure (the firmware's).
+    pub const ALL: Feed = Feed {
+        inspiration_only: false,
+        extra_p: 0,
+        extra_q: 0,
+    };
+
+    /// The structure re-estimated for a running model of `s`: `p + extra_p`, `q + extra_q`,
+    /// the same delay; `None` beyond the crate's maxima.
+    pub fn structure(&self, s: Structure) -> Option<Structure> {
+        Structure::new(
+            s.p.checked_add(self.extra_p)?,
+            s.q.checked_add(self.extra_q)?,
+            s.d,
+        )
+        .ok()
+    }
 }
 /// What the re-estimation does with the loop's data: a [`Study`](super::Study)'s settings
 /// ([`Study::rules`](super::Study::rules)), or a ventilation benchmark cell's
@@ -229,6 +303,9 @@ pub fn swap_allowed(running_fit: f32, swap_below_fit: Option<f64>) -> bool {
 pub struct Reestimation<'a> {
     rules: Rules,
     window: Window<'a>,
+    feed: Feed,
+    /// The last tick was in an inspiration ([`after_pwm_in`](Self::after_pwm_in)).
+    inspiring: bool,
     job: Job,
     pending: Option<(ArxModel<f32>, usize)>,
     estimates: Vec<Estimate>,
@@ -246,11 +323,28 @@ impl<'a> Reestimation<'a> {
         rules: Rules,
         store: &'a mut WindowStore,
     ) -> Result<Self, ExperimentError> {
-        let window = Window::new(model.structure(), model.offset(), shift, store)
+        Self::with_feed(model, shift, rules, store, Feed::ALL)
+    }
+
+    /// [`new`](Self::new) with the ticks and structure of `feed` (the loop then calls
+    /// [`after_pwm_in`](Self::after_pwm_in)).
+    pub fn with_feed(
+        model: &ArxModel<f32>,
+        shift: u8,
+        rules: Rules,
+        store: &'a mut WindowStore,
+        feed: Feed,
+    ) -> Result<Self, ExperimentError> {
+        let structure = feed
+            .structure(model.structure())
+            .ok_or_else(|| ExperimentError::Plant("window: structure beyond the maxima".into()))?;
+        let window = Window::new(structure, model.offset(), shift, store)
             .map_err(|e| ExperimentError::Plant(format!("window: {e:?}")))?;
         Ok(Reestimation {
             rules,
             window,
+            feed,
+            inspiring: false,
             job: Job::Idle,
             pending: None,
             estimates: Vec::new(),
@@ -323,7 +417,40 @@ impl<'a> Reestimation<'a> {
     /// (`v_counts`) and the reading (`counts`); one step of the re-estimate or the hold-out;
     /// `running` is the running controller's model.
     pub fn after_pwm(&mut self, v_counts: i16, counts: i16, running: &ArxModel<f32>) {
-        let _ = self.window.push(v_counts, counts);
+        self.step(v_counts, counts, running, true);
+    }
+
+    /// [`after_pwm`](Self::after_pwm) for a tick whose interval was in the inspiration
+    /// (`inspiring`, the exhalation valve closed) or not. With [`Feed::inspiration_only`] an
+    /// expiration tick only advances the fit; an inspiration's first tick restarts the window's
+    /// lag history and starts the hold-out of an estimate ready for it. Otherwise as
+    /// [`after_pwm`](Self::after_pwm).
+    pub fn after_pwm_in(
+        &mut self,
+        v_counts: i16,
+        counts: i16,
+        running: &ArxModel<f32>,
+        inspiring: bool,
+    ) {
+        if !self.feed.inspiration_only {
+            return self.step(v_counts, counts, running, true);
+        }
+        if inspiring && !self.inspiring {
+            self.window.restart_lags();
+            if let Job::Ready(m, i) = self.job {
+                self.job = Job::HoldingOut(Box::new(Holdout::new(m, *running)), i);
+            }
+        }
+        self.inspiring = inspiring;
+        self.step(v_counts, counts, running, inspiring);
+    }
+
+    /// One tick: the sample taken into the window and the hold-out when `take`, one step of
+    /// the fit.
+    fn step(&mut self, v_counts: i16, counts: i16, running: &ArxModel<f32>, take: bool) {
+        if take {
+            let _ = self.window.push(v_counts, counts);
+        }
         let (uk, yk) = (
             f32::from(v_counts) * SLM_PER_COUNT,
             f32::from(counts) * SLM_PER_COUNT,
@@ -341,6 +468,7 @@ impl<'a> Reestimation<'a> {
                         .acceptance
                         .check_estimate(&m, e.response, e.input_response)
                     {
+                        Ok(_) if self.feed.inspiration_only => Job::Ready(m, i),
                         Ok(_) => Job::HoldingOut(Box::new(Holdout::new(m, *running)), i),
                         Err(why) => {
                             e.verdict = Some(Err(why));
@@ -354,9 +482,12 @@ impl<'a> Reestimation<'a> {
                 }
             },
             Job::HoldingOut(mut h, i) => {
-                h.push(uk, yk);
+                if take {
+                    h.push(uk, yk);
+                }
                 Job::HoldingOut(h, i)
             }
+            Job::Ready(m, i) => Job::Ready(m, i),
             Job::Idle => Job::Idle,
         };
     }

@@ -17,7 +17,8 @@
 //!   map ([`Running::tick`]: run mode's step; [`Running::swapped`]: the bumpless swap,
 //!   [`Running::swapped_at`] with a given regulation speed, [`design_at`]), and
 //!   [`Reestimation`], the window, the re-estimate (its record [`Estimate`]), its hold-out and
-//!   verdict, and the swap rule ([`swap_allowed`]).
+//!   verdict, and the swap rule ([`swap_allowed`]); [`Feed`] which ticks the window takes and
+//!   at which structure (every tick today; each inspiration only, the breath-plant study).
 //!
 //! # Timing
 //! As in [`crate::baseline::experiment`]: tick `k` reads the flow at the end of interval
@@ -33,8 +34,8 @@ mod study;
 mod truth;
 
 pub use closed_loop::{
-    design, design_at, map_slm, swap_allowed, Estimate, Mode, Reestimation, Rules, Running,
-    WindowStore,
+    design, design_at, design_verdict, map_slm, swap_allowed, Estimate, Feed, Mode, Reestimation,
+    Rules, Running, WindowStore,
 };
 pub use study::{
     acceptance, breath_ticks, breaths_in, inspiration_ticks, mean_sd, models_in, run,
