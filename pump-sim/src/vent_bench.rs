@@ -35,6 +35,10 @@
 //!   default): when an accepted re-estimate is swapped in ([`SwapWhen`]: always, never, on the
 //!   volume alarm, above a tracking RMS), at which regulation speed it is re-designed, the
 //!   window's forgetting, the trim restarted at a swap, a wait for breaths of the new lung.
+//! - **the model of the breath's plant** the adaptive controller re-estimates ([`BreathPlant`],
+//!   study knobs; the firmware's by default): the window fed every tick or each inspiration
+//!   only, with extra lags, the model check, the re-design's kept poles, the held-out fit's
+//!   floor; [`run_cell_figures`] adds each breath's inspiration-only tracking RMS.
 //!
 //! [`Setpoint`]: ridge_pump_firmware::setpoint::Setpoint
 //! [`VolumeWave`]: ridge_pump_firmware::setpoint::VolumeWave

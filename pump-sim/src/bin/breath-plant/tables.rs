@@ -6,10 +6,12 @@ use crate::study::{
     Figures, Outcome, Run, KEEP_RADIUS,
 };
 use pump_sim::iso::IsoRow;
+use pump_sim::reid;
 use pump_sim::vent_bench::{
     change_verdict, outcomes, row_lung, score, BreathPlant, Cell, ChangeAt, Ctrl, NamedChange,
     SwapWhen, CHANGES, CHANGE_BREATH,
 };
+use ridge_pump_firmware::selfid::preview_ticks;
 use ridge_pump_firmware::setpoint::Shape;
 
 /// Breaths of the estimates table's runs (the change in breath [`CHANGE_BREATH`]).
@@ -50,8 +52,11 @@ pub fn estimates(seeds: u64) {
          row 1's breath; power-up into C 50 R 5, the lung changed at breath {CHANGE_BREATH}'s \
          boundary; {ESTIMATE_RUN} breaths), seeds 1-{seeds}\n"
     );
+    let preview = reid::design(&first.switchover.model)
+        .map_or(0, |d| preview_ticks(d.mean_delay(&first.switchover.model)));
     println!(
-        "Power-up structure (seed 1): p {}, q {}, d {}, {:?}. Windows: the adult lung (held out \
+        "Power-up structure (seed 1): p {}, q {}, d {}, {:?}; the controller's preview \
+         {preview} ticks (the duty's rise leads the valve's closing by as much). Windows: the adult lung (held out \
          before the change), the new lung from its 3rd breath. Step: the model's unit step after \
          50 / 100 ticks (slm per slm of the map); truth: the closed-valve step from the 5 slm bias \
          flow at the duty of 35 slm (seed 1's map). Design: at the power-up design's τ, every \
