@@ -38,7 +38,7 @@
 //! - **the model of the breath's plant** the adaptive controller re-estimates ([`BreathPlant`],
 //!   study knobs; the firmware's by default): the window fed every tick or each inspiration
 //!   only, with extra lags, the model check, the re-design's kept poles, the held-out fit's
-//!   floor; [`run_cell_figures`] adds each breath's inspiration-only tracking RMS.
+//!   floor, a setpoint dither; [`run_cell_figures`] adds each breath's inspiration-only tracking RMS.
 //!
 //! [`Setpoint`]: ridge_pump_firmware::setpoint::Setpoint
 //! [`VolumeWave`]: ridge_pump_firmware::setpoint::VolumeWave
@@ -61,7 +61,8 @@ use crate::baseline::simc::simc_pi;
 use crate::baseline::stepped::fraction_to_duty;
 use crate::iso::IsoRow;
 use crate::reid::{
-    acceptance, design, map_slm, Estimate, Feed, Mode, Reestimation, Rules, Running, WindowStore,
+    acceptance, design, map_slm, Dither, DitherGen, Estimate, Feed, Mode, Reestimation, Rules,
+    Running, WindowStore,
 };
 use crate::sfm3300::raw_to_flow;
 use crate::{Blower, LungParams, Outlet, PlantArgs, Rig, Valve, TS_S};
@@ -189,6 +190,9 @@ pub struct BreathPlant {
     /// The held-out free-run fit an estimate needs (`Acceptance::min_fit`, percent; `None`:
     /// the firmware's 70); it must beat the running model's all the same.
     pub min_fit: Option<f32>,
+    /// A PRBS dither added to the controller's previewed setpoint on every tick (the RST
+    /// loops; its LFSR seeded from the power-up's seed), as the re-identification study's.
+    pub dither: Option<Dither>,
 }
 
 impl BreathPlant {
@@ -198,6 +202,7 @@ impl BreathPlant {
         model_limits: None,
         keep_radius: None,
         min_fit: None,
+        dither: None,
     };
 }
 
@@ -494,6 +499,10 @@ pub fn run_cell_figures(p: &PowerUp, cell: &Cell) -> Result<(CellRun, Vec<f64>),
             ..acceptance()
         },
     };
+    let mut dither = match (cell.breath_plant.dither, &ctrl) {
+        (Some(d), Loop::Rst(_)) => Some(DitherGen::new(d, p.seed).ok_or(ExperimentError::Score)?),
+        _ => None,
+    };
     let mut store: WindowStore = [0; window_len(ridge_core::PARAMS_MAX)];
     let mut reest = match cell.ctrl {
         Ctrl::Adaptive => Some(Reestimation::with_feed(
@@ -645,7 +654,7 @@ pub fn run_cell_figures(p: &PowerUp, cell: &Cell) -> Result<(CellRun, Vec<f64>),
             Loop::Rst(r) => r.preview,
             Loop::Pid(_, p) => *p,
         };
-        let ahead = sp.ahead(preview);
+        let ahead = sp.ahead(preview) + dither.as_mut().map_or(0.0, |g| g.at(k));
         let (inspiring, vphase) = sp.volume_phase().unwrap_or((false, phase));
         let next = sp.advance();
         let (duty, v_counts) = match &mut ctrl {

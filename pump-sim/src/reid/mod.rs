@@ -41,6 +41,7 @@ pub use study::{
     acceptance, breath_ticks, breaths_in, inspiration_ticks, mean_sd, models_in, run,
     BreathFigures, Dither, LungChange, Study, StudyRun, MIN_INPUT_RESPONSE, PROGRAM,
 };
+pub(crate) use study::DitherGen;
 pub use truth::{
     closed_valve_step, linearisation, model_step, rise63, secant_gain, secant_through_map,
     step_error_pct, through_map, Linearisation, DELTA, STEP_TICKS,

@@ -204,15 +204,16 @@ pub fn acceptance() -> Acceptance<f32> {
         holdout_min: breath_ticks(),
     }
 }
-/// The PRBS bits of a dither.
-struct DitherGen {
+/// The PRBS bits of a dither (also the ventilation benchmark's, `vent_bench::BreathPlant`).
+pub(crate) struct DitherGen {
     d: Dither,
     lfsr: ridge_core::excitation::Lfsr,
     bit: bool,
 }
 
 impl DitherGen {
-    fn new(d: Dither, seed: u64) -> Option<Self> {
+    /// The dither `d`, its LFSR seeded from `seed`; `None` for a seed the LFSR refuses.
+    pub(crate) fn new(d: Dither, seed: u64) -> Option<Self> {
         Some(DitherGen {
             d,
             lfsr: ridge_core::excitation::Lfsr::new(7, (seed as u16) | 1)?,
@@ -220,7 +221,8 @@ impl DitherGen {
         })
     }
 
-    fn at(&mut self, k: u32) -> f32 {
+    /// The dither at tick `k` (a new bit every `hold` ticks), slm.
+    pub(crate) fn at(&mut self, k: u32) -> f32 {
         if k % self.d.hold.max(1) == 0 {
             self.bit = self.lfsr.next_bit();
         }

@@ -3,7 +3,7 @@
 //! re-estimates against the truth.
 
 use pump_sim::iso::{iso_row, IsoRow, ISO_ROWS};
-use pump_sim::reid::{self, design_verdict, Estimate, Feed};
+use pump_sim::reid::{self, design_verdict, Dither, Estimate, Feed};
 use pump_sim::vent_bench::{
     power_up, power_up_plant, row_lung, run_cell_figures, zn_for, BreathPlant, Cell, CellRun,
     ChangeAt, Ctrl, LungChange, Policy, PowerUp, SwapWhen, CHANGE_BREATH, CHANGE_RUN,
@@ -42,7 +42,8 @@ pub const KEEP_RADIUS: f32 = 0.995;
 
 /// The candidates: today's window, then the inspiration only at the power-up structure, with
 /// one more output lag, with one more output and input lag (the lung's volume, the flow's
-/// integral, in the differenced ARX); then "relaxed": the static-gain check off and the
+/// integral, in the differenced ARX); with a setpoint dither of ±1 slm (the largest)
+/// and ±5 slm (beyond it: does excitation limit the inspiration's window?); then "relaxed": the static-gain check off and the
 /// re-design keeping every slow pole but the dominant one ([`KEEP_RADIUS`]); then "any fit":
 /// relaxed, and the held-out fit need only beat the running model's (no 70 % floor).
 pub fn candidates() -> Vec<Candidate> {
@@ -56,6 +57,16 @@ pub fn candidates() -> Vec<Candidate> {
         model_limits: relaxed.then(no_gain_check),
         keep_radius: relaxed.then_some(KEEP_RADIUS),
         min_fit: None,
+        dither: None,
+    };
+    // With a PRBS dither of ±`amplitude` slm on the setpoint, 4 ticks a bit (the
+    // re-identification study's).
+    let dithered = |feed, amplitude| BreathPlant {
+        dither: Some(Dither {
+            amplitude,
+            hold: 4,
+        }),
+        ..plant(feed, false)
     };
     // Relaxed, and an estimate need only predict the held-out data better than the running
     // model.
@@ -79,6 +90,18 @@ pub fn candidates() -> Vec<Candidate> {
         Candidate {
             name: "inspiration only, (p + 1, q + 1)",
             plant: plant(insp(1, 1), false),
+        },
+        Candidate {
+            name: "inspiration only, (p, q), ±1 slm dither",
+            plant: dithered(insp(0, 0), 1.0),
+        },
+        Candidate {
+            name: "inspiration only, (p + 1, q + 1), ±1 slm dither",
+            plant: dithered(insp(1, 1), 1.0),
+        },
+        Candidate {
+            name: "inspiration only, (p, q), ±5 slm dither (beyond the issue's ±1)",
+            plant: dithered(insp(0, 0), 5.0),
         },
         Candidate {
             name: "every tick, (p, q), relaxed",
