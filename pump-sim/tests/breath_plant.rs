@@ -57,3 +57,34 @@ fn an_inspiration_only_monitor_is_the_frozen_loop_and_re_estimates_the_larger_st
         assert!(*i > 0.0 && i * i * 100.0 <= b.rms * b.rms * 300.0 * (1.0 + 1e-9));
     }
 }
+
+/// A ±1 slm setpoint dither (`BreathPlant::dither`) reaches the loop: the frozen loop's flow
+/// moves with it (the inspiration's RMS against the undithered program changes, by less than
+/// the dither's own 1 slm RMS plus a half), and every breath from the 3rd stays within
+/// ±(4 mL + 5 %) with the trim.
+#[test]
+fn a_setpoint_dither_moves_the_flow_by_about_its_size() {
+    let row = iso_row(1).expect("row 1");
+    let lung = row_lung(&row, 0.0);
+    let p = power_up(&lung, 1, &zn_for(&lung).expect("ZN")).expect("power-up");
+    let base = Cell {
+        breaths: 8,
+        ..Cell::new(row, Shape::Square, Ctrl::Frozen)
+    };
+    let dithered = Cell {
+        breath_plant: BreathPlant {
+            dither: Some(pump_sim::reid::Dither {
+                amplitude: 1.0,
+                hold: 4,
+            }),
+            ..BreathPlant::TODAY
+        },
+        ..base.clone()
+    };
+    let (_, plain) = run_cell_figures(&p, &base).expect("plain");
+    let (run, insp) = run_cell_figures(&p, &dithered).expect("dithered");
+    let mean = |v: &[f64]| v.iter().skip(2).sum::<f64>() / (v.len() - 2) as f64;
+    let (a, b) = (mean(&plain), mean(&insp));
+    assert!(a != b && (b - a).abs() < 1.5, "{a} → {b}");
+    assert!(run.breaths.iter().skip(2).all(|b| b.within(0.05)));
+}

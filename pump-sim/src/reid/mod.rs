@@ -37,11 +37,11 @@ pub use closed_loop::{
     design, design_at, design_verdict, map_slm, swap_allowed, Estimate, Feed, Mode, Reestimation,
     Rules, Running, WindowStore,
 };
+pub(crate) use study::DitherGen;
 pub use study::{
     acceptance, breath_ticks, breaths_in, inspiration_ticks, mean_sd, models_in, run,
     BreathFigures, Dither, LungChange, Study, StudyRun, MIN_INPUT_RESPONSE, PROGRAM,
 };
-pub(crate) use study::DitherGen;
 pub use truth::{
     closed_valve_step, linearisation, model_step, rise63, secant_gain, secant_through_map,
     step_error_pct, through_map, Linearisation, DELTA, STEP_TICKS,

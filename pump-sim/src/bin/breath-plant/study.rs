@@ -62,10 +62,7 @@ pub fn candidates() -> Vec<Candidate> {
     // With a PRBS dither of ±`amplitude` slm on the setpoint, 4 ticks a bit (the
     // re-identification study's).
     let dithered = |feed, amplitude| BreathPlant {
-        dither: Some(Dither {
-            amplitude,
-            hold: 4,
-        }),
+        dither: Some(Dither { amplitude, hold: 4 }),
         ..plant(feed, false)
     };
     // Relaxed, and an estimate need only predict the held-out data better than the running
