@@ -62,6 +62,10 @@ struct Args {
     /// `--table rows`: breaths per run.
     #[arg(long, default_value_t = 12)]
     breaths: u32,
+    /// The breaths read by a noise-free sensor (its quantisation only; the power-up keeps the
+    /// noise model): a diagnosis.
+    #[arg(long)]
+    ideal_sensor: bool,
 }
 
 impl Args {
@@ -84,14 +88,18 @@ impl Args {
 fn main() {
     let args = Args::parse();
     let t0 = std::time::Instant::now();
+    let runs = study::Runs {
+        seeds: args.seeds,
+        ideal_sensor: args.ideal_sensor,
+    };
     if matches!(args.table, Table::Estimates | Table::All) {
-        tables::estimates(args.seeds);
+        tables::estimates(&runs);
     }
     if matches!(args.table, Table::Changes | Table::All) {
-        tables::changes(args.seeds, args.when());
+        tables::changes(&runs, args.when());
     }
     if matches!(args.table, Table::Rows | Table::All) {
-        tables::rows(&args.rows(), args.breaths, args.seeds, args.when());
+        tables::rows(&args.rows(), args.breaths, &runs, args.when());
     }
     eprintln!("{:.1} s", t0.elapsed().as_secs_f64());
 }

@@ -8,7 +8,7 @@ use pump_sim::vent_bench::{
     power_up, power_up_plant, row_lung, run_cell_figures, zn_for, BreathPlant, Cell, CellRun,
     ChangeAt, Ctrl, LungChange, Policy, PowerUp, SwapWhen, CHANGE_BREATH, CHANGE_RUN,
 };
-use pump_sim::LungParams;
+use pump_sim::{LungParams, Sfm3300, Sfm3300Params};
 use ridge_core::control::{DesignError, ModelLimits};
 use ridge_core::input_map::MapTable;
 use ridge_core::reid::Rejection;
@@ -137,27 +137,44 @@ pub fn lung(c: f64, r: f64) -> LungParams {
     }
 }
 
-/// The power-ups (seeds 1 to `seeds`) into `lung` with its PEEP valve at 0; failures printed
-/// and skipped.
-pub fn power_ups(lung: &LungParams, seeds: u64) -> Vec<PowerUp> {
-    let first = LungParams {
-        peep: 0.0,
-        ..lung.clone()
-    };
-    let zn = match zn_for(&first) {
-        Ok(z) => z,
-        Err(e) => {
-            eprintln!("ZN tuning C {} R {}: {e}", lung.compliance, lung.resistance);
-            return Vec::new();
-        }
-    };
-    (1..=seeds)
-        .filter_map(|seed| {
-            power_up(&first, seed, &zn)
-                .map_err(|e| eprintln!("power-up seed {seed}: {e}"))
-                .ok()
-        })
-        .collect()
+/// What every table's runs share: the seeds and the sensor of the breaths.
+#[derive(Clone, Copy, Debug)]
+pub struct Runs {
+    /// Noise seeds 1 to `seeds`.
+    pub seeds: u64,
+    /// The breaths read by a noise-free sensor (its quantisation only), the power-up as
+    /// always with the SFM3300 noise model: a diagnosis (is the sensor's noise the limit?).
+    pub ideal_sensor: bool,
+}
+
+impl Runs {
+    /// The power-ups into `lung` with its PEEP valve at 0; failures printed and skipped.
+    pub fn power_ups(&self, lung: &LungParams) -> Vec<PowerUp> {
+        let first = LungParams {
+            peep: 0.0,
+            ..lung.clone()
+        };
+        let zn = match zn_for(&first) {
+            Ok(z) => z,
+            Err(e) => {
+                eprintln!("ZN tuning C {} R {}: {e}", lung.compliance, lung.resistance);
+                return Vec::new();
+            }
+        };
+        (1..=self.seeds)
+            .filter_map(|seed| {
+                power_up(&first, seed, &zn)
+                    .map_err(|e| eprintln!("power-up seed {seed}: {e}"))
+                    .ok()
+            })
+            .map(|mut p| {
+                if self.ideal_sensor {
+                    p.rig.sensor = Sfm3300::new(Sfm3300Params::ideal(), p.seed);
+                }
+                p
+            })
+            .collect()
+    }
 }
 
 /// One run: the cell's run and its per-breath inspiration RMS (slm).

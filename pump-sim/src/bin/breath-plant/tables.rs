@@ -2,8 +2,8 @@
 //! the lung changes and on the ISO rows.
 
 use crate::study::{
-    candidates, change_cell, closed_truth, figures, lung, power_ups, runs, under, why, Candidate,
-    Figures, Outcome, Run, KEEP_RADIUS,
+    candidates, change_cell, closed_truth, figures, lung, runs, under, why, Candidate, Figures,
+    Outcome, Run, Runs, KEEP_RADIUS,
 };
 use pump_sim::iso::IsoRow;
 use pump_sim::reid;
@@ -39,9 +39,10 @@ fn max(v: impl IntoIterator<Item = f64>) -> f64 {
 
 /// Prints the re-estimates of every candidate on a frozen loop (the adaptive loop never
 /// swapping: every candidate sees the same data), seeds 1 to `seeds`.
-pub fn estimates(seeds: u64) {
+pub fn estimates(runs_of: &Runs) {
+    let seeds = runs_of.seeds;
     let adult = (50.0, 5.0);
-    let ups = power_ups(&lung(adult.0, adult.1), seeds);
+    let ups = runs_of.power_ups(&lung(adult.0, adult.1));
     let Some(first) = ups.first() else {
         return;
     };
@@ -178,7 +179,8 @@ fn loops() -> Vec<(&'static str, Option<BreathPlant>)> {
 
 /// Prints every candidate's adaptive loop (swapping `when`, re-designed at the power-up
 /// design's speed) and the frozen design on the 12 lung changes, trim on and off.
-pub fn changes(seeds: u64, when: SwapWhen) {
+pub fn changes(runs_of: &Runs, when: SwapWhen) {
+    let seeds = runs_of.seeds;
     println!(
         "## The 12 lung changes (row 1's breath, change in breath {CHANGE_BREATH}, at the boundary \
          and mid-inspiration), adaptive loops swapping {when:?} at the power-up design's τ, \
@@ -197,7 +199,7 @@ pub fn changes(seeds: u64, when: SwapWhen) {
     println!("|---|---|---|---|---|---|---|---|---|");
     let ups: Vec<_> = CHANGES
         .iter()
-        .map(|c| power_ups(&lung(c.from.0, c.from.1), seeds))
+        .map(|c| runs_of.power_ups(&lung(c.from.0, c.from.1)))
         .collect();
     for (name, plant) in loops() {
         for trim in [true, false] {
@@ -258,7 +260,8 @@ pub fn changes(seeds: u64, when: SwapWhen) {
 
 /// Prints every candidate's adaptive loop and the frozen design on `rows` (square, `breaths`
 /// breaths, no change), trim on and off.
-pub fn rows(rows: &[IsoRow], breaths: u32, seeds: u64, when: SwapWhen) {
+pub fn rows(rows: &[IsoRow], breaths: u32, runs_of: &Runs, when: SwapWhen) {
+    let seeds = runs_of.seeds;
     println!(
         "## ISO rows (square, {breaths} breaths, no change), adaptive loops swapping {when:?} at \
          the power-up design's τ, seeds 1-{seeds}\n"
@@ -279,7 +282,7 @@ pub fn rows(rows: &[IsoRow], breaths: u32, seeds: u64, when: SwapWhen) {
         .iter()
         .map(|r| {
             let l = row_lung(r, r.peep);
-            power_ups(&l, seeds)
+            runs_of.power_ups(&l)
         })
         .collect();
     for (name, plant) in loops() {
