@@ -59,7 +59,7 @@ use crate::baseline::experiment::{
 use crate::baseline::pid::{firmware_limits, Pid, PidGains};
 use crate::baseline::simc::simc_pi;
 use crate::baseline::stepped::fraction_to_duty;
-use crate::iso::IsoRow;
+use crate::iso::{IsoRow, ISO_ROWS};
 use crate::reid::{
     acceptance, design, map_slm, Dither, DitherGen, Estimate, Feed, Mode, Reestimation, Rules,
     Running, WindowStore,
@@ -148,6 +148,35 @@ pub const CHANGES: [NamedChange; 6] = [
 pub const CHANGE_BREATH: u32 = 6;
 /// Breaths run in the lung-change tables.
 pub const CHANGE_RUN: u32 = 14;
+
+/// Row 1's lung (behind the adult exhalation valve, PEEP valve at row 1's PEEP) with the
+/// compliance `c` (mL/cmH₂O) and resistance `r` (cmH₂O/(L/s)): the lung-change tables' lungs.
+pub fn row1_lung(c: f64, r: f64) -> LungParams {
+    LungParams {
+        compliance: c,
+        resistance: r,
+        ..row_lung(&ISO_ROWS[0], ISO_ROWS[0].peep)
+    }
+}
+
+/// Row 1's square breath under `ctrl` on the lung `from` (`(C, R)`), changed to `to` in
+/// breath [`CHANGE_BREATH`] (`at`) of [`CHANGE_RUN`]: the lung-change tables' cell.
+pub fn change_cell(from: (f64, f64), to: (f64, f64), at: ChangeAt, ctrl: Ctrl) -> Cell {
+    let row = IsoRow {
+        compliance: from.0,
+        resistance: from.1,
+        ..ISO_ROWS[0]
+    };
+    Cell {
+        breaths: CHANGE_RUN,
+        changes: vec![LungChange {
+            breath: CHANGE_BREATH,
+            at,
+            lung: row1_lung(to.0, to.1),
+        }],
+        ..Cell::new(row, Shape::Square, ctrl)
+    }
+}
 
 /// One benchmark run's settings (see the [module docs](self)).
 #[derive(Clone, Debug)]

@@ -2,17 +2,15 @@
 //! runs they share (power-ups, lung-change and ISO-row cells), and the figures of their
 //! re-estimates against the truth.
 
-use pump_sim::iso::{iso_row, IsoRow, ISO_ROWS};
 use pump_sim::reid::{self, design_verdict, Dither, Estimate, Feed};
 use pump_sim::vent_bench::{
-    power_up, power_up_plant, row_lung, run_cell_figures, zn_for, BreathPlant, Cell, CellRun,
-    ChangeAt, Ctrl, LungChange, Policy, PowerUp, SwapWhen, CHANGE_BREATH, CHANGE_RUN,
+    power_up, power_up_plant, row1_lung, run_cell_figures, zn_for, BreathPlant, Cell, CellRun,
+    Ctrl, Policy, PowerUp, SwapWhen,
 };
 use pump_sim::{LungParams, Sfm3300, Sfm3300Params};
 use ridge_core::control::{DesignError, ModelLimits};
 use ridge_core::input_map::MapTable;
 use ridge_core::reid::Rejection;
-use ridge_pump_firmware::setpoint::Shape;
 
 /// A candidate model of the breath's plant: its name in the tables and the adaptive
 /// controller's [`BreathPlant`].
@@ -127,16 +125,6 @@ pub fn candidates() -> Vec<Candidate> {
     ]
 }
 
-/// Row 1's lung (behind the adult exhalation valve, PEEP valve at row 1's PEEP) with the
-/// compliance `c` (mL/cmH₂O) and resistance `r` (cmH₂O/(L/s)).
-pub fn lung(c: f64, r: f64) -> LungParams {
-    LungParams {
-        compliance: c,
-        resistance: r,
-        ..row_lung(&iso_row(1).unwrap_or(ISO_ROWS[0]), ISO_ROWS[0].peep)
-    }
-}
-
 /// What every table's runs share: the seeds and the sensor of the breaths.
 #[derive(Clone, Copy, Debug)]
 pub struct Runs {
@@ -211,30 +199,11 @@ pub fn under(cell: Cell, plant: Option<BreathPlant>, when: SwapWhen, trim: bool)
     }
 }
 
-/// Row 1's square breath on the lung `from` changed to `to` in breath [`CHANGE_BREATH`]
-/// (`at`) of [`CHANGE_RUN`].
-pub fn change_cell(from: (f64, f64), to: (f64, f64), at: ChangeAt) -> Cell {
-    let row = IsoRow {
-        compliance: from.0,
-        resistance: from.1,
-        ..ISO_ROWS[0]
-    };
-    Cell {
-        breaths: CHANGE_RUN,
-        changes: vec![LungChange {
-            breath: CHANGE_BREATH,
-            at,
-            lung: lung(to.0, to.1),
-        }],
-        ..Cell::new(row, Shape::Square, Ctrl::Adaptive)
-    }
-}
-
 /// Row 1's breath's truth on the lung `(C, R)` through `table`: the closed-valve step from the
 /// 5 slm bias flow with the duty of 35 slm held (row 1's square inspiration), 100 ticks, slm
 /// per slm of the map.
 pub fn closed_truth(table: &MapTable, (c, r): (f64, f64)) -> Vec<f64> {
-    let l = lung(c, r);
+    let l = row1_lung(c, r);
     let plant = power_up_plant(&l);
     reid::through_map(&reid::closed_valve_step(&plant, &l, 5.0, 35.0, 100), table).step
 }

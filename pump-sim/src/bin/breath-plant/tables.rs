@@ -2,14 +2,14 @@
 //! the lung changes and on the ISO rows.
 
 use crate::study::{
-    candidates, change_cell, closed_truth, figures, lung, runs, under, why, Candidate, Figures,
-    Outcome, Run, Runs, KEEP_RADIUS,
+    candidates, closed_truth, figures, runs, under, why, Candidate, Figures, Outcome, Run, Runs,
+    KEEP_RADIUS,
 };
 use pump_sim::iso::IsoRow;
 use pump_sim::reid;
 use pump_sim::vent_bench::{
-    change_verdict, outcomes, row_lung, score, BreathPlant, Cell, ChangeAt, Ctrl, NamedChange,
-    SwapWhen, CHANGES, CHANGE_BREATH,
+    change_cell, change_verdict, outcomes, row1_lung, row_lung, score, BreathPlant, Cell, ChangeAt,
+    Ctrl, NamedChange, SwapWhen, CHANGES, CHANGE_BREATH,
 };
 use ridge_pump_firmware::selfid::preview_ticks;
 use ridge_pump_firmware::setpoint::Shape;
@@ -42,7 +42,7 @@ fn max(v: impl IntoIterator<Item = f64>) -> f64 {
 pub fn estimates(runs_of: &Runs) {
     let seeds = runs_of.seeds;
     let adult = (50.0, 5.0);
-    let ups = runs_of.power_ups(&lung(adult.0, adult.1));
+    let ups = runs_of.power_ups(&row1_lung(adult.0, adult.1));
     let Some(first) = ups.first() else {
         return;
     };
@@ -79,7 +79,7 @@ pub fn estimates(runs_of: &Runs) {
             let cell = Cell {
                 breaths: ESTIMATE_RUN,
                 ..under(
-                    change_cell(adult, to, ChangeAt::Boundary),
+                    change_cell(adult, to, ChangeAt::Boundary, Ctrl::Adaptive),
                     Some(c.plant),
                     SwapWhen::Never,
                     true,
@@ -199,7 +199,7 @@ pub fn changes(runs_of: &Runs, when: SwapWhen) {
     println!("|---|---|---|---|---|---|---|---|---|");
     let ups: Vec<_> = CHANGES
         .iter()
-        .map(|c| runs_of.power_ups(&lung(c.from.0, c.from.1)))
+        .map(|c| runs_of.power_ups(&row1_lung(c.from.0, c.from.1)))
         .collect();
     for (name, plant) in loops() {
         for trim in [true, false] {
@@ -209,7 +209,7 @@ pub fn changes(runs_of: &Runs, when: SwapWhen) {
             let mut est = Vec::new();
             for (&NamedChange { from, to, .. }, ups) in CHANGES.iter().zip(&ups) {
                 for at in [ChangeAt::Boundary, ChangeAt::Mid] {
-                    let cell = under(change_cell(from, to, at), plant, when, trim);
+                    let cell = under(change_cell(from, to, at, Ctrl::Adaptive), plant, when, trim);
                     let all: Vec<Run> = runs(ups, &cell);
                     let v: Vec<_> = all
                         .iter()

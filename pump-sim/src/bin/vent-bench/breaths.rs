@@ -1,11 +1,12 @@
 //! One lung change's breaths under every controller, one seed (`--table breaths`), and the
 //! adaptive run's re-estimates against the truth.
 
-use crate::run::{change_cell, power_ups_on, refused, Knobs};
+use crate::run::{power_ups_on, refused, Knobs};
 use crate::truth::{truth_of, Truth, INSPIRATION_FLOW};
 use pump_sim::reid;
 use pump_sim::vent_bench::{
-    outcomes, run_cell, CellRun, ChangeAt, Ctrl, NamedChange, PowerUp, CHANGE_BREATH, CHANGE_RUN,
+    change_cell, outcomes, run_cell, CellRun, ChangeAt, Ctrl, NamedChange, PowerUp, CHANGE_BREATH,
+    CHANGE_RUN,
 };
 
 /// Prints the lung change `change`'s breaths (`at` in its breath) under every controller, the

@@ -1,11 +1,11 @@
 //! The lung-change table: row 1's breath, the lung changed mid-run, under each controller;
 //! then what the ideal lung allows under a pressure limit.
 
-use crate::run::{change_cell, max, power_ups_on, runs, Knobs};
+use crate::run::{max, power_ups_on, runs, Knobs};
 use pump_sim::iso::ISO_ROWS;
 use pump_sim::vent_bench::{
-    last_outside, pressure_limited, score, ChangeAt, Ctrl, NamedChange, CHANGES, CHANGE_BREATH,
-    CHANGE_RUN,
+    change_cell, last_outside, pressure_limited, score, ChangeAt, Ctrl, NamedChange, CHANGES,
+    CHANGE_BREATH, CHANGE_RUN,
 };
 
 /// Prints the lung-change table (seeds 1 to `seeds`, the adaptive controller with `knobs`) and

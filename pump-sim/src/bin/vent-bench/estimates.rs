@@ -1,10 +1,10 @@
 //! The adaptive controller's re-estimates on the lung changes by where their window lies,
 //! against the truth (`--table estimates`).
 
-use crate::run::{change_cell, power_ups_on, runs};
+use crate::run::{power_ups_on, runs};
 use crate::truth::{truth_of, INSPIRATION_FLOW};
 use pump_sim::reid::{self, mean_sd};
-use pump_sim::vent_bench::{ChangeAt, Ctrl, NamedChange, CHANGES, CHANGE_BREATH};
+use pump_sim::vent_bench::{change_cell, ChangeAt, Ctrl, NamedChange, CHANGES, CHANGE_BREATH};
 
 /// Prints the adaptive (swap always) runs' re-estimates on the lung changes at the boundary
 /// (seeds 1 to `seeds`), by where their window lies, against the truth; the regulation speed of the designs swapped in.

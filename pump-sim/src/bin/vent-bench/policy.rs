@@ -1,11 +1,11 @@
 //! The adaptive controller's candidate swap policies (`--table policy`) on the lung changes
 //! and on the ISO rows.
 
-use crate::run::{change_cell, max, power_ups, power_ups_on, refused, runs};
+use crate::run::{max, power_ups, power_ups_on, refused, runs};
 use pump_sim::iso::IsoRow;
 use pump_sim::vent_bench::{
-    change_verdict, outcomes, row_lung, score, Cell, ChangeAt, Ctrl, NamedChange, Policy, PowerUp,
-    SwapWhen, CHANGES, CHANGE_BREATH, CHANGE_RUN,
+    change_cell, change_verdict, outcomes, row_lung, score, Cell, ChangeAt, Ctrl, NamedChange,
+    Policy, PowerUp, SwapWhen, CHANGES, CHANGE_BREATH, CHANGE_RUN,
 };
 use ridge_pump_firmware::setpoint::Shape;
 

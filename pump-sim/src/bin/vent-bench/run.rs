@@ -1,13 +1,10 @@
-//! What the tables share: the power-ups and cells they run (failures printed and skipped), the
-//! lung-change tables' cell, the adaptive controller's knobs under study.
+//! What the tables share: the power-ups and cells they run (failures printed and skipped) and
+//! the adaptive controller's knobs under study.
 
-use pump_sim::iso::{iso_row, IsoRow, ISO_ROWS};
 use pump_sim::vent_bench::{
-    power_up, row_lung, run_cell, zn_for, Cell, CellRun, ChangeAt, Ctrl, LungChange, Outcomes,
-    Policy, PowerUp, CHANGE_BREATH, CHANGE_RUN,
+    power_up, row1_lung, run_cell, zn_for, Cell, CellRun, Outcomes, Policy, PowerUp,
 };
 use pump_sim::LungParams;
-use ridge_pump_firmware::setpoint::Shape;
 
 /// The adaptive controller's knobs under study in the lung-change tables (`--trim`,
 /// `--swap-when` and the policy's other flags).
@@ -62,7 +59,7 @@ pub fn power_ups_on((c, r): (f64, f64), seeds: u64) -> Vec<PowerUp> {
     power_ups(
         &LungParams {
             peep: 0.0,
-            ..lung(c, r)
+            ..row1_lung(c, r)
         },
         seeds,
     )
@@ -85,39 +82,6 @@ pub fn runs(ups: &[PowerUp], cell: &Cell) -> Vec<CellRun> {
             }
         })
         .collect()
-}
-
-/// Row 1's square breath under `ctrl` on the lung `from` (`(C, R)`), changed to `to` in
-/// breath [`CHANGE_BREATH`] (`at`) of [`CHANGE_RUN`]: the lung-change tables' cell.
-pub fn change_cell(from: (f64, f64), to: (f64, f64), at: ChangeAt, ctrl: Ctrl) -> Cell {
-    Cell {
-        breaths: CHANGE_RUN,
-        changes: vec![LungChange {
-            breath: CHANGE_BREATH,
-            at,
-            lung: lung(to.0, to.1),
-        }],
-        ..Cell::new(with_lung(ISO_ROWS[0], from), Shape::Square, ctrl)
-    }
-}
-
-/// Row 1's lung (behind the adult exhalation valve, PEEP valve at row 1's PEEP) with the
-/// compliance `c` (mL/cmH₂O) and resistance `r` (cmH₂O/(L/s)).
-pub fn lung(c: f64, r: f64) -> LungParams {
-    LungParams {
-        compliance: c,
-        resistance: r,
-        ..row_lung(&iso_row(1).unwrap_or(ISO_ROWS[0]), ISO_ROWS[0].peep)
-    }
-}
-
-/// `row`'s breath on the lung `(C, R)`.
-pub fn with_lung(row: IsoRow, (c, r): (f64, f64)) -> IsoRow {
-    IsoRow {
-        compliance: c,
-        resistance: r,
-        ..row
-    }
 }
 
 /// The largest of `v`; −∞ if empty.

@@ -1,9 +1,10 @@
 //! The swap-rule tables: the adaptive controller swapping a re-estimate in only below a
 //! held-out fit, on volume breaths and on the re-identification study's demo breaths.
 
-use crate::run::{lung, max, power_ups_on, refused, runs};
+use crate::run::{max, power_ups_on, refused, runs};
 use pump_sim::iso::ISO_ROWS;
 use pump_sim::reid::{self, breaths_in, mean_sd, Mode, Study};
+use pump_sim::vent_bench::row1_lung;
 use pump_sim::vent_bench::{outcomes, Cell, ChangeAt, Ctrl, LungChange};
 use ridge_pump_firmware::setpoint::Shape;
 
@@ -131,8 +132,8 @@ fn swap_table<R>(
 /// Prints the swap-rule tables, seeds 1 to `seeds`.
 pub fn print(seeds: u64) {
     let row = ISO_ROWS[0];
-    let adult = lung(50.0, 5.0);
-    let stiff = lung(10.0, 50.0);
+    let adult = row1_lung(50.0, 5.0);
+    let stiff = row1_lung(10.0, 50.0);
     println!(
         "## Swap rule, volume breaths: adaptive, row 1's breath (square, trim on), C 10 R 50 from \
          breath 11, row 1's lung again from breath 31, 50 breaths, seeds 1-{seeds}\n"

@@ -1,9 +1,9 @@
 //! The truth the re-estimates are held against: row 1's breath on a lung `(C, R)` as the
 //! power-up's model sees it, through its static map.
 
-use crate::run::lung;
 use pump_sim::reid;
 use pump_sim::vent_bench::power_up_plant;
+use pump_sim::vent_bench::row1_lung;
 use ridge_core::input_map::MapTable;
 
 /// The flow of the truth's linearisation: row 1's square inspiration, 500 mL in 1 s above the
@@ -35,7 +35,7 @@ impl Truth {
 /// The truth of row 1's breath on the lung `(C, R)` as the model sees it through `table`: the
 /// valve-open linearisation at [`INSPIRATION_FLOW`] and the closed-valve response.
 pub fn truth_of(table: &MapTable, (c, r): (f64, f64)) -> Truth {
-    let l = lung(c, r);
+    let l = row1_lung(c, r);
     let plant = power_up_plant(&l);
     let open = reid::through_map(&reid::linearisation(&plant, &l, INSPIRATION_FLOW), table);
     let closed = reid::through_map(
