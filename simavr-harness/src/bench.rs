@@ -71,7 +71,9 @@ pub struct BenchConfig {
     /// extended by this many bytes past RAMEND (as external SRAM on XMEM would be, without its
     /// wait states) and the stack pointer is moved to its end when `main` is entered (the C
     /// runtime set it to RAMEND; `main` never returns), the extension painted with `0xAA`.
-    /// [`Bench::stack_used`] then measures the stack there. `None` (the default): the chip.
+    /// [`Bench::stack_used`] then measures the stack there (a reset puts the stack back at
+    /// RAMEND, and the firmware's own `STACK` figure does not see it). `None` (the default):
+    /// the chip.
     pub xmem_stack: Option<u16>,
 }
 
@@ -275,15 +277,16 @@ impl std::fmt::Debug for Bench {
 }
 
 impl Bench {
-    /// Loads the firmware, attaches sensor and pump, programs the EEPROM; the core is at reset.
+    /// Loads the firmware, attaches sensor and pump, programs the EEPROM; the core is at reset
+    /// (with [`BenchConfig::xmem_stack`]: at `main`'s entry, the stack moved).
     pub fn new(cfg: BenchConfig) -> Result<Self, String> {
         let ramend = cfg.xmem_stack.map(|n| CHIP_RAMEND.saturating_add(n));
         let mut machine = Machine::with_ramend("atmega2560", cfg.frequency, &cfg.elf, ramend)?;
-        if let Some(top) = ramend {
-            move_stack(&mut machine, top)?;
-        }
         for (off, bytes) in &cfg.eeprom {
             machine.set_eeprom(*off, bytes)?;
+        }
+        if let Some(top) = ramend {
+            move_stack(&mut machine, top)?;
         }
         let clock = Rc::new(Cell::new(0));
         let sensor = Rc::new(RefCell::new(SensorState::new(

@@ -77,9 +77,9 @@ pub fn ensure_elf() -> Result<PathBuf, String> {
 /// Where [`ensure_reid_elf`] keeps the opt-in image, relative to the target directory.
 pub const REID_ELF: &str = "avr-none/release/atmega2560-reid.elf";
 
-/// The opt-in image with the re-identification ([`REID_IMAGE`]), built once per process and
-/// copied to [`REID_ELF`] (the default image's path holds it only until the next default
-/// build); `RIDGE_PUMP_REID_ELF` names a prebuilt one instead.
+/// The opt-in image with the re-identification (feature `atmega2560-reid`), built once per
+/// process and copied to [`REID_ELF`] (the default image's path holds it only until the next
+/// default build); `RIDGE_PUMP_REID_ELF` names a prebuilt one instead.
 pub fn ensure_reid_elf() -> Result<PathBuf, String> {
     static BUILT: OnceLock<Result<PathBuf, String>> = OnceLock::new();
     if std::env::var_os(REID_IMAGE.elf_var).is_some() {
