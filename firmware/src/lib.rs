@@ -23,7 +23,7 @@
 //! | [`excitation`] | the pump's excitation presets ([`excitation::Record`]) |
 //! | [`ring`] | the lock-free UART queues (the crate's only `unsafe`) |
 //! | [`ventilation`] | volume-controlled breaths: `VENT` settings, the exhalation valve, per-breath volume, alarm and trim |
-//! | `reid` | not on the ATmega2560 (no flash): run mode's closed-loop re-identification while ventilating, `REID` lines |
+//! | `reid` | on the ATmega2560 only with the feature `atmega2560-reid` (no room in the budget): run mode's closed-loop re-identification while ventilating, `REID` lines |
 
 pub mod app;
 pub mod command;
@@ -41,8 +41,9 @@ pub mod monitor;
 pub mod numfmt;
 pub mod persist;
 pub mod pump;
-// Not on the ATmega2560: its flash has no room for it (docs/control.md).
-#[cfg(not(target_arch = "avr"))]
+// Not on the ATmega2560 unless opted in (feature `atmega2560-reid`): its flash budget has no
+// room for it (docs/boards.md).
+#[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
 pub mod reid;
 pub mod resets;
 // The one module with `unsafe`: a lock-free SPSC byte queue for UART interrupts.

@@ -31,6 +31,31 @@ const IMAGE: Image = Image {
     unset: &["RUSTUP_TOOLCHAIN", "CARGO_TARGET_AVR_NONE_RUNNER"],
 };
 
+/// The opt-in image with run mode's re-identification (feature `atmega2560-reid`): over the
+/// 96 KB flash budget, built and measured on its own (docs/boards.md). Cargo keeps both builds
+/// but puts the last one built at the default image's path: [`ensure_reid_elf`] copies it to
+/// [`REID_ELF`]. `RIDGE_PUMP_REID_ELF` names another.
+const REID_IMAGE: Image = Image {
+    cargo_args: &[
+        "+nightly",
+        "build",
+        "-q",
+        "-p",
+        "ridge-pump-firmware",
+        "--bin",
+        "atmega2560",
+        "--features",
+        "board-atmega2560,atmega2560-reid",
+        "--release",
+        "--target",
+        "avr-none",
+        "-Zbuild-std=core",
+    ],
+    elf: "avr-none/release/atmega2560.elf",
+    elf_var: "RIDGE_PUMP_REID_ELF",
+    unset: &["RUSTUP_TOOLCHAIN", "CARGO_TARGET_AVR_NONE_RUNNER"],
+};
+
 /// Where the release ELF of the ATmega2560 image lands (`RIDGE_PUMP_ELF` names another).
 pub fn default_elf() -> PathBuf {
     IMAGE.default_elf()
@@ -47,6 +72,27 @@ pub fn build() -> Result<PathBuf, String> {
 pub fn ensure_elf() -> Result<PathBuf, String> {
     static BUILT: OnceLock<Result<PathBuf, String>> = OnceLock::new();
     IMAGE.ensure_elf(&BUILT)
+}
+
+/// Where [`ensure_reid_elf`] keeps the opt-in image, relative to the target directory.
+pub const REID_ELF: &str = "avr-none/release/atmega2560-reid.elf";
+
+/// The opt-in image with the re-identification (feature `atmega2560-reid`), built once per
+/// process and copied to [`REID_ELF`] (the default image's path holds it only until the next
+/// default build); `RIDGE_PUMP_REID_ELF` names a prebuilt one instead.
+pub fn ensure_reid_elf() -> Result<PathBuf, String> {
+    static BUILT: OnceLock<Result<PathBuf, String>> = OnceLock::new();
+    if std::env::var_os(REID_IMAGE.elf_var).is_some() {
+        return REID_IMAGE.ensure_elf(&BUILT);
+    }
+    BUILT
+        .get_or_init(|| {
+            let built = REID_IMAGE.build()?;
+            let kept = harness_kit::firmware::target_dir().join(REID_ELF);
+            std::fs::copy(&built, &kept).map_err(|e| format!("{}: {e}", kept.display()))?;
+            Ok(kept)
+        })
+        .clone()
 }
 
 /// Section sizes of an AVR ELF: text = `.text` (code and vectors, includes `.progmem`), bss =

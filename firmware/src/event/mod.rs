@@ -24,7 +24,7 @@
 //! | [`Event::Alarm`] | `ALARM track err=5.125 s=0.50` / `ALARM track clear` |
 //! | [`Event::Breath`] | `BREATH n=3 vt=500.0 peep=5.0 vd=497.2 cmd=512.3 peak=31.250 rms=1.234` |
 //! | [`Event::VolumeAlarm`] | `ALARM volume vd=612.5 vt=500.0` / `ALARM volume clear` |
-//! | `Event::Reid` | `REID breath=12 verdict=kept gain=1.035 fit=92.3/90.1 v-rms=22.150`, `REID breath=4 verdict=design gain=1.006 fit=nan/nan v-rms=nan why=slow-poles tries=1` (not on the ATmega2560; the verdicts: `ReidVerdict`; `nan` where a figure does not exist) |
+//! | `Event::Reid` | `REID breath=12 verdict=kept gain=1.035 fit=92.3/90.1 v-rms=22.150`, `REID breath=4 verdict=design gain=1.006 fit=nan/nan v-rms=nan why=slow-poles tries=1` (on the ATmega2560 only with the feature `atmega2560-reid`; the verdicts: `ReidVerdict`; `nan` where a figure does not exist) |
 //! | [`Event::Residual`] | `RES rms=0.812 mean=-0.013 flow=50.125 n=100` |
 //! | [`Event::Drift`] | `DRIFT rms=3.200 mean=-2.997 flow=35.400 s=3 reid=0` |
 //! | [`Event::Fault`] | `FAULT stall duty=45.00 flow=0.125`, `FAULT sensor=frozen flow=19.058`, `FAULT noflow duty=30.00 flow=0.125 expect=19.058`, `FAULT control margin=0.412 tries=5`, `FAULT resets watchdog=2 brownout=1` |
@@ -398,16 +398,16 @@ pub enum Event {
         /// The set volume, mL.
         tidal: f32,
     },
-    /// Run mode's re-identification (`crate::reid`): one re-estimate's verdict (not on the
-    /// ATmega2560, which has no room for the re-identification).
-    #[cfg(not(target_arch = "avr"))]
+    /// Run mode's re-identification (`crate::reid`): one re-estimate's verdict (on the
+    /// ATmega2560 only with the feature `atmega2560-reid`: docs/boards.md).
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     Reid(ReidReport),
     /// The pump was stopped (duty 0) and the state machine latched its fault state.
     Fault(FaultReason),
 }
 
 /// What became of one re-estimate ([`crate::reid`]), as the `REID` line's `verdict=` names it.
-#[cfg(not(target_arch = "avr"))]
+#[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ReidVerdict {
     /// `accepted`: it passed every check and the swap rule (`crate::reid::SwapRule`; by
@@ -433,7 +433,7 @@ pub enum ReidVerdict {
     Design(ControlRefusal),
 }
 
-#[cfg(not(target_arch = "avr"))]
+#[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
 impl ReidVerdict {
     /// The name on the `REID` line.
     pub const fn name(self) -> &'static str {
@@ -450,7 +450,7 @@ impl ReidVerdict {
 }
 
 /// One re-estimate as its `REID` line reports it.
-#[cfg(not(target_arch = "avr"))]
+#[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReidReport {
     /// The breath at whose start the snapshot was taken (from 1).

@@ -8,7 +8,7 @@ use ufmt::{uDisplay, uWrite, Formatter};
 use crate::numfmt::{Decimal, Fixed, Int, Milli};
 use crate::sfm3300;
 
-#[cfg(not(target_arch = "avr"))]
+#[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
 use super::ReidVerdict;
 use super::{root, ControlRefusal, Event, FaultReason, RejectReason, Residuals, StoredReason};
 
@@ -285,7 +285,7 @@ where
 }
 
 /// The `why=` tail of a `REID … verdict=design` line (see [`ReidVerdict::Design`]).
-#[cfg(not(target_arch = "avr"))]
+#[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
 fn write_reid_refusal<W>(f: &mut Formatter<'_, W>, why: &ControlRefusal) -> Result<(), W::Error>
 where
     W: uWrite + ?Sized,
@@ -528,7 +528,7 @@ impl uDisplay for Event {
                 Fixed::new(*delivered, 1),
                 Fixed::new(*tidal, 1)
             ),
-            #[cfg(not(target_arch = "avr"))]
+            #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
             Event::Reid(r) => {
                 ufmt::uwrite!(
                     f,

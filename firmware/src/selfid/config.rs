@@ -103,9 +103,9 @@ pub struct Config {
     pub monitor: MonitorConfig,
     /// The flow controller.
     pub control: ControlConfig,
-    /// Run mode's re-identification while ventilating (not on the ATmega2560, which has no
-    /// flash for it).
-    #[cfg(not(target_arch = "avr"))]
+    /// Run mode's re-identification while ventilating (on the ATmega2560 only with the
+    /// feature `atmega2560-reid`, over its flash budget: docs/boards.md).
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     pub reid: crate::reid::ReidConfig,
 }
 
@@ -374,7 +374,7 @@ impl Config {
         loss_ticks: 100,
         monitor: MonitorConfig::DEFAULT,
         control: ControlConfig::DEFAULT,
-        #[cfg(not(target_arch = "avr"))]
+        #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
         reid: crate::reid::ReidConfig::DEFAULT,
     };
 
@@ -383,7 +383,7 @@ impl Config {
     /// controller's model limits, [`min_response`](Self::min_response),
     /// [`min_fit`](Self::min_fit)) with [`reid`](Self::reid)'s input rule, `holdout` ticks held
     /// out (one breath), and its trigger and swap rule.
-    #[cfg(not(target_arch = "avr"))]
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     pub fn reidentification(
         &self,
         running: ridge_core::ArxModel<f32>,

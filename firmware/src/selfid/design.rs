@@ -95,7 +95,7 @@ impl<S: Settings> SelfIdentification<S> {
     }
 }
 
-#[cfg(not(target_arch = "avr"))]
+#[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
 impl<S: Settings> SelfIdentification<S> {
     /// Run mode's re-identification accepted an estimate for a swap: its controller designed
     /// here, as [`design`](Self::design) designs the power-up one (the model check, the design

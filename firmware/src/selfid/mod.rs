@@ -673,7 +673,7 @@ impl<S: Settings> SelfIdentification<S> {
                 Some((Anchor::Keep, _)) => self.guard.resume_expectation(),
                 None => {}
             }
-            #[cfg(not(target_arch = "avr"))]
+            #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
             self.redesign(event);
         }
     }

@@ -22,10 +22,10 @@ use ridge_core::control::{Controller, Design, Limits};
 use ridge_core::{ArxModel, MapTable};
 
 use crate::event::Event;
-#[cfg(not(target_arch = "avr"))]
+#[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
 use crate::event::{ControlRefusal, ReidReport, ReidVerdict};
 use crate::monitor::Monitor;
-#[cfg(not(target_arch = "avr"))]
+#[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
 use crate::reid::Reid;
 use crate::setpoint::{Program, Setpoint};
 use crate::tracking::Tracking;
@@ -70,21 +70,21 @@ pub(super) struct RunMode {
     ended: f32,
     /// The per-breath bookkeeping of a volume program.
     vent: Ventilation,
-    /// The re-identification while a volume program runs ([`crate::reid`]; not on the
-    /// ATmega2560, whose flash has no room for it: docs/control.md).
-    #[cfg(not(target_arch = "avr"))]
+    /// The re-identification while a volume program runs ([`crate::reid`]; on the
+    /// ATmega2560 only with the feature `atmega2560-reid`, over its flash budget: docs/boards.md).
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     reid: Reid,
     /// The re-estimate accepted for a swap, waiting for its design
     /// ([`RunMode::take_candidate`]).
-    #[cfg(not(target_arch = "avr"))]
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     candidate: Option<ArxModel<f32>>,
     /// The designed swap, waiting for the breath boundary as the controller sees it.
-    #[cfg(not(target_arch = "avr"))]
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     swap: Option<(ArxModel<f32>, Design<f32>)>,
     /// The regulation speed of the design run mode started with ([`Design::tau`], s): the
     /// re-designs' (docs/ventilation.md: the default speed, from a re-estimate's slow pole,
     /// made loops 0.54–4.96 times slower and the breaths short).
-    #[cfg(not(target_arch = "avr"))]
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     speed: f32,
 }
 
@@ -138,13 +138,13 @@ impl RunMode {
             breath: None,
             ended: y0,
             vent: ventilation_for(program),
-            #[cfg(not(target_arch = "avr"))]
+            #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
             reid: cfg.reidentification(model, breath_ticks(program)),
-            #[cfg(not(target_arch = "avr"))]
+            #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
             candidate: None,
-            #[cfg(not(target_arch = "avr"))]
+            #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
             swap: None,
-            #[cfg(not(target_arch = "avr"))]
+            #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
             speed: design.tau,
         }
     }
@@ -158,7 +158,7 @@ impl RunMode {
         self.applied = applied;
         self.reading = reading;
         let y = f32::from(reading.unwrap_or(last)) * SLM_PER_COUNT;
-        #[cfg(not(target_arch = "avr"))]
+        #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
         if self.swap.is_some() {
             self.swap_at_boundary(y);
         }
@@ -217,16 +217,16 @@ impl RunMode {
         if phase == 0 {
             self.monitor.breath_end();
         }
-        #[cfg(not(target_arch = "avr"))]
+        #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
         self.reidentify(phase, reading, drift, event);
-        #[cfg(target_arch = "avr")]
+        #[cfg(all(target_arch = "avr", not(feature = "atmega2560-reid")))]
         let _ = drift;
         anchor
     }
 
     /// The re-identification's tick (see [`crate::reid`]): the breath boundary at `phase` 0,
     /// triggered by `drift` or an alarm; its `REID` line into `event` if empty.
-    #[cfg(not(target_arch = "avr"))]
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     fn reidentify(&mut self, phase: u32, reading: i16, drift: bool, event: &mut Option<Event>) {
         // Not in the program's lead-in: the window starts with breath 1.
         if self.vent.breath() == 0 {
@@ -250,14 +250,14 @@ impl RunMode {
     }
 
     /// The regulation speed the re-designs use: the power-up design's `τ`, s.
-    #[cfg(not(target_arch = "avr"))]
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     pub(super) fn speed(&self) -> f32 {
         self.speed
     }
 
     /// The re-estimate accepted for a swap, once: its controller is to be designed
     /// ([`set_swap`](Self::set_swap), or [`swap_refused`](Self::swap_refused)).
-    #[cfg(not(target_arch = "avr"))]
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     pub(super) fn take_candidate(&mut self) -> Option<ArxModel<f32>> {
         self.candidate.take()
     }
@@ -265,7 +265,7 @@ impl RunMode {
     /// The design `d` for the accepted re-estimate `model`: swapped in at the next breath
     /// boundary as the controller sees it; its `REID … verdict=accepted` line into `event` if
     /// empty, else at the next tick without another event.
-    #[cfg(not(target_arch = "avr"))]
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     pub(super) fn set_swap(
         &mut self,
         model: ArxModel<f32>,
@@ -281,7 +281,7 @@ impl RunMode {
     /// The design for the accepted re-estimate `model` was refused (`why`): the running model
     /// and controller stay; the `REID … verdict=design why=…` line into `event` if empty, else
     /// at the next tick without another event.
-    #[cfg(not(target_arch = "avr"))]
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     pub(super) fn swap_refused(
         &mut self,
         model: &ArxModel<f32>,
@@ -306,7 +306,7 @@ impl RunMode {
     /// map's flow of the applied duty and the reading `y` (slm), with its own preview; the
     /// monitor and the fault checks' steady state follow the new model.
     #[inline(never)]
-    #[cfg(not(target_arch = "avr"))]
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     fn swap_at_boundary(&mut self, y: f32) {
         // The coming interval's phase (the program has not advanced yet this tick).
         let (Some((_, phase)), Some(period)) =
@@ -361,7 +361,7 @@ impl RunMode {
         self.vent = ventilation_for(program);
         self.monitor
             .set_ventilating(matches!(program, Program::Volume(_)));
-        #[cfg(not(target_arch = "avr"))]
+        #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
         {
             self.reid.restart(breath_ticks(program));
             self.candidate = None;
@@ -392,7 +392,7 @@ impl RunMode {
 
 /// Ticks of a volume program's breath (0 for other programs): the re-identification's
 /// held-out span.
-#[cfg(not(target_arch = "avr"))]
+#[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
 fn breath_ticks(program: Program) -> u32 {
     match program {
         Program::Volume(b) => u32::from(b.wave.period()),
