@@ -11,8 +11,16 @@
 //! - **Trigger**: at a breath boundary with no re-estimate running, when the monitor raised
 //!   `DRIFT`, a volume or tracking alarm is on, or [`ReidConfig::every`] breaths passed since
 //!   the last start.
-//! - **Fit**: [`Refit::start`] (the snapshot) at the boundary, then one unit
-//!   ([`Refit::step`]`(1)`) a tick.
+//! - **Fit**: the snapshot is of the window as the boundary's tick leaves it, taken over the
+//!   two ticks after it ([`Refit::begin`] and [`Refit::take_rows`], then
+//!   [`Refit::take_responses`]) while those ticks' samples are held back ([`HELD_MAX`]) and
+//!   pushed on the third; one unit ([`Refit::step`]`(1)`) a tick, as if the first had run in
+//!   the boundary's tick (two units the tick after it), so that every unit and the fit's end
+//!   fall on the ticks they would with the whole snapshot in the boundary's tick. The checks
+//!   of a finished fit run in the tick after its last unit, before that tick's sample, the
+//!   held-out breath's first. On the ATmega2560 none of this shares a tick with another
+//!   large part: the boundary's tick has the window's update and a verdict, not the snapshot
+//!   (docs/boards.md, the opt-in image's ticks).
 //! - **Checks**: [`Acceptance::check_estimate`] (the window excited, the design's model check),
 //!   then the breath after the snapshot held out ([`Holdout`]): the estimate's free-run fit at
 //!   least `min_fit` and at least the running model's ([`Acceptance::judge`]).
@@ -98,16 +106,26 @@ impl SwapRule {
     }
 }
 
+/// Ticks whose samples are held back from the window while a snapshot of it is taken: the two
+/// after a breath boundary's (the snapshot's two parts); they go in on the third.
+pub const HELD_MAX: usize = 2;
+
 /// Where the current re-estimate stands.
 // One of the two at a time, in run mode's static storage.
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 enum Job {
     Idle,
-    /// The fit of the snapshot taken at the start of breath `breath`.
+    /// A snapshot of the window as the start of breath `breath` left it, begun next tick.
+    Due {
+        breath: u32,
+    },
+    /// The fit of the snapshot taken at the start of breath `breath`; `responses` whether the
+    /// snapshot's second part is taken (the window's samples are held back until then).
     Fitting {
         refit: Refit<f32>,
         breath: u32,
+        responses: bool,
     },
     /// The estimate `model` scored on the breath after its snapshot.
     HoldingOut {
@@ -136,6 +154,10 @@ pub struct Reid {
     swap: SwapRule,
     /// A report waiting for a tick without another event.
     due: Option<ReidReport>,
+    /// Samples `(v, y, boundary)` held back from the window while its snapshot is taken, in
+    /// order; the first `held_len`.
+    held: [(i16, i16, bool); HELD_MAX],
+    held_len: u8,
 }
 
 impl Reid {
@@ -164,6 +186,8 @@ impl Reid {
             every: cfg.every,
             swap: cfg.swap,
             due: None,
+            held: [(0, 0, false); HELD_MAX],
+            held_len: 0,
         }
     }
 
@@ -189,6 +213,7 @@ impl Reid {
         self.job = Job::Idle;
         self.since = 0;
         self.due = None;
+        self.held_len = 0;
         self.accept.holdout_min = holdout;
     }
 
@@ -202,7 +227,10 @@ impl Reid {
     /// tick starts a breath, `trigger` whether a drift or an alarm is on, `volume_alarm`
     /// whether the volume alarm is (for the swap rule). Returns the estimate to swap in (at the
     /// next breath boundary as the controller sees it), if one passed the swap rule; its report
-    /// waits in [`take_report`](Self::take_report).
+    /// waits in [`take_report`](Self::take_report). The work of a tick is bounded (see the
+    /// [module docs](self)): the window's update (with at most [`HELD_MAX`] held-back samples),
+    /// and one of a verdict, a part of the snapshot with two units, a finished fit's checks, a
+    /// unit or a held-out sample.
     pub fn after_pwm(
         &mut self,
         v: i16,
@@ -211,39 +239,76 @@ impl Reid {
         trigger: bool,
         volume_alarm: bool,
     ) -> Option<ArxModel<f32>> {
+        self.update_window(v, y, boundary.is_some())?;
+        // A fit whose last unit ran last tick: its checks (its held-out breath starts now).
+        self.finish_fit();
+        let mut swap = None;
+        if boundary.is_some() {
+            self.since = self.since.saturating_add(1);
+            swap = self.judge(volume_alarm);
+        }
+        let (u, y) = (f32::from(v) * SLM_PER_COUNT, f32::from(y) * SLM_PER_COUNT);
+        self.step(u, y);
+        if let Some(breath) = boundary {
+            if matches!(self.job, Job::Idle) && (trigger || self.since >= self.every) {
+                self.job = Job::Due { breath };
+            }
+        }
+        swap
+    }
+
+    /// The window's update with the sample `(v, y)` (`boundary`: forgetting after it), held
+    /// back while a snapshot of the window is being taken; otherwise the held-back samples go
+    /// in first, in order. `None` when the running model's structure has no window.
+    fn update_window(&mut self, v: i16, y: i16, boundary: bool) -> Option<()> {
         let state = self.window?;
+        let snapshot = matches!(
+            self.job,
+            Job::Due { .. }
+                | Job::Fitting {
+                    responses: false,
+                    ..
+                }
+        );
+        let held = usize::from(self.held_len);
+        if snapshot && held < HELD_MAX {
+            if let Some(slot) = self.held.get_mut(held) {
+                *slot = (v, y, boundary);
+                self.held_len += 1;
+                return Some(());
+            }
+        }
         let Ok(mut window) = Window::attach(state, &mut self.store) else {
             self.window = None;
             return None;
         };
-        // A row that could overflow is refused and changes nothing but the lag history.
-        window.push(v, y).ok();
-        if boundary.is_some() {
-            window.end_breath();
-        }
-        let state = window.detach();
-        self.window = Some(state);
-        let mut swap = None;
-        if let Some(breath) = boundary {
-            self.since = self.since.saturating_add(1);
-            swap = self.judge(volume_alarm);
-            if matches!(self.job, Job::Idle) && (trigger || self.since >= self.every) {
-                // A window too short for the structure starts nothing (the next boundary tries).
-                let started = Window::attach(state, &mut self.store)
-                    .and_then(|w| Refit::start(&w, self.method, &MODEL_SCALE));
-                if let Ok(refit) = started {
-                    self.since = 0;
-                    self.job = Job::Fitting { refit, breath };
-                }
+        let sample = (v, y, boundary);
+        for &(v, y, boundary) in self.held.iter().take(held).chain(Some(&sample)) {
+            // A row that could overflow is refused and changes nothing but the lag history.
+            window.push(v, y).ok();
+            if boundary {
+                window.end_breath();
             }
         }
-        let (u, y) = (f32::from(v) * SLM_PER_COUNT, f32::from(y) * SLM_PER_COUNT);
-        self.step(u, y);
-        swap
+        self.held_len = 0;
+        self.window = Some(window.detach());
+        Some(())
     }
 
-    /// A report waiting to be printed, once.
+    /// A report waiting to be printed, once; none in the two ticks that take a snapshot (the
+    /// largest parts of the re-estimate: a line printed beside them would make the longest
+    /// tick), it waits for the next.
     pub fn take_report(&mut self) -> Option<ReidReport> {
+        if matches!(
+            self.job,
+            Job::Due { .. }
+                | Job::Fitting {
+                    responses: false,
+                    ..
+                }
+        ) {
+            return None;
+        }
         self.due.take()
     }
 
@@ -256,42 +321,102 @@ impl Reid {
         self.due = Some(report);
     }
 
-    /// One unit of the fit, or one held-out sample `(u, y)` (slm).
+    /// This tick's part of the re-estimate: the snapshot's first part and two units, its
+    /// second part and a unit, a unit, or one held-out sample `(u, y)` (slm).
     fn step(&mut self, u: f32, y: f32) {
         match &mut self.job {
             Job::Idle => {}
-            Job::Fitting { refit, breath } => {
+            Job::Due { breath } => {
                 let breath = *breath;
-                match refit.step(1) {
-                    RefitStep::Working => {}
-                    RefitStep::Done(model, _) => {
-                        let (response, v_rms) = (refit.response(), refit.input_response());
-                        match self.accept.check_estimate(&model, response, v_rms) {
-                            Ok(_) => {
-                                self.job = Job::HoldingOut {
-                                    holdout: Holdout::new(model, self.running),
-                                    model,
-                                    breath,
-                                    v_rms,
-                                }
-                            }
-                            Err(why) => self.refused(breath, &model, v_rms, &why),
-                        }
-                    }
-                    RefitStep::Refused(_) => {
-                        self.due = Some(ReidReport {
-                            breath,
-                            verdict: ReidVerdict::Numeric,
-                            gain: f32::NAN,
-                            fit: f32::NAN,
-                            running: f32::NAN,
-                            v_rms: refit.input_response(),
-                        });
+                self.job = Job::Idle;
+                let Some(state) = self.window else {
+                    return;
+                };
+                let Ok(window) = Window::attach(state, &mut self.store) else {
+                    return;
+                };
+                // A window too short for the structure starts nothing (the next boundary tries).
+                // Built in place: a `Refit` is 700 bytes, each move of it 6 k cycles here.
+                let Ok(refit) = Refit::begin(&window, self.method) else {
+                    return;
+                };
+                self.job = Job::Fitting {
+                    refit,
+                    breath,
+                    responses: false,
+                };
+                if let Job::Fitting { refit, .. } = &mut self.job {
+                    if refit.take_rows(&window, &MODEL_SCALE).is_err() {
                         self.job = Job::Idle;
+                        return;
                     }
+                    // This unit and the one the boundary's tick did not run.
+                    refit.step(2);
+                    self.since = 0;
                 }
             }
+            Job::Fitting {
+                refit, responses, ..
+            } => {
+                if !*responses {
+                    // Never an error with the window held back; were it one, the responses
+                    // would stay zero and the estimate be refused as not excited.
+                    let _ = self
+                        .window
+                        .ok_or(ridge_core::Error::InvalidStructure)
+                        .and_then(|state| Window::attach(state, &mut self.store))
+                        .and_then(|window| refit.take_responses(&window, &MODEL_SCALE));
+                    *responses = true;
+                }
+                refit.step(1);
+            }
             Job::HoldingOut { holdout, .. } => holdout.push(u, y),
+        }
+    }
+
+    /// The checks of a fit whose last unit ran (the estimate held out from now on, or
+    /// refused with its report); nothing for a fit still working or another job.
+    fn finish_fit(&mut self) {
+        // No work: where the fit stands.
+        let (now, breath, response, v_rms) = match &mut self.job {
+            Job::Fitting {
+                refit,
+                breath,
+                responses: true,
+            } => (
+                refit.step(0),
+                *breath,
+                refit.response(),
+                refit.input_response(),
+            ),
+            _ => return,
+        };
+        match now {
+            RefitStep::Working => {}
+            RefitStep::Done(model, _) => {
+                match self.accept.check_estimate(&model, response, v_rms) {
+                    Ok(_) => {
+                        self.job = Job::HoldingOut {
+                            holdout: Holdout::new(model, self.running),
+                            model,
+                            breath,
+                            v_rms,
+                        }
+                    }
+                    Err(why) => self.refused(breath, &model, v_rms, &why),
+                }
+            }
+            RefitStep::Refused(_) => {
+                self.due = Some(ReidReport {
+                    breath,
+                    verdict: ReidVerdict::Numeric,
+                    gain: f32::NAN,
+                    fit: f32::NAN,
+                    running: f32::NAN,
+                    v_rms,
+                });
+                self.job = Job::Idle;
+            }
         }
     }
 
@@ -327,8 +452,7 @@ impl Reid {
             return None;
         };
         let (model, breath, v_rms) = (*model, *breath, *v_rms);
-        let scored = holdout.verdict().map_or(0, |v| v.candidate.n);
-        if scored < self.accept.holdout_min {
+        if holdout.scored() < self.accept.holdout_min {
             return None;
         }
         match self.accept.judge(holdout) {

@@ -340,6 +340,57 @@ fn sliced_fit_is_bit_identical_to_the_one_shot_fit() {
     }
 }
 
+#[test]
+fn a_snapshot_taken_in_parts_with_the_window_held_back_is_the_one_shot_fit() {
+    // As the firmware spreads it: `begin` at the boundary, the rows and the fit's first units
+    // a tick later, the responses the tick after, the window's samples of those ticks held
+    // back and pushed afterwards.
+    let s = Structure::new(2, 3, 1).unwrap();
+    let (u, y) = known_record(&[1.3, -0.45], &[0.05, 0.08, 0.02], 1, 25.0, 20.0, 3000, 11);
+    let scale = Scale {
+        u: 1e-3,
+        y: 1.0 / 120.0,
+    };
+    let method = RidgeM::<f32>::PAPER;
+    let boundary = 2399;
+    let mut store = [0i64; WINDOW_LEN_MAX];
+    let mut w = Window::new(s, Offset::Intercept, 2, &mut store).unwrap();
+    for (t, (&ui, &yi)) in u.iter().zip(&y).enumerate().take(boundary + 1) {
+        w.push(ui, yi).unwrap();
+        if t % 300 == 299 {
+            w.end_breath();
+        }
+    }
+    let mut one = Refit::start(&w, method, &scale).unwrap();
+    let RefitStep::Done(reference, iters) = one.finish() else {
+        panic!("one-shot fit refused")
+    };
+    let mut parts = Refit::begin(&w, method).unwrap();
+    // Nothing to step before the rows are taken.
+    assert_eq!(parts.step(5), RefitStep::Working);
+    parts.take_rows(&w, &scale).unwrap();
+    assert_eq!(parts.step(2), RefitStep::Working);
+    parts.take_responses(&w, &scale).unwrap();
+    assert_eq!(parts.response().to_bits(), one.response().to_bits());
+    assert_eq!(
+        parts.input_response().to_bits(),
+        one.input_response().to_bits()
+    );
+    // The held-back samples go in now; a window that moved on is refused for a snapshot.
+    for (&ui, &yi) in u[boundary + 1..boundary + 4]
+        .iter()
+        .zip(&y[boundary + 1..boundary + 4])
+    {
+        w.push(ui, yi).unwrap();
+    }
+    assert_eq!(
+        parts.take_responses(&w, &scale),
+        Err(Error::InvalidStructure)
+    );
+    let (m, k, _) = sliced(&mut parts, 1);
+    assert_eq!((k, bits(&m)), (iters, bits(&reference)));
+}
+
 /// The crate's Ridge-M iteration ([`RidgeM::iterate`]) on `MeasuredGram`'s exact statistics
 /// of the same rows, as an ARX model (θ, φ, c).
 fn reference_fit(

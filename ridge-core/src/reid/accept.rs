@@ -128,6 +128,8 @@ pub struct Holdout<T: Real> {
     s_candidate: Score<T>,
     s_candidate_one: Score<T>,
     s_running: Score<T>,
+    /// Samples scored.
+    scored: u32,
 }
 
 impl<T: Real> Holdout<T> {
@@ -140,6 +142,7 @@ impl<T: Real> Holdout<T> {
             s_candidate: Score::new(),
             s_candidate_one: Score::new(),
             s_running: Score::new(),
+            scored: 0,
         }
     }
 
@@ -153,7 +156,14 @@ impl<T: Real> Holdout<T> {
             self.s_candidate.add(y, c);
             self.s_candidate_one.add(y, o);
             self.s_running.add(y, r);
+            self.scored = self.scored.saturating_add(1);
         }
+    }
+
+    /// Samples scored so far (each by all three predictors): what [`Acceptance::judge`]
+    /// compares with [`Acceptance::holdout_min`], without computing the figures.
+    pub fn scored(&self) -> u32 {
+        self.scored
     }
 
     /// The figures so far (`None` before a sample was scored).

@@ -41,6 +41,8 @@ pub enum RefitStep<T: Real> {
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Stage {
+    /// The snapshot's statistics not taken yet ([`Refit::take_rows`]).
+    Snapshot,
     /// Factoring row `row` of the augmented matrix next.
     Factor,
     /// The Ridge solution from the factor's last row.
@@ -92,10 +94,26 @@ impl<T: Real> Refit<T> {
     /// Takes a snapshot of `window` (counts, turned into physical units by `scale`) for
     /// `method`. One unit of work of its own: `(n + 1)(n + 2) / 2` conversions and two
     /// products each, the window's response (one exact 128-bit product) and a square root.
+    /// The same as [`begin`](Self::begin), [`take_rows`](Self::take_rows) and
+    /// [`take_responses`](Self::take_responses) on the same window, bit for bit.
     ///
     /// Errors: [`Error::InvalidParameter`] for `method` ([`RidgeM::check`]),
     /// [`Error::TooShort`] when the window holds fewer weighted rows than `2 (n + 1)`.
     pub fn start(window: &Window<'_>, method: RidgeM<T>, scale: &Scale) -> Result<Self> {
+        let mut refit = Self::begin(window, method)?;
+        refit.take_rows(window, scale)?;
+        refit.take_responses(window, scale)?;
+        Ok(refit)
+    }
+
+    /// A fit of `window`'s structure whose snapshot is taken in two parts, for a caller that
+    /// spreads the work over ticks: [`take_rows`](Self::take_rows) (the statistics), then
+    /// [`take_responses`](Self::take_responses) (the output's and input's RMS), both of the
+    /// same window, unchanged in between and since this call (the caller holds the window's
+    /// updates back meanwhile). [`step`](Self::step) does no work before the rows are taken;
+    /// the responses are needed only once it says [`RefitStep::Done`]. The checks of
+    /// [`start`](Self::start) and its errors; nothing is converted yet.
+    pub fn begin(window: &Window<'_>, method: RidgeM<T>) -> Result<Self> {
         method.check()?;
         let layout = *window.layout();
         let n = layout.len;
@@ -106,6 +124,36 @@ impl<T: Real> Refit<T> {
                 have: window.weight(),
             });
         }
+        Ok(Refit {
+            layout,
+            method,
+            a: [T::ZERO; WINDOW_LEN_MAX],
+            w_ridge: [T::ZERO; PARAMS_MAX],
+            w: [T::ZERO; PARAMS_MAX],
+            w_prev: [T::ZERO; PARAMS_MAX],
+            v: [T::ZERO; PARAMS_MAX],
+            row: 0,
+            iter: 0,
+            stage: Stage::Snapshot,
+            response: T::ZERO,
+            input_response: T::ZERO,
+            weight: window.weight(),
+        })
+    }
+
+    /// The first part of the snapshot: `window`'s statistics (counts, turned into physical
+    /// units by `scale`, `γ` added), `(n + 1)(n + 2) / 2` conversions and two products each.
+    /// The fit's units may run from then on. Does nothing once taken.
+    ///
+    /// Errors: [`Error::InvalidStructure`] when `window` is not of this fit's structure, or
+    /// has not the weight it had at [`begin`](Self::begin).
+    pub fn take_rows(&mut self, window: &Window<'_>, scale: &Scale) -> Result<()> {
+        self.same_window(window)?;
+        if self.stage != Stage::Snapshot {
+            return Ok(());
+        }
+        let layout = self.layout;
+        let n = layout.len;
         let su = T::from_f64(scale.u);
         let sy = T::from_f64(scale.y);
         let unit = |i: usize| match layout.cols.get(i) {
@@ -115,45 +163,59 @@ impl<T: Real> Refit<T> {
             _ => T::ONE,
         };
         let intercept = layout.intercept();
-        let mut a = [T::ZERO; WINDOW_LEN_MAX];
         for i in 0..=n {
             let si = unit(i);
             for j in 0..=i {
                 let mut x = T::from_i64(window.entry(i, j)) * (si * unit(j));
                 if i == j && i < n && intercept != Some(i) {
-                    x += method.gamma;
+                    x += self.method.gamma;
                 }
-                if let Some(slot) = a.get_mut(packed(i, j)) {
+                if let Some(slot) = self.a.get_mut(packed(i, j)) {
                     *slot = x;
                 }
             }
         }
-        // The output's and the newest input's RMS about their means.
-        let response = column_rms::<T>(window, n, intercept) * sy;
+        self.stage = Stage::Factor;
+        Ok(())
+    }
+
+    /// The second part of the snapshot: the output's and the newest input's RMS about their
+    /// means over `window` ([`response`](Self::response),
+    /// [`input_response`](Self::input_response); zero before): one exact 128-bit product and
+    /// a square root each.
+    ///
+    /// Errors: as [`take_rows`](Self::take_rows).
+    pub fn take_responses(&mut self, window: &Window<'_>, scale: &Scale) -> Result<()> {
+        self.same_window(window)?;
+        let layout = self.layout;
+        let n = layout.len;
+        let intercept = layout.intercept();
+        let su = T::from_f64(scale.u);
+        let sy = T::from_f64(scale.y);
+        self.response = column_rms::<T>(window, n, intercept) * sy;
         let first_input = layout
             .cols
             .iter()
             .take(n)
             .position(|c| matches!(c, Col::U(_)));
-        let input_response = match first_input {
+        self.input_response = match first_input {
             Some(k) => column_rms::<T>(window, k, intercept) * su,
             None => T::ZERO,
         };
-        Ok(Refit {
-            layout,
-            method,
-            a,
-            w_ridge: [T::ZERO; PARAMS_MAX],
-            w: [T::ZERO; PARAMS_MAX],
-            w_prev: [T::ZERO; PARAMS_MAX],
-            v: [T::ZERO; PARAMS_MAX],
-            row: 0,
-            iter: 0,
-            stage: Stage::Factor,
-            response,
-            input_response,
-            weight: window.weight(),
-        })
+        Ok(())
+    }
+
+    /// `window` is the one this fit began with, as far as it can tell: the structure, the
+    /// offset and the weight.
+    fn same_window(&self, window: &Window<'_>) -> Result<()> {
+        let l = window.layout();
+        if l.structure != self.layout.structure
+            || l.offset != self.layout.offset
+            || window.weight() != self.weight
+        {
+            return Err(Error::InvalidStructure);
+        }
+        Ok(())
     }
 
     /// The RMS deviation of the output from its mean over the window's rows (weighted as the
@@ -179,7 +241,7 @@ impl<T: Real> Refit<T> {
         let mut left = units;
         while left > 0 {
             match self.stage {
-                Stage::Done | Stage::Failed(_) => break,
+                Stage::Snapshot | Stage::Done | Stage::Failed(_) => break,
                 Stage::Factor => self.factor_row(),
                 Stage::Solution => self.solution(),
                 Stage::Iterate => self.iterate(),
