@@ -260,6 +260,7 @@ impl Reid {
     /// The window's update with the sample `(v, y)` (`boundary`: forgetting after it), held
     /// back while a snapshot of the window is being taken; otherwise the held-back samples go
     /// in first, in order. `None` when the running model's structure has no window.
+    #[inline(never)]
     fn update_window(&mut self, v: i16, y: i16, boundary: bool) -> Option<()> {
         let state = self.window?;
         let snapshot = matches!(
@@ -323,9 +324,14 @@ impl Reid {
 
     /// This tick's part of the re-estimate: the snapshot's first part and two units, its
     /// second part and a unit, a unit, or one held-out sample `(u, y)` (slm).
+    #[inline(never)]
     fn step(&mut self, u: f32, y: f32) {
-        match &mut self.job {
-            Job::Idle => {}
+        let units = match &mut self.job {
+            Job::Idle => return,
+            Job::HoldingOut { holdout, .. } => {
+                holdout.push(u, y);
+                return;
+            }
             Job::Due { breath } => {
                 let breath = *breath;
                 self.job = Job::Idle;
@@ -336,24 +342,25 @@ impl Reid {
                     return;
                 };
                 // A window too short for the structure starts nothing (the next boundary tries).
-                // Built in place: a `Refit` is 700 bytes, each move of it 6 k cycles here.
                 let Ok(refit) = Refit::begin(&window, self.method) else {
                     return;
                 };
+                // Built in place: a `Refit` is 700 bytes, each move of it 6 k cycles here.
                 self.job = Job::Fitting {
                     refit,
                     breath,
                     responses: false,
                 };
-                if let Job::Fitting { refit, .. } = &mut self.job {
-                    if refit.take_rows(&window, &MODEL_SCALE).is_err() {
-                        self.job = Job::Idle;
-                        return;
-                    }
-                    // This unit and the one the boundary's tick did not run.
-                    refit.step(2);
-                    self.since = 0;
+                let Job::Fitting { refit, .. } = &mut self.job else {
+                    return;
+                };
+                if refit.take_rows(&window, &MODEL_SCALE).is_err() {
+                    self.job = Job::Idle;
+                    return;
                 }
+                self.since = 0;
+                // This unit and the one the boundary's tick did not run.
+                2
             }
             Job::Fitting {
                 refit, responses, ..
@@ -368,23 +375,26 @@ impl Reid {
                         .and_then(|window| refit.take_responses(&window, &MODEL_SCALE));
                     *responses = true;
                 }
-                refit.step(1);
+                1
             }
-            Job::HoldingOut { holdout, .. } => holdout.push(u, y),
+        };
+        if let Job::Fitting { refit, .. } = &mut self.job {
+            refit.step(units);
         }
     }
 
     /// The checks of a fit whose last unit ran (the estimate held out from now on, or
     /// refused with its report); nothing for a fit still working or another job.
+    #[inline(never)]
     fn finish_fit(&mut self) {
         // No work: where the fit stands.
-        let (now, breath, response, v_rms) = match &mut self.job {
+        let (now, breath, response, v_rms) = match &self.job {
             Job::Fitting {
                 refit,
                 breath,
                 responses: true,
             } => (
-                refit.step(0),
+                refit.outcome(),
                 *breath,
                 refit.response(),
                 refit.input_response(),

@@ -248,6 +248,11 @@ impl<T: Real> Refit<T> {
             }
             left -= 1;
         }
+        self.outcome()
+    }
+
+    /// Where the fit stands, with no work: what the last [`step`](Self::step) returned.
+    pub fn outcome(&self) -> RefitStep<T> {
         match self.stage {
             Stage::Done => RefitStep::Done(ArxModel::from_layout(&self.layout, &self.w), self.iter),
             Stage::Failed(e) => RefitStep::Refused(e),
