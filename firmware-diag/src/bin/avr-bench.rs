@@ -28,7 +28,7 @@
 //! | `fmt-ours` | `ridge_pump_firmware::numfmt::Fixed` with `ufmt` |
 //! | `fmt-ufmt-float` | `ufmt_float::uFmt_f32::Four` with `ufmt` |
 //! | `fmt-core` | `core::fmt`'s `{:.4}` |
-//! | `reid-ours` | `ridge_core::reid` at 9 coefficients: a tick's `Window::push`, a breath's `end_breath`, `Refit::start`, and each unit of `Refit::step` (factor rows, solution, 3 iterates) |
+//! | `reid-ours` | `ridge_core::reid` at 9 coefficients: a tick's `Window::push`, a breath's `end_breath`, `Refit::start` (and its parts `begin`, `take_rows`, `take_responses`), and each unit of `Refit::step` (factor rows, solution, 3 iterates) |
 //!
 //! Protocol (read by `simavr-harness`'s `avr-bench`): for each measurement the image prints
 //! `M <variant> <label>`, raises PB7 (Arduino pin 13), calls the routine (`#[inline(never)]`),
@@ -732,6 +732,31 @@ mod image {
         Refit::start(w, m, &ridge_pump_firmware::units::SCALE).ok()
     }
 
+    /// The snapshot's set-up when it is taken in parts (the firmware's): the checks, nothing
+    /// converted.
+    #[inline(never)]
+    fn reid_begin(w: &Win<'_>) -> Option<Refit> {
+        let m = ridge_core::RidgeM {
+            max_iter: 3,
+            tol: 0.0,
+            ..ridge_core::RidgeM::PAPER
+        };
+        Refit::begin(w, m).ok()
+    }
+
+    /// The snapshot's first part: the statistics converted.
+    #[inline(never)]
+    fn reid_rows(r: &mut Refit, w: &Win<'_>) -> bool {
+        r.take_rows(w, &ridge_pump_firmware::units::SCALE).is_ok()
+    }
+
+    /// The snapshot's second part: the output's and input's RMS.
+    #[inline(never)]
+    fn reid_responses(r: &mut Refit, w: &Win<'_>) -> bool {
+        r.take_responses(w, &ridge_pump_firmware::units::SCALE)
+            .is_ok()
+    }
+
     /// One unit of the re-estimate: 0 working, 1 done, 2 refused.
     #[inline(never)]
     fn reid_unit(r: &mut Refit) -> u8 {
@@ -765,6 +790,16 @@ mod image {
             return;
         };
         end();
+        // The same snapshot in the firmware's parts.
+        if let Some(mut p) = measure("reid-ours", "begin", || reid_begin(&w)) {
+            end();
+            let ok = measure("reid-ours", "rows", || reid_rows(&mut p, &w));
+            word(u8::from(ok));
+            end();
+            let ok = measure("reid-ours", "responses", || reid_responses(&mut p, &w));
+            word(u8::from(ok));
+            end();
+        }
         // 10 factor rows, the solution, 3 iterates.
         let labels = [
             "row0", "row1", "row2", "row3", "row4", "row5", "row6", "row7", "row8", "row9",
