@@ -3,11 +3,14 @@
 //! swap path with a fit threshold set, at the breath boundary as the controller sees it; a
 //! refused estimate that keeps the running controller; the default rule (a swap only while the
 //! volume alarm is raised) with a refused re-design that says why; the lung change to C 10 R 50
-//! with and without the swap; the drift and alarm trigger.
+//! with and without the swap; the drift and alarm trigger; the snapshot spread over the ticks
+//! after the boundary's against the schedule that took it in one tick (a known ARX plant's
+//! record, the reports bit for bit).
 //!
 //! Truths: the simulated lung (the volume it received each inspiration, from the plant's true
 //! flow), the breath timing of the `VENT` settings (the valve's closures), the verdicts'
-//! definitions (the figures on each `REID` report against the rule it names).
+//! definitions (the figures on each `REID` report against the rule it names); for the
+//! schedule, `ridge_core::reid` run directly with the snapshot in the boundary's tick.
 
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::iso_row;
@@ -418,4 +421,151 @@ fn on_the_volume_alarm_a_refused_re_design_keeps_the_running_controller_and_says
         );
     }
     assert!(run.swaps.is_empty(), "{:?}", run.swaps);
+}
+
+/// A record `(v, y)` in counts of a known ARX plant (p 2, q 2, d 1, an intercept; static gain
+/// 0.75) driven by breath-like steps (30 slm for 100 ticks, 5 for 200) with a small dither, the
+/// output with a small deterministic noise.
+fn known_breaths(ticks: usize) -> Vec<(i16, i16)> {
+    let counts = |slm: f32| (slm / ridge_pump_firmware::units::SLM_PER_COUNT).round() as i16;
+    let mut state = 0x2545_f491_u32;
+    let mut noise = move || {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        (state % 2001) as f32 / 1000.0 - 1.0
+    };
+    let (mut y1, mut y2, mut u1, mut u2) = (0.0f32, 0.0, 0.0, 0.0);
+    (0..ticks)
+        .map(|t| {
+            let u = if t % 300 < 100 { 30.0 } else { 5.0 } + noise();
+            let y = 1.1 * y1 - 0.3 * y2 + 0.1 * u1 + 0.05 * u2 + 0.5 + 0.1 * noise();
+            (y2, y1, u2, u1) = (y1, y, u1, u);
+            (counts(u), counts(y))
+        })
+        .collect()
+}
+
+/// The re-identification's reports (breath, verdict, gain, fit, running, `v` RMS as bit
+/// patterns) on `record`, breaths of 300 ticks, as the schedule before the snapshot was spread
+/// over ticks computed them, from `ridge_core::reid` directly: every sample into the window,
+/// the snapshot (`Refit::start`) and the first unit in the boundary's tick, one unit a tick, a
+/// finished fit's checks in its last unit's tick, the verdict at the first boundary with a
+/// breath of samples held out.
+fn one_tick_snapshot_reports(
+    record: &[(i16, i16)],
+    running: ridge_core::ArxModel<f32>,
+    accept: ridge_core::reid::Acceptance<f32>,
+) -> Vec<(u32, &'static str, [u32; 4])> {
+    use ridge_core::reid::{Holdout, Refit, RefitStep, Window, WINDOW_LEN_MAX};
+    use ridge_pump_firmware::units::{MODEL_SCALE, SLM_PER_COUNT};
+    enum Job {
+        Idle,
+        Fit(Box<Refit<f32>>, u32),
+        Hold(Box<Holdout<f32>>, ridge_core::ArxModel<f32>, u32, f32),
+    }
+    let method = ridge_core::RidgeM::PAPER;
+    let mut store = [0i64; WINDOW_LEN_MAX];
+    let mut w = Window::new(
+        running.structure(),
+        running.offset(),
+        ridge_pump_firmware::reid::SHIFT,
+        &mut store,
+    )
+    .unwrap();
+    let (mut job, mut out) = (Job::Idle, Vec::new());
+    let bits = |g: f32, f: f32, r: f32, v: f32| [g, f, r, v].map(f32::to_bits);
+    for (t, &(v, y)) in record.iter().enumerate() {
+        w.push(v, y).unwrap();
+        let boundary = (t > 0 && t % 300 == 0).then_some(t as u32 / 300 + 1);
+        if let Some(breath) = boundary {
+            w.end_breath();
+            if let Job::Hold(h, m, b, v_rms) = &job {
+                if h.scored() >= accept.holdout_min {
+                    let v = accept.judge(h).unwrap();
+                    out.push((
+                        *b,
+                        "kept",
+                        bits(m.static_gain(), v.candidate.fit, v.running.fit, *v_rms),
+                    ));
+                    job = Job::Idle;
+                }
+            }
+            if matches!(job, Job::Idle) {
+                if let Ok(r) = Refit::start(&w, method, &MODEL_SCALE) {
+                    job = Job::Fit(Box::new(r), breath);
+                }
+            }
+        }
+        let (u, y) = (f32::from(v) * SLM_PER_COUNT, f32::from(y) * SLM_PER_COUNT);
+        match &mut job {
+            Job::Idle => {}
+            Job::Fit(r, b) => match r.step(1) {
+                RefitStep::Working => {}
+                RefitStep::Done(m, _) => {
+                    let (b, v_rms) = (*b, r.input_response());
+                    job = match accept.check_estimate(&m, r.response(), v_rms) {
+                        Ok(_) => Job::Hold(Box::new(Holdout::new(m, running)), m, b, v_rms),
+                        Err(_) => {
+                            out.push((b, "refused", bits(m.static_gain(), 0.0, 0.0, v_rms)));
+                            Job::Idle
+                        }
+                    };
+                }
+                RefitStep::Refused(_) => panic!("numeric refusal"),
+            },
+            Job::Hold(h, ..) => h.push(u, y),
+        }
+    }
+    out
+}
+
+#[test]
+fn the_snapshot_spread_over_ticks_reports_what_a_snapshot_in_one_tick_did() {
+    let record = known_breaths(300 * 12);
+    // The running model with twice the plant's input gain: every estimate passes and is kept.
+    let running = ridge_core::ArxModel::new(
+        &[1.1f32, -0.3],
+        &[0.2, 0.1],
+        1,
+        ridge_core::Offset::Intercept,
+        0.5,
+    )
+    .unwrap();
+    let cfg = Config::DEFAULT;
+    let mut reid = cfg.reidentification(running, 300);
+    let accept = ridge_core::reid::Acceptance {
+        model: cfg.control.model,
+        min_response: cfg.min_response,
+        min_input_response: cfg.reid.min_input_response,
+        min_fit: cfg.min_fit,
+        holdout_min: 300,
+    };
+    let mut got = Vec::new();
+    for (t, &(v, y)) in record.iter().enumerate() {
+        let boundary = (t > 0 && t % 300 == 0).then_some(t as u32 / 300 + 1);
+        assert_eq!(reid.after_pwm(v, y, boundary, false, false), None);
+        if let Some(r) = reid.take_report() {
+            let kind = match r.verdict {
+                ReidVerdict::Kept => "kept",
+                _ => "refused",
+            };
+            let (fit, running) = if kind == "kept" {
+                (r.fit, r.running)
+            } else {
+                (0.0, 0.0)
+            };
+            got.push((
+                r.breath,
+                kind,
+                [r.gain, fit, running, r.v_rms].map(f32::to_bits),
+            ));
+        }
+    }
+    let want = one_tick_snapshot_reports(&record, running, accept);
+    assert!(
+        want.len() >= 4 && want.iter().all(|r| r.1 == "kept"),
+        "{want:?}"
+    );
+    assert_eq!(got, want);
 }
