@@ -446,8 +446,19 @@ fn known_breaths(ticks: usize) -> Vec<(i16, i16)> {
         .collect()
 }
 
+/// The breath that starts at tick `t` of [`known_breaths`]: every 300 ticks, and a first one
+/// after 5 ticks, whose window is too short for a snapshot (none starts; the next boundary
+/// tries).
+fn breath_at(t: usize) -> Option<u32> {
+    match t {
+        5 => Some(1),
+        _ if t > 0 && t % 300 == 0 => Some(t as u32 / 300 + 1),
+        _ => None,
+    }
+}
+
 /// The re-identification's reports (breath, verdict, gain, fit, running, `v` RMS as bit
-/// patterns) on `record`, breaths of 300 ticks, as the schedule before the snapshot was spread
+/// patterns) on `record`, breaths starting as [`breath_at`] says, as the schedule before the snapshot was spread
 /// over ticks computed them, from `ridge_core::reid` directly: every sample into the window,
 /// the snapshot (`Refit::start`) and the first unit in the boundary's tick, one unit a tick, a
 /// finished fit's checks in its last unit's tick, the verdict at the first boundary with a
@@ -477,7 +488,7 @@ fn one_tick_snapshot_reports(
     let bits = |g: f32, f: f32, r: f32, v: f32| [g, f, r, v].map(f32::to_bits);
     for (t, &(v, y)) in record.iter().enumerate() {
         w.push(v, y).unwrap();
-        let boundary = (t > 0 && t % 300 == 0).then_some(t as u32 / 300 + 1);
+        let boundary = breath_at(t);
         if let Some(breath) = boundary {
             w.end_breath();
             if let Job::Hold(h, m, b, v_rms) = &job {
@@ -543,7 +554,7 @@ fn the_snapshot_spread_over_ticks_reports_what_a_snapshot_in_one_tick_did() {
     };
     let mut got = Vec::new();
     for (t, &(v, y)) in record.iter().enumerate() {
-        let boundary = (t > 0 && t % 300 == 0).then_some(t as u32 / 300 + 1);
+        let boundary = breath_at(t);
         assert_eq!(reid.after_pwm(v, y, boundary, false, false), None);
         if let Some(r) = reid.take_report() {
             let kind = match r.verdict {
