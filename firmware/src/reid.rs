@@ -34,8 +34,8 @@
 //!
 //! Any fault ends run mode and with it the re-estimate (the state lives in run mode).
 //!
-//! Memory: the window's storage for the largest structure ([`WINDOW_LEN_MAX`] `i64`), and one
-//! of a [`Refit`] or a [`Holdout`] at a time (never both).
+//! Memory: the window's storage for the largest structure ([`WINDOW_LEN_MAX`] `i64`), one of a
+//! [`Refit`] or a [`Holdout`] at a time (never both), and [`HELD_MAX`] held-back samples.
 
 use ridge_core::reid::{
     Acceptance, Holdout, Refit, RefitStep, Rejection, Window, WindowState, WINDOW_LEN_MAX,
