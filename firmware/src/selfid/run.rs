@@ -226,7 +226,12 @@ impl RunMode {
 
     /// The re-identification's tick (see [`crate::reid`]): the breath boundary at `phase` 0,
     /// triggered by `drift` or an alarm; its `REID` line into `event` if empty.
+    ///
+    /// Never inlined: the job's temporaries (a fit started, a hold-out, the estimate) then live
+    /// in this frame, entered only from here, not in the board's tick's frame, which every
+    /// other call of the tick stacks on (ATmega2560: see docs/boards.md for the frames).
     #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+    #[inline(never)]
     fn reidentify(&mut self, phase: u32, reading: i16, drift: bool, event: &mut Option<Event>) {
         // Not in the program's lead-in: the window starts with breath 1.
         if self.vent.breath() == 0 {
