@@ -120,6 +120,11 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
         &self.sid
     }
 
+    /// The state machine, to change (a board's boot: a fault found before the loop starts).
+    pub fn selfid_mut(&mut self) -> &mut SelfIdentification<S> {
+        &mut self.sid
+    }
+
     /// The pump driver (its applied and commanded duty).
     pub fn pump(&self) -> &Pump<P> {
         &self.pump
