@@ -389,6 +389,41 @@ impl Config {
         running: ridge_core::ArxModel<f32>,
         holdout: u32,
     ) -> crate::reid::Reid {
+        let (method, accept) = self.reid_rules(holdout);
+        crate::reid::Reid::new(method, accept, &self.reid, running)
+    }
+
+    /// [`reidentification`](Self::reidentification) built into `reid` (in place: run mode's
+    /// start, see [`crate::reid::Reid::reset`]).
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+    pub fn reset_reidentification(
+        &self,
+        reid: &mut crate::reid::Reid,
+        running: ridge_core::ArxModel<f32>,
+        holdout: u32,
+    ) {
+        let (method, accept) = self.reid_rules(holdout);
+        reid.reset(method, accept, &self.reid, running);
+    }
+
+    /// An idle re-identification from these settings until run mode starts one
+    /// ([`crate::reid::Reid::dormant`]).
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+    pub fn dormant_reidentification(
+        &self,
+        running: ridge_core::ArxModel<f32>,
+    ) -> crate::reid::Reid {
+        let (method, accept) = self.reid_rules(0);
+        crate::reid::Reid::dormant(method, accept, &self.reid, running)
+    }
+
+    /// The re-identification's estimator and checks (see
+    /// [`reidentification`](Self::reidentification)), `holdout` ticks held out.
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+    fn reid_rules(
+        &self,
+        holdout: u32,
+    ) -> (ridge_core::RidgeM<f32>, ridge_core::reid::Acceptance<f32>) {
         let method = match self.search.method {
             ridge_core::Method::RidgeM(m) => m,
             _ => ridge_core::RidgeM::PAPER,
@@ -400,6 +435,6 @@ impl Config {
             min_fit: self.min_fit,
             holdout_min: holdout,
         };
-        crate::reid::Reid::new(method, accept, &self.reid, running)
+        (method, accept)
     }
 }
