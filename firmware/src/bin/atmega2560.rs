@@ -138,10 +138,18 @@ mod image {
     fn main() -> ! {
         let (app, board, boot_fault) = &mut init();
         if let Some(reason) = boot_fault {
-            // `init` reported it (`fault_detected` returns `Event::Fault(reason)`).
-            app.selfid_mut().fault_detected(*reason);
+            latch(app, *reason);
         }
         app.run(board)
+    }
+
+    /// Latches the reset loop's fault that `init` reported (`fault_detected` returns the
+    /// `Event::Fault(reason)` it printed). Out of line: the returned event's slot would stay in
+    /// `main`'s frame for good.
+    #[cfg(feature = "atmega2560-reid")]
+    #[inline(never)]
+    fn latch(app: &mut MegaApp, reason: FaultReason) {
+        app.selfid_mut().fault_detected(reason);
     }
 
     /// Sets everything up into `main`'s frame (this frame is gone afterwards); the reset loop's
