@@ -490,3 +490,59 @@ impl Reid {
         }
     }
 }
+
+// Built in place: run mode keeps the re-identification beside its phase, not in it, so that
+// starting run mode does not build 1.8 KB in a stack frame and copy it (the ATmega2560's SRAM;
+// docs/boards.md).
+impl Reid {
+    /// An idle re-identification with no window (it takes no samples and starts nothing) for
+    /// `running`, until [`reset`](Self::reset): what the state machine holds before run mode.
+    /// Built without the window's storage in the frame (it is zeros until `reset`).
+    pub fn dormant(
+        method: RidgeM<f32>,
+        accept: Acceptance<f32>,
+        cfg: &ReidConfig,
+        running: ArxModel<f32>,
+    ) -> Self {
+        Reid {
+            store: [0; WINDOW_LEN_MAX],
+            window: None,
+            job: Job::Idle,
+            method,
+            accept,
+            running,
+            since: 0,
+            every: cfg.every,
+            swap: cfg.swap,
+            due: None,
+        }
+    }
+
+    /// Makes this what [`Reid::new`] with the same arguments builds, in place (its storage
+    /// reused: no copy of it in the caller's frame).
+    pub fn reset(
+        &mut self,
+        method: RidgeM<f32>,
+        accept: Acceptance<f32>,
+        cfg: &ReidConfig,
+        running: ArxModel<f32>,
+    ) {
+        self.store = [0; WINDOW_LEN_MAX];
+        self.window = Window::new(
+            running.structure(),
+            running.offset(),
+            SHIFT,
+            &mut self.store,
+        )
+        .ok()
+        .map(Window::detach);
+        self.job = Job::Idle;
+        self.method = method;
+        self.accept = accept;
+        self.running = running;
+        self.since = 0;
+        self.every = cfg.every;
+        self.swap = cfg.swap;
+        self.due = None;
+    }
+}

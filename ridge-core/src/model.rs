@@ -48,6 +48,18 @@ impl<T: Real> ArxModel<T> {
         Ok(m)
     }
 
+    /// The first-order model with zero coefficients and no offset (`y_t = 0`): a placeholder
+    /// for storage that must hold a model before one is identified.
+    pub fn zero() -> Self {
+        ArxModel {
+            structure: Structure { p: 1, q: 1, d: 0 },
+            offset: Offset::None,
+            theta: [T::ZERO; P_MAX],
+            phi: [T::ZERO; Q_MAX],
+            c: T::ZERO,
+        }
+    }
+
     pub(crate) fn from_layout(layout: &Layout, w: &[T; PARAMS_MAX]) -> Self {
         let mut m = ArxModel {
             structure: layout.structure,

@@ -66,15 +66,6 @@ pub struct BenchConfig {
     pub uart_timing: UartTiming,
     /// The exhalation valve's output pin (port, bit; high = closed), `None`: always open.
     pub valve_pin: Option<(char, u8)>,
-    /// A measurement aid for an image whose stack does not fit the chip's 8 KB beside its
-    /// static RAM (the opt-in re-identification image, docs/boards.md): the data space is
-    /// extended by this many bytes past RAMEND (as external SRAM on XMEM would be, without its
-    /// wait states) and the stack pointer is moved to its end when `main` is entered (the C
-    /// runtime set it to RAMEND; `main` never returns), the extension painted with `0xAA`.
-    /// [`Bench::stack_used`] then measures the stack there (a reset puts the stack back at
-    /// RAMEND, and the firmware's own `STACK` figure does not see it). `None` (the default):
-    /// the chip.
-    pub xmem_stack: Option<u16>,
 }
 
 impl BenchConfig {
@@ -96,34 +87,8 @@ impl BenchConfig {
             eeprom: Vec::new(),
             uart_timing: UartTiming::Simavr,
             valve_pin: Some(VALVE_PIN),
-            xmem_stack: None,
         }
     }
-}
-
-/// The ATmega2560's last SRAM address (RAMEND, datasheet "SRAM Data Memory").
-const CHIP_RAMEND: u16 = 0x21FF;
-
-/// Runs the C runtime to `main`'s entry, then moves the stack pointer to `top` and paints the
-/// data space past the chip's RAMEND with `0xAA` ([`BenchConfig::xmem_stack`]).
-fn move_stack(machine: &mut Machine, top: u16) -> Result<(), String> {
-    let main = machine
-        .symbol("main")
-        .map(|s| s.addr)
-        .ok_or("no `main` symbol to move the stack at")?;
-    // One million cycles: the C runtime's copy of .data and clearing of .bss, and the paint.
-    while machine.pc() != main {
-        if machine.cycle() > 1_000_000 || machine.step() != Halt::Reached {
-            return Err("`main` not reached to move the stack".into());
-        }
-    }
-    for a in CHIP_RAMEND + 1..=top {
-        machine.poke(a, 0xAA);
-    }
-    let [lo, hi] = top.to_le_bytes();
-    machine.poke(0x5D, lo); // SPL
-    machine.poke(0x5E, hi); // SPH
-    Ok(())
 }
 
 /// The ATmega2560 board's exhalation valve pin: D22 = PA0 (docs/boards.md).
@@ -277,16 +242,11 @@ impl std::fmt::Debug for Bench {
 }
 
 impl Bench {
-    /// Loads the firmware, attaches sensor and pump, programs the EEPROM; the core is at reset
-    /// (with [`BenchConfig::xmem_stack`]: at `main`'s entry, the stack moved).
+    /// Loads the firmware, attaches sensor and pump, programs the EEPROM; the core is at reset.
     pub fn new(cfg: BenchConfig) -> Result<Self, String> {
-        let ramend = cfg.xmem_stack.map(|n| CHIP_RAMEND.saturating_add(n));
-        let mut machine = Machine::with_ramend("atmega2560", cfg.frequency, &cfg.elf, ramend)?;
+        let mut machine = Machine::new("atmega2560", cfg.frequency, &cfg.elf)?;
         for (off, bytes) in &cfg.eeprom {
             machine.set_eeprom(*off, bytes)?;
-        }
-        if let Some(top) = ramend {
-            move_stack(&mut machine, top)?;
         }
         let clock = Rc::new(Cell::new(0));
         let sensor = Rc::new(RefCell::new(SensorState::new(
@@ -706,16 +666,6 @@ impl Bench {
     /// RAMEND down to the lowest overwritten one were used by the stack. `None` if the ELF has
     /// no `__heap_start` symbol.
     pub fn stack_used(&self) -> Option<u32> {
-        if self.cfg.xmem_stack.is_some() {
-            // The stack moved past the chip's RAMEND: its deepest point is the lowest byte
-            // there that lost the paint.
-            let top = u32::from(self.machine.ramend());
-            let mut a = u32::from(CHIP_RAMEND) + 1;
-            while a <= top && self.machine.data(a as u16) == 0xAA {
-                a += 1;
-            }
-            return Some(top + 1 - a);
-        }
         let start = self.machine.symbol("__heap_start")?.addr & 0xFFFF;
         let ramend = u32::from(self.machine.ramend());
         let mut free = 0;

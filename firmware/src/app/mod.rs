@@ -120,6 +120,11 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
         &self.sid
     }
 
+    /// The state machine, to change (a board's boot: a fault found before the loop starts).
+    pub fn selfid_mut(&mut self) -> &mut SelfIdentification<S> {
+        &mut self.sid
+    }
+
     /// The pump driver (its applied and commanded duty).
     pub fn pump(&self) -> &Pump<P> {
         &self.pump
@@ -128,6 +133,7 @@ impl<I: I2c, P: SetDutyCycle, W: uWrite, S: Settings> App<I, P, W, S> {
     /// Starts continuous measurement, retrying once per tick for up to [`START_TICKS`] ticks
     /// (the state machine is not ticked meanwhile: the pump stays stopped). A sensor that never
     /// answers is left to the state machine, which reports the fault on its first ticks.
+    #[cfg_attr(all(target_arch = "avr", feature = "atmega2560-reid"), inline(never))]
     pub fn start(&mut self, board: &mut impl Board) {
         for tries in 1..=START_TICKS {
             wait_tick(board, |_| {});

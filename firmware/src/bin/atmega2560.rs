@@ -26,9 +26,13 @@ fn main() {
 mod image {
     use super::board::arduino_mega2560::{eeprom, pwm, stack, timer, twi, usart, valve, watchdog};
     use avr_device::atmega2560 as pac;
+    #[cfg(not(feature = "atmega2560-reid"))]
     use core::mem::MaybeUninit;
+    #[cfg(not(feature = "atmega2560-reid"))]
     use core::ptr::addr_of_mut;
     use ridge_pump_firmware::app::{App, Board, Console};
+    #[cfg(feature = "atmega2560-reid")]
+    use ridge_pump_firmware::event::Event;
     use ridge_pump_firmware::event::FaultReason;
     use ridge_pump_firmware::numfmt::Int;
     use ridge_pump_firmware::pump::Pump;
@@ -121,13 +125,103 @@ mod image {
 
     type MegaApp = App<twi::Twi, pwm::Pwm4A, usart::Usart0, Defaults>;
 
+    /// With run mode's re-identification (the state machine 3.1 KB) the loop state and the
+    /// board parts live in `main`'s frame, which never returns: `init` builds them into it
+    /// through its return value (the compiler passes it the frame's slot), and the state
+    /// machine into that through its constructor's, so no copy of it is made on the way. Moved
+    /// into statics (the default image's way, below) they were built in `init`'s frame first:
+    /// 3 865 B of stack. The default image keeps the statics: `main`'s frame costs it 2.4 KB
+    /// more flash (its code then addresses the state through a pointer). `build-boards` checks
+    /// static RAM plus the stack either way.
+    #[cfg(feature = "atmega2560-reid")]
+    #[avr_device::entry]
+    fn main() -> ! {
+        let (app, board, boot_fault) = &mut init();
+        if let Some(reason) = boot_fault {
+            latch(app, *reason);
+        }
+        app.run(board)
+    }
+
+    /// Latches the reset loop's fault that `init` reported (`fault_detected` returns the
+    /// `Event::Fault(reason)` it printed). Out of line: the returned event's slot would stay in
+    /// `main`'s frame for good.
+    #[cfg(feature = "atmega2560-reid")]
+    #[inline(never)]
+    fn latch(app: &mut MegaApp, reason: FaultReason) {
+        app.selfid_mut().fault_detected(reason);
+    }
+
+    /// Sets everything up into `main`'s frame (this frame is gone afterwards); the reset loop's
+    /// fault, reported, for `main` to latch.
+    #[cfg(feature = "atmega2560-reid")]
+    #[inline(never)]
+    fn init() -> (MegaApp, Mega, Option<FaultReason>) {
+        let dp = pac::Peripherals::take().unwrap(); // ok: first and only call, at boot
+        let reset_cause = watchdog::take_reset_cause(&dp.CPU);
+
+        let mut out = usart::Usart0::new(dp.USART0);
+        // The exhalation valve open before the pump is driven.
+        let valve = valve::ValvePin::new(dp.PORTA);
+        let pump = match Pump::new(pwm::Pwm4A::new(dp.TC4, dp.PORTH)) {
+            Ok(pump) => pump,
+            Err(e) => match e {},
+        };
+        let sensor = Sfm3300::new(twi::Twi::new(dp.TWI, dp.PORTD, I2C_HZ));
+        let mut eeprom = eeprom::Eeprom::<SLOT_LEN>::new(dp.EEPROM);
+        let store: [u8; STORE_LEN] = eeprom.load();
+        let plan = slots::plan(&store);
+        let stored = slots::record(&store, &plan);
+        // Reset loops (`resets`): count this boot's watchdog / brown-out reset; the third in a
+        // row starts in the fault state. The EEPROM is idle at boot, so the write starts.
+        let resets = Resets::from_byte(eeprom.byte(resets::COUNT_OFFSET)).after_boot(reset_cause);
+        eeprom.put(resets::COUNT_OFFSET, resets.to_byte());
+        let boot_fault = resets.is_loop().then_some(FaultReason::ResetLoop {
+            watchdog: resets.watchdog,
+            brownout: resets.brownout,
+        });
+
+        let ticker = timer::Ticker::new(dp.TC3);
+        // SAFETY: all interrupt handlers (Timer3 compare, USART0 UDRE and RX) only use state
+        // that is initialised statically.
+        unsafe { avr_device::interrupt::enable() };
+        let watchdog = watchdog::Watchdog::start(dp.WDT);
+
+        uwriteln!(
+            out,
+            "BOOT board=atmega2560 reset={} record={}",
+            Int::from(reset_cause),
+            if stored.is_some() { "stored" } else { "none" }
+        )
+        .ok();
+        if let Some(reason) = boot_fault {
+            uwriteln!(out, "{}", Event::Fault(reason)).ok();
+        }
+        let board = Mega {
+            ticker,
+            watchdog,
+            eeprom,
+            plan,
+            forgetting: None,
+            resets,
+            clean: resets::CLEAN_TICKS,
+            console: Console::new(),
+            valve,
+        };
+        let sid = SelfIdentification::new(Defaults, stored);
+        (App::new(sensor, pump, out, sid, I2C_HZ), board, boot_fault)
+    }
+
     /// The loop state and the board parts live in statics, not in `main`'s frame: `main` never
     /// returns, so every local of it (and every copy made while moving the ~0.7 KB state
     /// machine around) would occupy stack for good. As statics they count as static RAM, which
     /// `build-boards` checks.
+    #[cfg(not(feature = "atmega2560-reid"))]
     static mut APP: MaybeUninit<MegaApp> = MaybeUninit::uninit();
+    #[cfg(not(feature = "atmega2560-reid"))]
     static mut BOARD: MaybeUninit<Mega> = MaybeUninit::uninit();
 
+    #[cfg(not(feature = "atmega2560-reid"))]
     #[avr_device::entry]
     fn main() -> ! {
         // SAFETY: `main` runs once, and these are the only references ever made to the statics.
@@ -137,6 +231,7 @@ mod image {
     }
 
     /// Sets everything up and moves it into the statics (this frame is gone afterwards).
+    #[cfg(not(feature = "atmega2560-reid"))]
     #[inline(never)]
     fn init<'a>(
         app: &'a mut MaybeUninit<MegaApp>,

@@ -389,6 +389,41 @@ impl Config {
         running: ridge_core::ArxModel<f32>,
         holdout: u32,
     ) -> crate::reid::Reid {
+        let (method, accept) = self.reid_rules(holdout);
+        crate::reid::Reid::new(method, accept, &self.reid, running)
+    }
+
+    /// [`reidentification`](Self::reidentification) built into `reid` (in place: run mode's
+    /// start, see [`crate::reid::Reid::reset`]).
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+    pub fn reset_reidentification(
+        &self,
+        reid: &mut crate::reid::Reid,
+        running: ridge_core::ArxModel<f32>,
+        holdout: u32,
+    ) {
+        let (method, accept) = self.reid_rules(holdout);
+        reid.reset(method, accept, &self.reid, running);
+    }
+
+    /// An idle re-identification from these settings until run mode starts one
+    /// ([`crate::reid::Reid::dormant`]).
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+    pub fn dormant_reidentification(
+        &self,
+        running: ridge_core::ArxModel<f32>,
+    ) -> crate::reid::Reid {
+        let (method, accept) = self.reid_rules(0);
+        crate::reid::Reid::dormant(method, accept, &self.reid, running)
+    }
+
+    /// The re-identification's estimator and checks (see
+    /// [`reidentification`](Self::reidentification)), `holdout` ticks held out.
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+    fn reid_rules(
+        &self,
+        holdout: u32,
+    ) -> (ridge_core::RidgeM<f32>, ridge_core::reid::Acceptance<f32>) {
         let method = match self.search.method {
             ridge_core::Method::RidgeM(m) => m,
             _ => ridge_core::RidgeM::PAPER,
@@ -400,6 +435,59 @@ impl Config {
             min_fit: self.min_fit,
             holdout_min: holdout,
         };
-        crate::reid::Reid::new(method, accept, &self.reid, running)
+        (method, accept)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::DEFAULT_CONFIG;
+    use ridge_core::{ArxModel, Offset};
+
+    /// A first-order plant with a delay of one tick in counts, `y_k = 0.8 y_{k−1} +
+    /// 0.3 v_{k−2} + 40`, driven by square breaths of the map's flow (10 and 30 slm, 60 ticks a
+    /// breath) with a deterministic ±3-count disturbance: `(v, y)` per tick.
+    fn samples(ticks: usize) -> Vec<(i16, i16)> {
+        let (mut y, mut v1, mut v2, mut seed) = (0.0f64, 0.0f64, 0.0f64, 12_345u32);
+        (0..ticks)
+            .map(|k| {
+                let v = if k % 60 < 30 { 3600.0 } else { 1200.0 };
+                seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                let noise = f64::from((seed >> 16) % 7) - 3.0;
+                y = 0.8 * y + 0.3 * v2 + 40.0 + noise;
+                (v2, v1) = (v1, v);
+                (v as i16, y.round() as i16)
+            })
+            .collect()
+    }
+
+    /// The re-identification run mode builds in place (a dormant one, reset at run mode's start:
+    /// `Reid::dormant`, `Reid::reset`) reports what one built by value (`Reid::new`) reports on
+    /// the same samples, estimate for estimate; the dormant one takes nothing before its reset.
+    #[test]
+    fn a_reidentification_reset_in_place_reports_as_one_built_by_value() {
+        let running = ArxModel::new(&[0.75], &[0.35], 1, Offset::Intercept, 30.0).expect("model");
+        let breath = 60;
+        let mut by_value = DEFAULT_CONFIG.reidentification(running, breath);
+        let mut in_place = DEFAULT_CONFIG.dormant_reidentification(ArxModel::zero());
+        let data = samples(40 * 60);
+        for (k, &(v, y)) in data.iter().enumerate().take(3 * 60) {
+            let boundary = (k % 60 == 0).then_some((k / 60) as u32 + 1);
+            assert_eq!(in_place.after_pwm(v, y, boundary, true, false), None);
+            assert_eq!(in_place.take_report(), None, "dormant, tick {k}");
+        }
+        DEFAULT_CONFIG.reset_reidentification(&mut in_place, running, breath);
+        let mut reports = 0;
+        for (k, &(v, y)) in data.iter().enumerate() {
+            let boundary = (k % 60 == 0).then_some((k / 60) as u32 + 1);
+            let a = by_value.after_pwm(v, y, boundary, false, false);
+            let b = in_place.after_pwm(v, y, boundary, false, false);
+            assert_eq!(a, b, "tick {k}");
+            let (a, b) = (by_value.take_report(), in_place.take_report());
+            assert_eq!(a, b, "tick {k}");
+            reports += usize::from(a.is_some());
+        }
+        // Every other breath a snapshot, the next one held out: a verdict each.
+        assert!(reports >= 15, "{reports} reports");
     }
 }

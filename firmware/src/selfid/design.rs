@@ -91,6 +91,9 @@ impl<S: Settings> SelfIdentification<S> {
         // The no-flow check expects the model's steady state at each duty from the first run
         // tick's PWM write on (`after_write`).
         self.phase = Phase::Run(run);
+        #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+        self.reid
+            .start(self.settings.config(), model, d, self.program);
         preview
     }
 }
@@ -106,22 +109,25 @@ impl<S: Settings> SelfIdentification<S> {
     /// (`REID … verdict=design why=…`) into `event` if empty. Nothing when no estimate waits.
     ///
     /// The same steps as [`design`](Self::design), written again: sharing one function cost the
-    /// ATmega2560 image 0.9 KB (its inlining changed), and the ATmega2560 does not run this.
+    /// ATmega2560 image 0.9 KB (its inlining changed). Never inlined: its design's temporaries
+    /// stay out of the board's tick's frame (ATmega2560 stack, docs/boards.md).
+    #[inline(never)]
     pub(super) fn redesign(&mut self, event: &mut Option<Event>) {
         let c = &self.settings.config().control;
-        let Phase::Run(run) = &mut self.phase else {
+        let Phase::Run(run) = &self.phase else {
             return;
         };
-        let Some(model) = run.take_candidate() else {
+        let re = &mut self.reid;
+        let Some(model) = re.take_candidate() else {
             return;
         };
         if let Err(m) = check_model(&model, &c.model) {
-            run.swap_refused(&model, ControlRefusal::Model(m), event);
+            run.swap_refused(re, &model, ControlRefusal::Model(m), event);
             return;
         }
         // At the power-up design's speed, not the one the default takes from the new model.
         let spec = ridge_core::control::Spec {
-            tau: Some(run.speed()),
+            tau: Some(re.speed()),
             ..c.spec()
         };
         match design_slower_on_failure(&model, &spec, c.tries, SLOWDOWN, || {}) {
@@ -129,10 +135,10 @@ impl<S: Settings> SelfIdentification<S> {
                 if c.tau.is_none() {
                     d.set_reference(REFERENCE_POLE).ok();
                 }
-                run.set_swap(model, d, event);
+                re.set_swap(model, d, event);
             }
             (Err(error), tries) => {
-                run.swap_refused(&model, ControlRefusal::Design { error, tries }, event)
+                run.swap_refused(re, &model, ControlRefusal::Design { error, tries }, event)
             }
         }
     }

@@ -336,6 +336,10 @@ pub struct SelfIdentification<S: Settings = &'static Config> {
     identify: bool,
     /// What run mode tracks (the settings' program until the operator sets another).
     program: Program,
+    /// Run mode's re-identification and its swap, idle outside run mode (beside the phase,
+    /// not in run mode: see [`run::Reidentification`]).
+    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+    reid: run::Reidentification,
 }
 
 // RAM guard: 998 bytes on the ATmega2560 (the largest phase is the blocking search's normal
@@ -379,6 +383,8 @@ impl<S: Settings> SelfIdentification<S> {
             drift: false,
             identify: false,
             program: config.control.program,
+            #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+            reid: run::Reidentification::dormant(config),
         }
     }
 
@@ -665,7 +671,7 @@ impl<S: Settings> SelfIdentification<S> {
     /// expiration, then expecting from the bias flow held in the middle of each expiration.
     pub fn after_pwm(&mut self, event: &mut Option<Event>) {
         if let Phase::Run(run) = &mut self.phase {
-            match run.after_pwm(self.last_counts, self.drift, event) {
+            match run.after_pwm(self.last_counts, event) {
                 Some((Anchor::Pause, _)) => self.guard.pause_expectation(),
                 Some((Anchor::Hold, applied)) => {
                     self.guard.move_operating_point(applied, self.last_counts)
@@ -674,7 +680,10 @@ impl<S: Settings> SelfIdentification<S> {
                 None => {}
             }
             #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
-            self.redesign(event);
+            {
+                run.reidentify(&mut self.reid, self.last_counts, self.drift, event);
+                self.redesign(event);
+            }
         }
     }
 

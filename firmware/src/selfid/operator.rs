@@ -137,6 +137,8 @@ impl<S: Settings> SelfIdentification<S> {
         }
         if let Phase::Run(run) = &mut self.phase {
             run.set_program(program);
+            #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+            self.reid.restart(program);
         }
     }
 }

@@ -24,6 +24,8 @@ impl<S: Settings> SelfIdentification<S> {
         event: &mut Option<Event>,
     ) {
         if let Phase::Run(run) = &mut self.phase {
+            #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+            run.swap_at_boundary(&mut self.reid, reading, self.last_counts);
             self.duty = run.control(applied, reading, self.last_counts);
             return;
         }

@@ -70,21 +70,25 @@ pub(super) struct RunMode {
     ended: f32,
     /// The per-breath bookkeeping of a volume program.
     vent: Ventilation,
-    /// The re-identification while a volume program runs ([`crate::reid`]; on the
-    /// ATmega2560 only with the feature `atmega2560-reid`, over its flash budget: docs/boards.md).
-    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+}
+
+/// Run mode's re-identification while a volume program runs ([`crate::reid`]; on the
+/// ATmega2560 only with the feature `atmega2560-reid`, over its flash budget: docs/boards.md)
+/// and its swap. The state machine keeps it beside its phase, not in run mode, and
+/// [`start`](Self::start)s it in place when run mode starts: in run mode it was built in a
+/// stack frame and copied with it (2.9 KB; the ATmega2560 has 8 KB of SRAM).
+#[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+#[derive(Debug, Clone)]
+pub(super) struct Reidentification {
     reid: Reid,
     /// The re-estimate accepted for a swap, waiting for its design
-    /// ([`RunMode::take_candidate`]).
-    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+    /// ([`Reidentification::take_candidate`]).
     candidate: Option<ArxModel<f32>>,
     /// The designed swap, waiting for the breath boundary as the controller sees it.
-    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     swap: Option<(ArxModel<f32>, Design<f32>)>,
     /// The regulation speed of the design run mode started with ([`Design::tau`], s): the
     /// re-designs' (docs/ventilation.md: the default speed, from a re-estimate's slow pole,
     /// made loops 0.54–4.96 times slower and the breaths short).
-    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     speed: f32,
 }
 
@@ -92,7 +96,18 @@ impl RunMode {
     /// Run mode with `design` for `model` on the map `table`, tracking `program`, starting
     /// bumplessly from the duty `applied` and the reading `counts`; `gain` is the model's
     /// static gain.
-    #[inline(never)]
+    ///
+    /// Out of line in the default ATmega2560 image; in its caller's frame with the
+    /// re-identification (the state machine then lives in `main`'s frame, and this saved
+    /// 0.5 KB of that image's deepest stack: docs/boards.md).
+    #[cfg_attr(
+        all(target_arch = "avr", not(feature = "atmega2560-reid")),
+        inline(never)
+    )]
+    #[cfg_attr(
+        any(not(target_arch = "avr"), feature = "atmega2560-reid"),
+        inline(always)
+    )]
     pub(super) fn new(
         cfg: &Config,
         model: ArxModel<f32>,
@@ -138,14 +153,6 @@ impl RunMode {
             breath: None,
             ended: y0,
             vent: ventilation_for(program),
-            #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
-            reid: cfg.reidentification(model, breath_ticks(program)),
-            #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
-            candidate: None,
-            #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
-            swap: None,
-            #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
-            speed: design.tau,
         }
     }
 
@@ -158,10 +165,6 @@ impl RunMode {
         self.applied = applied;
         self.reading = reading;
         let y = f32::from(reading.unwrap_or(last)) * SLM_PER_COUNT;
-        #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
-        if self.swap.is_some() {
-            self.swap_at_boundary(y);
-        }
         let ahead = self.setpoint.ahead(u32::from(self.preview));
         self.breath = self.setpoint.volume_phase();
         self.next = self.setpoint.advance();
@@ -199,14 +202,12 @@ impl RunMode {
 
     /// After the tick's PWM write and [`after_write`](Self::after_write): a volume program's
     /// per-breath bookkeeping with the tick's reading `reading` (counts, held over sensor
-    /// errors), then the re-identification (`drift`: the monitor's drift flag, one of its
-    /// triggers); one event into `event` if empty (the breath's, else a `REID` line). Returns
-    /// what the fault checks take from the tick, with the duty applied during the interval
-    /// that ended with the reading.
+    /// errors); one event into `event` if empty (the breath's). The re-identification follows
+    /// ([`reidentify`](Self::reidentify)). Returns what the fault checks take from the tick,
+    /// with the duty applied during the interval that ended with the reading.
     pub(super) fn after_pwm(
         &mut self,
         reading: i16,
-        drift: bool,
         event: &mut Option<Event>,
     ) -> Option<(Anchor, u16)> {
         let (_, phase) = self.breath?;
@@ -217,17 +218,29 @@ impl RunMode {
         if phase == 0 {
             self.monitor.breath_end();
         }
-        #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
-        self.reidentify(phase, reading, drift, event);
-        #[cfg(all(target_arch = "avr", not(feature = "atmega2560-reid")))]
-        let _ = drift;
         anchor
     }
 
-    /// The re-identification's tick (see [`crate::reid`]): the breath boundary at `phase` 0,
-    /// triggered by `drift` or an alarm; its `REID` line into `event` if empty.
+    /// The re-identification's tick after [`after_pwm`](Self::after_pwm) (see
+    /// [`crate::reid`]): the breath boundary at a volume breath's phase 0, triggered by
+    /// `drift` or an alarm, with the tick's reading `reading` (counts); its `REID` line into
+    /// `event` if empty.
+    ///
+    /// Never inlined: the job's temporaries (a fit started, a hold-out, the estimate) then live
+    /// in this frame, entered only from here, not in the board's tick's frame, which every
+    /// other call of the tick stacks on (ATmega2560: see docs/boards.md for the frames).
     #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
-    fn reidentify(&mut self, phase: u32, reading: i16, drift: bool, event: &mut Option<Event>) {
+    #[inline(never)]
+    pub(super) fn reidentify(
+        &self,
+        re: &mut Reidentification,
+        reading: i16,
+        drift: bool,
+        event: &mut Option<Event>,
+    ) {
+        let Some((_, phase)) = self.breath else {
+            return;
+        };
         // Not in the program's lead-in: the window starts with breath 1.
         if self.vent.breath() == 0 {
             return;
@@ -236,45 +249,16 @@ impl RunMode {
         let volume_alarm = self.vent.alarm();
         let trigger = drift || volume_alarm || self.tracking.alarm();
         let v = self.table.at(self.applied);
-        if let Some(model) = self
+        if let Some(model) = re
             .reid
             .after_pwm(v, reading, boundary, trigger, volume_alarm)
         {
-            self.candidate = Some(model);
+            re.candidate = Some(model);
         }
         // An accepted estimate's line waits for its re-design's verdict (`redesign`, in the
         // same pass): `accepted` once designed, `design` if refused.
-        if event.is_none() && self.candidate.is_none() {
-            *event = self.reid.take_report().map(Event::Reid);
-        }
-    }
-
-    /// The regulation speed the re-designs use: the power-up design's `τ`, s.
-    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
-    pub(super) fn speed(&self) -> f32 {
-        self.speed
-    }
-
-    /// The re-estimate accepted for a swap, once: its controller is to be designed
-    /// ([`set_swap`](Self::set_swap), or [`swap_refused`](Self::swap_refused)).
-    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
-    pub(super) fn take_candidate(&mut self) -> Option<ArxModel<f32>> {
-        self.candidate.take()
-    }
-
-    /// The design `d` for the accepted re-estimate `model`: swapped in at the next breath
-    /// boundary as the controller sees it; its `REID … verdict=accepted` line into `event` if
-    /// empty, else at the next tick without another event.
-    #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
-    pub(super) fn set_swap(
-        &mut self,
-        model: ArxModel<f32>,
-        d: Design<f32>,
-        event: &mut Option<Event>,
-    ) {
-        self.swap = Some((model, d));
-        if event.is_none() {
-            *event = self.reid.take_report().map(Event::Reid);
+        if event.is_none() && re.candidate.is_none() {
+            *event = re.reid.take_report().map(Event::Reid);
         }
     }
 
@@ -283,12 +267,13 @@ impl RunMode {
     /// at the next tick without another event.
     #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
     pub(super) fn swap_refused(
-        &mut self,
+        &self,
+        re: &mut Reidentification,
         model: &ArxModel<f32>,
         why: ControlRefusal,
         event: &mut Option<Event>,
     ) {
-        self.reid.report(ReidReport {
+        re.reid.report(ReidReport {
             breath: self.vent.breath(),
             verdict: ReidVerdict::Design(why),
             gain: model.static_gain(),
@@ -297,17 +282,27 @@ impl RunMode {
             v_rms: f32::NAN,
         });
         if event.is_none() {
-            *event = self.reid.take_report().map(Event::Reid);
+            *event = re.reid.take_report().map(Event::Reid);
         }
     }
 
-    /// The designed swap, at the breath boundary as the controller sees it (the setpoint it is
-    /// given is the flat end of the expiration): the new controller starts bumplessly at the
-    /// map's flow of the applied duty and the reading `y` (slm), with its own preview; the
-    /// monitor and the fault checks' steady state follow the new model.
+    /// The designed swap of `re`, if one waits, at the breath boundary as the controller sees
+    /// it (the setpoint it is given is the flat end of the expiration), before
+    /// [`control`](Self::control) with the same `reading` and `last`: the new controller starts
+    /// bumplessly at the map's flow of the applied duty and the reading, with its own preview;
+    /// the monitor and the fault checks' steady state follow the new model.
     #[inline(never)]
     #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
-    fn swap_at_boundary(&mut self, y: f32) {
+    pub(super) fn swap_at_boundary(
+        &mut self,
+        re: &mut Reidentification,
+        reading: Option<i16>,
+        last: i16,
+    ) {
+        if re.swap.is_none() {
+            return;
+        }
+        let y = f32::from(reading.unwrap_or(last)) * SLM_PER_COUNT;
         // The coming interval's phase (the program has not advanced yet this tick).
         let (Some((_, phase)), Some(period)) =
             (self.setpoint.volume_phase(), self.setpoint.volume())
@@ -318,7 +313,7 @@ impl RunMode {
         if (phase + u32::from(self.preview)) % period.max(1) != 0 {
             return;
         }
-        let Some((model, d)) = self.swap.take() else {
+        let Some((model, d)) = re.swap.take() else {
             return;
         };
         let limits = *self.ctrl.limits();
@@ -330,7 +325,7 @@ impl RunMode {
         let (gain, offset) = steady_state(&model);
         self.gain = gain;
         self.offset = offset;
-        self.reid.swapped(model);
+        re.reid.swapped(model);
     }
 
     /// The exhalation valve for the interval in progress: closed in a volume breath's
@@ -361,12 +356,6 @@ impl RunMode {
         self.vent = ventilation_for(program);
         self.monitor
             .set_ventilating(matches!(program, Program::Volume(_)));
-        #[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
-        {
-            self.reid.restart(breath_ticks(program));
-            self.candidate = None;
-            self.swap = None;
-        }
     }
 
     /// The controller.
@@ -397,6 +386,70 @@ fn breath_ticks(program: Program) -> u32 {
     match program {
         Program::Volume(b) => u32::from(b.wave.period()),
         _ => 0,
+    }
+}
+
+#[cfg(any(not(target_arch = "avr"), feature = "atmega2560-reid"))]
+impl Reidentification {
+    /// An idle one until run mode starts ([`crate::reid::Reid::dormant`]; its model a
+    /// placeholder, [`ArxModel::zero`]).
+    pub(super) fn dormant(cfg: &Config) -> Self {
+        Reidentification {
+            reid: cfg.dormant_reidentification(ArxModel::zero()),
+            candidate: None,
+            swap: None,
+            speed: 0.0,
+        }
+    }
+
+    /// Run mode starts with `design` for `model` tracking `program`: the re-identification of
+    /// `model` from `cfg`, started afresh in place, no swap waiting.
+    pub(super) fn start(
+        &mut self,
+        cfg: &Config,
+        model: ArxModel<f32>,
+        design: &Design<f32>,
+        program: Program,
+    ) {
+        cfg.reset_reidentification(&mut self.reid, model, breath_ticks(program));
+        self.candidate = None;
+        self.swap = None;
+        self.speed = design.tau;
+    }
+
+    /// Run mode tracks `program` from now on: the window emptied, a re-estimate in progress
+    /// and a waiting swap dropped, the held-out span the program's breath.
+    pub(super) fn restart(&mut self, program: Program) {
+        self.reid.restart(breath_ticks(program));
+        self.candidate = None;
+        self.swap = None;
+    }
+
+    /// The regulation speed the re-designs use: the power-up design's `τ`, s.
+    pub(super) fn speed(&self) -> f32 {
+        self.speed
+    }
+
+    /// The re-estimate accepted for a swap, once: its controller is to be designed
+    /// ([`set_swap`](Self::set_swap), or [`RunMode::swap_refused`]).
+    pub(super) fn take_candidate(&mut self) -> Option<ArxModel<f32>> {
+        self.candidate.take()
+    }
+
+    /// The design `d` for the accepted re-estimate `model`: swapped in at the next breath
+    /// boundary as the controller sees it ([`RunMode::swap_at_boundary`]); its
+    /// `REID … verdict=accepted` line into `event` if empty, else at the next tick without
+    /// another event.
+    pub(super) fn set_swap(
+        &mut self,
+        model: ArxModel<f32>,
+        d: Design<f32>,
+        event: &mut Option<Event>,
+    ) {
+        self.swap = Some((model, d));
+        if event.is_none() {
+            *event = self.reid.take_report().map(Event::Reid);
+        }
     }
 }
 

@@ -114,18 +114,6 @@ impl std::fmt::Debug for Machine {
 impl Machine {
     /// Creates core `mcu` (e.g. `"atmega2560"`) at `frequency` Hz and loads the ELF at `elf`.
     pub fn new(mcu: &str, frequency: u32, elf: &Path) -> Result<Self, String> {
-        Self::with_ramend(mcu, frequency, elf, None)
-    }
-
-    /// As [`new`](Self::new), with the data space ending at `ramend` instead of the chip's
-    /// RAMEND (`None`): SRAM beyond the chip's, as the ATmega2560's external memory interface
-    /// (XMEM) would map it, with no wait states (see [`crate::bench::BenchConfig::xmem_stack`]).
-    pub fn with_ramend(
-        mcu: &str,
-        frequency: u32,
-        elf: &Path,
-        ramend: Option<u16>,
-    ) -> Result<Self, String> {
         let c_mcu = CString::new(mcu).map_err(|e| e.to_string())?;
         let c_path = CString::new(elf.to_string_lossy().as_bytes()).map_err(|e| e.to_string())?;
         if !elf.is_file() {
@@ -136,10 +124,6 @@ impl Machine {
             ffi::avr_global_logger_set(Some(logger));
             let avr = NonNull::new(ffi::avr_make_mcu_by_name(c_mcu.as_ptr()))
                 .ok_or_else(|| format!("simavr does not know the MCU {mcu}"))?;
-            // `avr_init` allocates the data space from `ramend`.
-            if let Some(end) = ramend {
-                (*avr.as_ptr()).ramend = end;
-            }
             let rc = ffi::avr_init(avr.as_ptr());
             if rc != 0 {
                 return Err(format!("avr_init failed ({rc})"));
