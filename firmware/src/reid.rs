@@ -515,6 +515,8 @@ impl Reid {
             every: cfg.every,
             swap: cfg.swap,
             due: None,
+            held: [(0, 0, false); HELD_MAX],
+            held_len: 0,
         }
     }
 
@@ -544,5 +546,6 @@ impl Reid {
         self.every = cfg.every;
         self.swap = cfg.swap;
         self.due = None;
+        self.held_len = 0;
     }
 }
