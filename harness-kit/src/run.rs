@@ -37,8 +37,8 @@ use pump_sim::baseline::experiment::{score, Scores, Trace};
 use pump_sim::sfm3300::raw_to_flow;
 use ridge_core::control::Limits;
 use ridge_core::{ArxModel, MapTable};
-use ridge_pump_firmware::event::Event;
-use ridge_pump_firmware::lines::{MapLine, ParsedLine, PrintedModel};
+use ridge_pump_firmware::event::{Event, LINE_MAX};
+use ridge_pump_firmware::lines::{MapLine, ParsedLine, PrintedModel, ReidLine};
 use ridge_pump_firmware::reid::Reid;
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use ridge_pump_firmware::setpoint::{value, Program, Setpoint, VolumeBreath};
@@ -122,6 +122,20 @@ pub struct RunTrace {
 /// The program run mode tracks: the firmware's default settings' (the image's `Config`).
 pub fn program() -> Program {
     DEFAULT_CONFIG.control.program
+}
+
+/// The most a tick's `v` (the map's flow at the duty, slm) can differ between the firmware
+/// (duty in 1/`DUTY_FULL_SCALE`) and a replay that reads the duty back from a pin of `steps`
+/// steps a period: the map's largest rise over half a pin step. The RMS of a window of them
+/// differs by no more (`|RMS(a) − RMS(b)| ≤ max |a − b|`): [`RunTrace::reid_check`]'s
+/// tolerance.
+pub fn v_rms_unit(table: &MapTable, steps: u32) -> f64 {
+    let half = (f64::from(DUTY_FULL_SCALE) / (2.0 * f64::from(steps.max(1)))).ceil();
+    let half = half.min(f64::from(DUTY_FULL_SCALE)) as u16;
+    (0..=DUTY_FULL_SCALE - half)
+        .map(|u| i32::from(table.at(u + half)) - i32::from(table.at(u)))
+        .max()
+        .map_or(0.0, |d| f64::from(d) * f64::from(SLM_PER_COUNT))
 }
 
 impl RunTrace {
@@ -337,6 +351,53 @@ impl RunTrace {
         Ok(())
     }
 
+    /// Whether the replay's `REID` lines are the device's (`device`, parsed from its
+    /// transcript): as many, and pair by pair the same breath and verdict, the gain within
+    /// 0.002 (twice the printed digit), the fits within what the replay's running model (the
+    /// `LOADED` line's 6 decimals) moves them (0.5 points, or 0.5 % of `100 − fit`: a fit's
+    /// error scales with its residuals), the window's `v` RMS within `v_rms_unit` slm (what the
+    /// duty read back from the board's pin moves it: [`v_rms_unit`]). Prints each pair; `Err`
+    /// names the first that differs.
+    pub fn reid_check(&self, device: &[ReidLine], v_rms_unit: f64) -> Result<(), String> {
+        let host = self
+            .replayed
+            .iter()
+            .filter(|e| matches!(e, Event::Reid(_)))
+            .map(|e| {
+                let line = e.line::<LINE_MAX>();
+                ReidLine::parse(line.as_str()).map_err(|e| format!("replayed REID: {e:?}"))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        for (h, d) in host.iter().zip(device) {
+            println!(
+                "REID breath {:2}: host {} {:.3} {:.1}/{:.1} {:.3}, device {} {:.3} {:.1}/{:.1} {:.3}",
+                h.breath, h.verdict, h.gain, h.fit, h.running, h.v_rms,
+                d.verdict, d.gain, d.fit, d.running, d.v_rms
+            );
+        }
+        if host.len() != device.len() {
+            return Err(format!(
+                "{} REID lines replayed, {} on the device",
+                host.len(),
+                device.len()
+            ));
+        }
+        let fit_unit = |fit: f64| 0.5f64.max(0.005 * (100.0 - fit).abs());
+        let near =
+            |a: f64, b: f64, unit: f64| (a.is_nan() && b.is_nan()) || (a - b).abs() <= unit + 1e-9;
+        match host.iter().zip(device).find(|(h, d)| {
+            !(h.breath == d.breath
+                && h.verdict == d.verdict
+                && near(h.gain, d.gain, 0.002)
+                && near(h.fit, d.fit, fit_unit(d.fit))
+                && near(h.running, d.running, fit_unit(d.running))
+                && near(h.v_rms, d.v_rms, v_rms_unit))
+        }) {
+            Some((h, d)) => Err(format!("host {h:?}\ndevice {d:?}")),
+            None => Ok(()),
+        }
+    }
+
     /// The run's scores (steps, breaths, duty variation) from the true flow, as
     /// `pump_sim::baseline` scores its host runs; `None` when run mode was shorter than the
     /// demo program's scored part (`pump_sim::baseline::experiment::run_ticks`).
@@ -421,4 +482,27 @@ pub fn reid_replay(
     let map = MapLine::parse(map_line.1).map_err(|e| format!("{}: {e}", map_line.1))?;
     let reid = DEFAULT_CONFIG.reidentification(model, u32::from(b.wave.period()));
     Ok(Some((reid, map.map.table())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ridge_core::InputMap;
+
+    #[test]
+    fn v_rms_unit_is_the_steepest_segment_over_half_a_pin_step() {
+        // 100 counts a knot (600 duty units apart), but 1 000 between knots 7 and 8.
+        let mut knots = [0i16; 16];
+        for (k, v) in knots.iter_mut().enumerate() {
+            *v = 100 * k as i16 + if k >= 8 { 900 } else { 0 };
+        }
+        let table = InputMap::new(0, 600, knots).expect("map").table();
+        // 800 steps: half a step is 10 000 / 1 600 = 6.25 duty units, taken as 7; on the steep
+        // segment 7 · 1 000 / 600 = 11.7 counts (the map rounds down: 11 or 12).
+        let unit = v_rms_unit(&table, 800) / f64::from(SLM_PER_COUNT);
+        assert!((11.0 - 1e-6..=12.0 + 1e-6).contains(&unit), "{unit}");
+        // 5 000 steps: 1 duty unit, 1 000 / 600 = 1.7 counts: 1 or 2.
+        let unit = v_rms_unit(&table, 5000) / f64::from(SLM_PER_COUNT);
+        assert!((1.0 - 1e-6..=2.0 + 1e-6).contains(&unit), "{unit}");
+    }
 }

@@ -29,16 +29,15 @@
 //! the model's map (an independent computation from the plant) for the re-estimated static
 //! gain, the host's build of the same code, the bench's tick detector.
 
+use harness_kit::run::v_rms_unit;
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::iso_row;
 use pump_sim::reid::{closed_valve_step, linearisation, secant_through_map, through_map};
 use pump_sim::vent_bench::power_up_plant;
 use pump_sim::{LungParams, Valve};
-use ridge_pump_firmware::event::{Event, LINE_MAX};
 use ridge_pump_firmware::lines::ReidLine;
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use ridge_pump_firmware::setpoint::Shape;
-use ridge_pump_firmware::units::{DUTY_FULL_SCALE, SLM_PER_COUNT};
 use simavr_harness::bench::{Bench, LungChange};
 use simavr_harness::firmware;
 use simavr_harness::session::SessionConfig;
@@ -251,59 +250,20 @@ fn the_avr_re_identifies_as_the_host_does_with_every_tick_within_the_period() {
 
     // The host's replay of the same code on what the bench observed: the same lines, within
     // what the replay cannot see (the duty read back from the pin, the LOADED line's 6
-    // decimals: the gain's and fits' tolerances of stm32-harness/tests/reid.rs; `v` below).
+    // decimals; `RunTrace::reid_check`).
     let trace = run_trace_ventilated(b, out.breath).expect("replay");
-    let replayed: Vec<ReidLine> = trace
-        .replayed
-        .iter()
-        .filter(|e| matches!(e, Event::Reid(_)))
-        .map(|e| ReidLine::parse(e.line::<LINE_MAX>().as_str()).expect("replayed REID"))
-        .collect();
-    for (h, d) in replayed.iter().zip(&all) {
-        println!(
-            "REID breath {:2}: host {} {:.3} {:.1}/{:.1} {:.3}, device {} {:.3} {:.1}/{:.1} {:.3}",
-            h.breath,
-            h.verdict,
-            h.gain,
-            h.fit,
-            h.running,
-            h.v_rms,
-            d.verdict,
-            d.gain,
-            d.fit,
-            d.running,
-            d.v_rms
-        );
-    }
-    assert_eq!(replayed.len(), all.len(), "{replayed:?}\n{all:?}");
-    // `v` is the map's flow at the duty: the replay reads the duty back from the pin (TOP + 1
-    // steps), the firmware has it in 1/DUTY_FULL_SCALE. One tick's `v` then differs by at most
-    // the map's largest rise over half a pin step, and the RMS of the window's `v` by no more
-    // (|RMS(a) − RMS(b)| ≤ max |a − b|).
     let top = b
         .duty_log
         .iter()
         .map(|d| d.top)
         .max()
         .expect("a duty written");
-    let half_step = (f64::from(DUTY_FULL_SCALE) / (2.0 * (f64::from(top) + 1.0))).ceil() as u16;
-    let v_unit = (0..=DUTY_FULL_SCALE - half_step)
-        .map(|u| i32::from(table.at(u + half_step)) - i32::from(table.at(u)))
-        .max()
-        .map_or(0.0, |d| f64::from(d) * f64::from(SLM_PER_COUNT));
-    println!("v RMS tolerance {v_unit:.3} slm (half a pin step of {top} + 1 through the map)");
-    let fit_unit = |fit: f64| 0.5f64.max(0.005 * (100.0 - fit).abs());
-    let near =
-        |a: f64, b: f64, unit: f64| (a.is_nan() && b.is_nan()) || (a - b).abs() <= unit + 1e-9;
-    for (h, d) in replayed.iter().zip(&all) {
-        assert!(
-            h.breath == d.breath
-                && h.verdict == d.verdict
-                && near(h.gain, d.gain, 0.002)
-                && near(h.fit, d.fit, fit_unit(d.fit))
-                && near(h.running, d.running, fit_unit(d.running))
-                && near(h.v_rms, d.v_rms, v_unit),
-            "host {h:?}\ndevice {d:?}"
-        );
+    let v_unit = v_rms_unit(&table, u32::from(top) + 1);
+    println!(
+        "v RMS tolerance {v_unit:.3} slm (half a step of TOP + 1 = {} through the map)",
+        u32::from(top) + 1
+    );
+    if let Err(e) = trace.reid_check(&all, v_unit) {
+        panic!("{e}");
     }
 }

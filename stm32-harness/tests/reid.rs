@@ -26,13 +26,13 @@
 mod common;
 
 use common::{assert_stopped, iso_lung, row1_in_run_mode, run_to, start_vent_row1, transcript};
+use harness_kit::run::v_rms_unit;
 use pump_sim::baseline::experiment::identify_with;
 use pump_sim::iso::iso_row;
 use pump_sim::reid::{closed_valve_step, linearisation, secant_through_map, through_map};
 use pump_sim::vent_bench::power_up_plant;
 use pump_sim::{LungParams, Valve};
 use ridge_pump_firmware::command::VentArgs;
-use ridge_pump_firmware::event::{Event, LINE_MAX};
 use ridge_pump_firmware::lines::{BreathLine, ReidLine};
 use ridge_pump_firmware::selfid::DEFAULT_CONFIG;
 use ridge_pump_firmware::setpoint::Shape;
@@ -225,47 +225,16 @@ fn the_adult_lung_keeps_its_controller_and_the_stiff_lung_is_re_estimated() {
     };
     let breath = settings(&args, DEFAULT_CONFIG.flow_limit).expect("VENT");
     let trace = run_trace_vent(&b, Some(breath)).expect("replay");
-    let replayed: Vec<ReidLine> = trace
-        .replayed
+    let period = b
+        .duty_log
         .iter()
-        .filter(|e| matches!(e, Event::Reid(_)))
-        .map(|e| {
-            let l = e.line::<LINE_MAX>();
-            ReidLine::parse(l.as_str()).expect("replayed REID")
-        })
-        .collect();
-    assert_eq!(replayed.len(), all.len(), "{replayed:?}\n{all:?}");
-    for (h, d) in replayed.iter().zip(&all) {
-        println!(
-            "REID breath {:2}: host {} {:.3} {:.1}/{:.1} {:.3}, device {} {:.3} {:.1}/{:.1} {:.3}",
-            h.breath,
-            h.verdict,
-            h.gain,
-            h.fit,
-            h.running,
-            h.v_rms,
-            d.verdict,
-            d.gain,
-            d.fit,
-            d.running,
-            d.v_rms
-        );
-    }
-    // The replay's running model is the printed one (6 decimals): its residuals, and so a
-    // fit's error, scale with 100 − fit (e.g. −137.5 % on the lung change's breath).
-    let fit_unit = |fit: f64| 0.5f64.max(0.005 * (100.0 - fit).abs());
-    for (h, d) in replayed.iter().zip(&all) {
-        let near =
-            |a: f64, b: f64, unit: f64| (a.is_nan() && b.is_nan()) || (a - b).abs() <= unit + 1e-9;
-        assert!(
-            h.breath == d.breath
-                && h.verdict == d.verdict
-                && near(h.gain, d.gain, 0.002)
-                && near(h.fit, d.fit, fit_unit(d.fit))
-                && near(h.running, d.running, fit_unit(d.running))
-                && near(h.v_rms, d.v_rms, 0.002),
-            "host {h:?}\ndevice {d:?}"
-        );
+        .map(|d| d.period)
+        .max()
+        .expect("a duty written");
+    let v_unit = v_rms_unit(&table, period);
+    println!("v RMS tolerance {v_unit:.3} slm (half a step of ARR + 1 = {period} through the map)");
+    if let Err(e) = trace.reid_check(&all, v_unit) {
+        panic!("{e}");
     }
     // After the change every other breath is re-estimated too, and none is swapped in.
     let changed: Vec<&ReidLine> = all.iter().filter(|r| r.breath > before).collect();
