@@ -70,12 +70,17 @@ pub fn design(model: &ArxModel<f32>) -> Option<Design<f32>> {
 /// model's slow pole (`Spec::tau`, the firmware's retries, each 1.5 times slower), and the
 /// firmware's reference model on the setpoint all the same (a re-design at the power-up
 /// design's `Design::tau`: the same loop speed and setpoint response, new `R`, `S` for the
-/// new model); `None` as [`design`] when `tau` is `None`.
-pub fn design_at(model: &ArxModel<f32>, tau: Option<f32>) -> Option<Design<f32>> {
+/// new model), keeping the model's poles within `keep_radius` ([`design_verdict`]; `None`: the
+/// firmware's 0.8); [`design`] when `tau` is `None` (`keep_radius` then unused).
+pub fn design_at(
+    model: &ArxModel<f32>,
+    tau: Option<f32>,
+    keep_radius: Option<f32>,
+) -> Option<Design<f32>> {
     let Some(tau) = tau else {
         return design(model);
     };
-    let mut d = design_verdict(model, tau, None).ok()?;
+    let mut d = design_verdict(model, tau, keep_radius).ok()?;
     d.set_reference(REFERENCE_POLE).ok()?;
     Some(d)
 }
@@ -164,7 +169,7 @@ impl Running {
     }
 
     /// [`swapped_at`](Self::swapped_at) with the new design keeping the model's poles within
-    /// `keep_radius` ([`design_verdict`]; `None`, or no `tau`: [`design_at`]'s).
+    /// `keep_radius` ([`design_at`]: `None`, the firmware's 0.8; unused without `tau`).
     pub fn swapped_keeping(
         &self,
         model: ArxModel<f32>,
@@ -179,14 +184,7 @@ impl Running {
         } else {
             model
         };
-        let d = match (tau, keep_radius) {
-            (Some(t), Some(_)) => {
-                let mut d = design_verdict(&model, t, keep_radius).ok()?;
-                d.set_reference(REFERENCE_POLE).ok()?;
-                d
-            }
-            _ => design_at(&model, tau)?,
-        };
+        let d = design_at(&model, tau, keep_radius)?;
         Some((Running::new(model, &d, table, self.ctrl.last(), y), d.tau))
     }
 
