@@ -653,6 +653,17 @@ impl Bench {
         self.ticks.vector()
     }
 
+    /// The transcript for a failure message: every line but those starting with one of
+    /// `leave_out` (e.g. `"RES "`, `"TRACK "`), each as `  [time s] text` on its own line.
+    pub fn transcript(&self, leave_out: &[&str]) -> String {
+        let per_s = f64::from(self.cfg.frequency);
+        self.lines
+            .iter()
+            .filter(|l| !leave_out.iter().any(|p| l.text.starts_with(p)))
+            .map(|l| format!("  [{:8.3} s] {}\n", l.cycle as f64 / per_s, l.text))
+            .collect()
+    }
+
     /// Lines whose keyword is `kw`, with their index.
     pub fn find_lines<'a>(&'a self, kw: &'a str) -> impl Iterator<Item = (usize, &'a Line)> + 'a {
         self.lines

@@ -412,11 +412,7 @@ fn bench(image: &BTreeMap<u32, u8>) -> Bench {
 }
 
 fn transcript(b: &Bench) -> String {
-    b.lines
-        .iter()
-        .filter(|l| !l.text.starts_with("RES "))
-        .map(|l| format!("  [{:8.3} s] {}\n", l.cycle as f64 / 16e6, l.text))
-        .collect()
+    b.transcript(&["RES "])
 }
 
 fn first(b: &Bench, kw: &str) -> Option<usize> {

@@ -57,11 +57,7 @@ const MODEL_SEED: u64 = 3;
 const CHANGE: u32 = 10;
 
 fn transcript(b: &Bench) -> String {
-    b.lines
-        .iter()
-        .filter(|l| !l.text.starts_with("RES ") && !l.text.starts_with("TRACK "))
-        .map(|l| format!("  [{:8.3} s] {}\n", l.cycle as f64 / 16e6, l.text))
-        .collect()
+    b.transcript(&["RES ", "TRACK "])
 }
 
 fn reids(b: &Bench) -> Vec<ReidLine> {

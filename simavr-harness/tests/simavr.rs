@@ -83,12 +83,7 @@ fn session(pump: PumpParams, seed: u64) -> Outcome {
 }
 
 fn transcript(o: &Outcome) -> String {
-    o.bench
-        .lines
-        .iter()
-        .filter(|l| !l.text.starts_with("RES "))
-        .map(|l| format!("  [{:8.3} s] {}\n", l.cycle as f64 / 16e6, l.text))
-        .collect()
+    o.bench.transcript(&["RES "])
 }
 
 /// Checks of one identification session; returns the list of failures.

@@ -49,11 +49,7 @@ fn elf() -> PathBuf {
 }
 
 fn transcript(b: &Bench) -> String {
-    b.lines
-        .iter()
-        .filter(|l| !l.text.starts_with("RES ") && !l.text.starts_with("TRACK "))
-        .map(|l| format!("  [{:8.3} s] {}\n", l.cycle as f64 / 16e6, l.text))
-        .collect()
+    b.transcript(&["RES ", "TRACK "])
 }
 
 /// The row's lung (the adult preset's exhalation valve, 5 cmH₂O/(L/s)).
